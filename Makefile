@@ -1,0 +1,37 @@
+# bbzide: two commands on a fresh machine.
+#   make run    set up (venv, pinned deps) and open the IDE on the default world
+#   make test   set up and run every test (lint, unit, corpus conformance, browser)
+# Also: make bench (benchmarks/*.py), make lint, make clean.
+
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: setup run test bench lint browser clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --disable-pip-version-check -q -e '.[dev]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+# Debian's Chromium drives the browser tests (Playwright never downloads a browser here).
+browser:
+	@bash scripts/ensure_chromium.sh
+
+run: setup
+	$(VENV)/bin/bbzide $(ARGS)
+
+lint: setup
+	$(VENV)/bin/ruff check bbzide tests benchmarks experiments
+
+test: setup browser lint
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+bench: setup
+	@set -e; for bench in benchmarks/*_bench.py; do echo "== $$bench"; $(PY) $$bench; done
+
+clean:
+	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

@@ -1,0 +1,7 @@
+"""`python -m bbzide` = the `bbzide` command."""
+
+import sys
+
+from bbzide.cli import main
+
+sys.exit(main())

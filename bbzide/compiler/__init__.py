@@ -1,0 +1,1 @@
+"""bbzide.compiler room (see ARCHITECTURE.md)."""

@@ -1,0 +1,1 @@
+"""bbzide.ui room (see ARCHITECTURE.md)."""

@@ -1,0 +1,1 @@
+"""bbzide.vm room (see ARCHITECTURE.md)."""

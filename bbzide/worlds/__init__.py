@@ -1,0 +1,1 @@
+"""bbzide.worlds room (see ARCHITECTURE.md)."""

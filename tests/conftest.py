@@ -1,0 +1,1 @@
+"""Shared pytest setup: the tests directory is importable (`import corpus`)."""
