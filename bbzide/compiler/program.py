@@ -1,0 +1,57 @@
+"""The compiler's products: `CompiledProgram` (bzzc's outputs) and `BittyBuzzProgram` (bo2bbo's).
+
+Both carry the bytes byte-identical to the reference tools plus what the VM and the IDE need:
+the string table by id, and a debug map from code offset to `SourceLocation`. For a
+`BittyBuzzProgram` the offsets are `.bbo` offsets, i.e. VM program counters.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from bbzide.compiler.bo2bbo import bo_to_bbo
+from bbzide.diagnostics import SourceLocation
+
+
+@dataclass(slots=True)
+class BittyBuzzProgram:
+    """A `.bbo` and its string table / debug map (keyed by `.bbo` offset = VM pc)."""
+
+    bbo: bytes
+    strings: list[str]
+    debug_map: dict[int, SourceLocation] = field(default_factory=dict)
+    bo_to_bbo: dict[int, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def location_of(self, pc: int) -> SourceLocation | None:
+        return self.debug_map.get(pc)
+
+    def string_id(self, name: str) -> int | None:
+        try:
+            return self.strings.index(name)
+        except ValueError:
+            return None
+
+
+@dataclass(slots=True)
+class CompiledProgram:
+    """bzzc's outputs: `.basm` text, `.bo`, `.bdb`, strings, debug map keyed by `.bo` offset."""
+
+    basm: str
+    bo: bytes
+    bdb: bytes
+    strings: list[str]
+    debug_map: dict[int, SourceLocation] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    filename: str = "<bo>"
+
+    def to_bbo(self) -> BittyBuzzProgram:
+        conversion = bo_to_bbo(self.bo, self.filename)
+        debug_map = {
+            conversion.bo_to_bbo[offset]: location
+            for offset, location in self.debug_map.items()
+            if offset in conversion.bo_to_bbo
+        }
+        return BittyBuzzProgram(
+            conversion.bbo, list(self.strings), debug_map, conversion.bo_to_bbo, conversion.warnings
+        )
