@@ -5,21 +5,38 @@ parser/code generator and returns the `.basm` text, the syntax tree, warnings an
 that were included. All user mistakes raise `bbzide.diagnostics.CompileError` with the
 reference's line:col.
 
-Quirk decisions (`reference_quirks=False`, the default, vs `True`, byte-for-byte bzzparse):
+Quirk decisions. `reference_quirks=True` reproduces bzzparse byte for byte (the corpus tests use
+it); the default mode is for users. Each row: reference behaviour -> default / reference mode.
 
-| reference behaviour | default mode | reference mode |
-|---|---|---|
-| string escapes over-read: `"tab\\there"` -> `tab<TAB>here"` | decoded correctly (`tab<TAB>here`), warning "bzzc would compile this string as ..." | over-read reproduced |
-| `\\n` escape puts a raw newline into the `.basm` (bzzasm rejects it) | kept (the string means a newline), warning | kept |
-| any word starting with `include` is an include directive (`included_count = 1` fails) | an identifier, with a warning that bzzc rejects it | directive (error "expected string after include") |
-| include looked up only in the CWD and the include path | then also next to the including file (warning says so) | CWD and include path only |
-| `_` not allowed as first identifier character | rejected in both, with a hint (code must still build with bzzc) | rejected |
-| `not` negates the whole rest of the condition | kept (changing it would change program meaning vs bzzc) | kept |
-| no short-circuit for `and`/`or` | kept (same reason) | kept |
-| `var` in a top-level `if/while/for` block makes a local with no function active (bzzrun crashes) | same code, warning | same code |
-| a stray top-level `}` silently ends the script | CompileError "unmatched }" | rest of file ignored |
-| bare identifier as the last statement crashes bzzparse | CompileError "expected function call or assignment" | same error |
-| errors at end of file have no position | position of the last token | same |
+1. String escapes over-read (`"tab\\there"` becomes `tab<TAB>here"`, spec §A.2).
+   default: decoded as written (`tab<TAB>here`) + warning "bzzc would compile this string as ...";
+   reference: the over-read is reproduced.
+2. A `\\n` escape puts a raw newline into the `.basm` string table (bzzasm then rejects it).
+   default: kept (the string means a newline) + warning; reference: kept.
+3. Any word starting with `include` is an include directive (`included_count = 1` fails).
+   default: such a word is an identifier + warning that bzzc rejects it;
+   reference: directive ("Syntax error: expected string after include").
+4. Includes are looked up in the process CWD, then the include path (BUZZ_INCLUDE_PATH).
+   default: then also in the including file's folder (extension) + warning;
+   reference: CWD and include path only ("Can't read ...").
+5. `_` is not accepted as the first character of an identifier.
+   both: rejected ("unknown character '_'") with a hint: scripts must still build with bzzc.
+6. `not` negates the whole rest of the condition (`not a and b` = `not (a and b)`).
+   both: kept; changing it would give a program that behaves differently on the robot.
+7. `and` / `or` do not short-circuit (both operands are evaluated).
+   both: kept, same reason.
+8. `var` in a top-level `if`/`while`/`for` block makes a local with no function active
+   (lstore/lload at top level; bzzrun crashes on it).
+   default: same code + warning; reference: same code, no warning.
+9. A stray top-level `}` silently ends the script (the rest of the file is ignored).
+   default: CompileError "unmatched }"; reference: the rest is ignored.
+10. A bare identifier as the last statement crashes bzzparse (SIGSEGV).
+   both: CompileError "expected function call or assignment" at the identifier.
+11. Errors at the end of the file carry no position (`NAME.bzz: Syntax error: ...`).
+   both: the same message, located at the last token of the script.
+12. Not quirks but easy to trip on, kept in both modes as the reference: `0x1F` is `0` then
+   `x1F`; `1.2.3` is a float; newlines and `;` are optional separators
+   (`for (i = 0; ...)` fails with "expected ,").
 """
 
 from __future__ import annotations

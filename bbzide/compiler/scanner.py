@@ -1,4 +1,4 @@
-"""The Buzz lexer: source text -> tokens, with `include` handled inside the lexer (as bzzparse does).
+"""The Buzz lexer: source text -> tokens, `include` handled inside the lexer (as bzzparse does).
 
 Design: a pull scanner. The parser asks for one token at a time (`next_token`), so lexer errors
 surface in the same order as in the reference (a syntax error earlier in the file wins over an
@@ -70,6 +70,7 @@ SINGLE_CHAR: dict[str, str] = {
     "^": POW, "&": BANDOR, "|": BANDOR,
 }
 WHITESPACE = " \t\r"
+IDENTIFIER_CHARS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_")
 ESCAPES = {"n": "\n", "t": "\t", "\\": "\\"}
 _INCLUDE = "include"
 
@@ -229,7 +230,8 @@ class Scanner:
                 continue
             if text.startswith(_INCLUDE, pos):
                 after = text[pos + len(_INCLUDE)] if pos + len(_INCLUDE) < n else ""
-                if self.reference_quirks or not (after.isascii() and (after.isalnum() or after == "_")):
+                continues_word = after.isascii() and (after.isalnum() or after == "_")
+                if self.reference_quirks or not continues_word:
                     self._include(f)
                     continue
                 self.warn(f"{user_text(f.path)}:{f.line}:{pos - f.line_start}: bzzc takes any word "
@@ -239,7 +241,7 @@ class Scanner:
             line = f.line
             if c.isascii() and c.isalpha():
                 end = pos + 1
-                while end < n and (text[end].isascii() and (text[end].isalnum() or text[end] == "_")):
+                while end < n and text[end] in IDENTIFIER_CHARS:
                     end += 1
                 word = text[pos:end]
                 f.pos = end
