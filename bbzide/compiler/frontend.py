@@ -73,12 +73,11 @@ def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
         except OSError as exc:
             raise CompileError(f"Can't read '{path_text}': {exc.strerror}") from None
     else:
-        data = source.encode("utf-8", errors="surrogateescape")
+        data = _source_bytes(source)
     warnings: list[str] = []
     scanner = Scanner(path_text, data, include_path=include_path,
                       reference_quirks=reference_quirks, warn=warnings.append)
-    codegen = CodeGenerator([T.bytes_text(s.encode("utf-8", errors="surrogateescape"))
-                             for s in string_table or ()])
+    codegen = CodeGenerator([T.bytes_text(_source_bytes(s)) for s in string_table or ()])
     parser = Parser(scanner, codegen, path_text, reference_quirks=reference_quirks,
                     warn=warnings.append)
     try:
@@ -92,5 +91,15 @@ def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
         if "\n" in text:
             warnings.append(f"the string {user_text(text)!r} contains a newline: bzzasm "
                             "cannot assemble it (the .basm string table is one string per line)")
-    basm = codegen.render()
-    return FrontendResult(user_text(basm), tree, warnings, scanner.included_files)
+    # back from one-char-per-byte to text; bytes that are not UTF-8 survive as surrogates, so
+    # `basm.encode("utf-8", "surrogateescape")` gives exactly the bytes bzzparse writes
+    basm = codegen.render().encode("latin-1").decode("utf-8", errors="surrogateescape")
+    return FrontendResult(basm, tree, warnings, scanner.included_files)
+
+
+def _source_bytes(text: str) -> bytes:
+    """Editor text -> the bytes bzzc would read (surrogate-escaped bytes restored)."""
+    try:
+        return text.encode("utf-8", errors="surrogateescape")
+    except UnicodeEncodeError:  # a lone surrogate that is no escaped byte
+        return text.encode("utf-8", errors="replace")
