@@ -177,7 +177,7 @@ class Parser:
         self.advance()
         self.expect(T.ID)
         name = self.tok.text
-        self.node("var", start, name)
+        self.nodes.append(self.node("var", start, name).children)
         existing = self.lookup(name)
         if existing is not None and not existing.is_global:
             raise CompileError(f"Duplicated symbol '{name}' (a local variable of that name is "
@@ -203,6 +203,7 @@ class Parser:
         else:
             self.emit("pushnil")
         self.emit("gstore" if symbol.is_global else f"lstore {symbol.slot}")
+        self.nodes.pop()
 
     def fundef(self) -> None:
         start = self.tok
@@ -255,6 +256,7 @@ class Parser:
 
     def if_stat(self) -> None:
         node = self.node("if", self.tok)
+        self.nodes.append(node.children)
         else_label, end_label = self.gen.new_label(), self.gen.new_label()
         self.advance()
         self.expect(T.PAROPEN, "Buzz needs parentheses around the condition: if (x) ...")
@@ -263,7 +265,6 @@ class Parser:
         self.expect(T.PARCLOSE)
         self.advance()
         self.emit(f"jumpz @__label_{else_label}")
-        self.nodes.append(node.children)
         self.blockstat()
         if self.tok.kind == T.ELSE:
             self.advance()
@@ -277,6 +278,7 @@ class Parser:
 
     def while_stat(self) -> None:
         node = self.node("while", self.tok)
+        self.nodes.append(node.children)
         start_label, end_label = self.gen.new_label(), self.gen.new_label()
         self.advance()
         self.expect(T.PAROPEN, "Buzz needs parentheses around the condition: while (x) ...")
@@ -286,7 +288,6 @@ class Parser:
         self.expect(T.PARCLOSE)
         self.advance()
         self.emit(f"jumpz @__label_{end_label}")
-        self.nodes.append(node.children)
         self.blockstat()
         self.nodes.pop()
         self.emit(f"jump @__label_{start_label}")
@@ -294,6 +295,7 @@ class Parser:
 
     def for_stat(self) -> None:
         node = self.node("for", self.tok)
+        self.nodes.append(node.children)
         cond, update, body, end = (self.gen.new_label() for _ in range(4))
         hint = "Buzz writes for loops as for (init, condition, update)"
         self.advance()
@@ -314,7 +316,6 @@ class Parser:
         self.advance()
         self.emit(f"jump @__label_{cond}")
         self.gen.emit_label(body, self.tok)
-        self.nodes.append(node.children)
         self.blockstat()
         self.nodes.pop()
         self.emit(f"jump @__label_{update}")
@@ -322,21 +323,27 @@ class Parser:
 
     def command(self) -> None:
         start = self.tok
+        node = self.node("return" if start.kind == T.RETURN else "call", start,
+                         start.text if start.kind == T.ID else None)
+        self.nodes.append(node.children)
         if start.kind == T.RETURN:
-            self.node("return", start)
             self.advance()
             if self.tok.kind == T.BLOCKCLOSE:
                 self.emit("ret0")
             else:
                 self.condition()
                 self.emit("ret1")
-            return
+        else:
+            self.assignment_or_call(node)
+        self.nodes.pop()
+
+    def assignment_or_call(self, node: Node) -> None:
         info, is_global = self.idref(lvalue=True)
         if self.tok.kind == T.ASSIGN:
             if info == CLOSURE:
                 raise self.error("can't have a function call as lvalue",
                                  "a call's result cannot be assigned to")
-            self.node("assign", start, start.text)
+            node.kind = "assign"
             if is_global:
                 self.emit(f"pushs {info}")
             self.advance()
@@ -348,7 +355,6 @@ class Parser:
             else:
                 self.emit("tput")
         elif info == CLOSURE:
-            self.node("call", start, start.text)
             self.emit("pop")
         else:
             raise self.error("expected function call or assignment",
@@ -535,6 +541,8 @@ class Parser:
         if symbol is None:
             symbol = self.global_symbol(name)
         info, is_global = symbol.slot, symbol.is_global
+        ref = self.node("ref", self.tok, name)
+        ref.scope = f"global (string id {info})" if is_global else f"local slot {info}"
         outer = self.gen.out
         own: list[str] = []
         self.gen.out = own
@@ -587,8 +595,7 @@ class Parser:
                         self.advance()
                         self.condition()
                         count += 1
-                if self.tok.kind != T.PARCLOSE:
-                    raise self.error(f"expected , or ), found {self.found()}")
+                self.expect(T.PARCLOSE, "arguments are separated by commas")
                 self.advance()
                 if self.tok.kind == T.PAROPEN:
                     # the self slot of a chained call goes before everything of this idref
