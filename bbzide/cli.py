@@ -10,7 +10,12 @@
     bbzide replay X.rrd         the browser IDE in replay mode (bbzide.ui.commands)
 
 Each room's `commands` module exposes `register(subparsers)`; rooms are imported lazily so that
-`bbzide compile` never pays for importing viser. This file only routes and turns `UserError`
+`bbzide compile` never pays for importing viser. `run` is shared by two rooms, so it is defined
+here: `bbzide.vm.commands.add_run_arguments(parser)` adds the single-robot options (the corpus
+harness's: --platform, --robot, --reg, --inject, --loop, --seed, --dump, ...) and
+`bbzide.worlds.commands.add_world_run_arguments(parser)` the swarm options (--world, --robots, ...);
+with `--world` the worlds room runs it (`run_world(args)`), otherwise the VM room
+(`run_single_robot(args)`). This file only routes and turns `UserError`
 into a one-screen message with exit status 1: no traceback reaches a user.
 """
 
@@ -46,7 +51,43 @@ def build_parser() -> argparse.ArgumentParser:
                 raise
             continue
         module.register(subparsers)
+    _register_run(subparsers)
     return parser
+
+
+def _optional_module(name: str):  # noqa: ANN202 - a module or None
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as missing:
+        if missing.name != name:
+            raise
+        return None
+
+
+def _register_run(subparsers: argparse._SubParsersAction) -> None:
+    vm_commands = _optional_module("bbzide.vm.commands")
+    world_commands = _optional_module("bbzide.worlds.commands")
+    if vm_commands is None and world_commands is None:
+        return
+    run = subparsers.add_parser(
+        "run",
+        help="run a Buzz script: one robot on the VM model, or a swarm in a world (--world)",
+    )
+    if vm_commands is not None:
+        vm_commands.add_run_arguments(run)
+    if world_commands is not None:
+        world_commands.add_world_run_arguments(run)
+
+    def dispatch(args: argparse.Namespace) -> int:
+        if getattr(args, "world", None):
+            if world_commands is None:
+                raise UserError("worlds are not available in this build")
+            return int(world_commands.run_world(args) or 0)
+        if vm_commands is None:
+            raise UserError("give --world: single-robot runs are not available in this build")
+        return int(vm_commands.run_single_robot(args) or 0)
+
+    run.set_defaults(handler=dispatch)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

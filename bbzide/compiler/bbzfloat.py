@@ -69,7 +69,7 @@ def from_float(value: float) -> int:
 
 
 def to_float(bbz: int) -> float:
-    """Decode a bbzfloat (`bbzfloat_tofloat`) to a Python float (exact: every bbzfloat is a float32)."""
+    """Decode a bbzfloat (`bbzfloat_tofloat`) to a Python float (exact: bbzfloats are float32s)."""
     sign = -1.0 if bbz & SIGN_BIT else 1.0
     exponent = (bbz >> EXPONENT_SHIFT) & EXPONENT_MASK
     fraction = bbz & FRACTION_MASK
