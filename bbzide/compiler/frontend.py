@@ -50,7 +50,7 @@ from bbzide.compiler.codegen import CodeGenerator
 from bbzide.compiler.parser import Parser
 from bbzide.compiler.scanner import Scanner, user_text
 from bbzide.compiler.syntax_tree import Node
-from bbzide.diagnostics import CompileError, SourceLocation
+from bbzide.diagnostics import CompileError
 
 
 @dataclass
@@ -83,10 +83,11 @@ def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
     try:
         tree = parser.parse_script()
     except RecursionError:
-        tok = parser.tok
-        raise CompileError("script nested too deeply to compile",
-                           SourceLocation(user_text(tok.file or path_text), tok.line, tok.col)
-                           ) from None
+        tok = parser.tok if parser.tok.kind != T.EOF else scanner.last
+        if tok.file is None:
+            raise CompileError("script nested too deeply to compile") from None
+        raise scanner.error_at(tok, "script nested too deeply to compile (Python's recursion "
+                                    "limit; split the expression or the nested blocks)") from None
     for text in codegen.strings:
         if "\n" in text:
             warnings.append(f"the string {user_text(text)!r} contains a newline: bzzasm "

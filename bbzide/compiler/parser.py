@@ -20,7 +20,7 @@ from bbzide.compiler import scanner as T
 from bbzide.compiler.codegen import CodeGenerator
 from bbzide.compiler.scanner import Scanner, Token, user_text
 from bbzide.compiler.syntax_tree import Node
-from bbzide.diagnostics import CompileError, SourceLocation
+from bbzide.diagnostics import CompileError
 
 # Sentinels for `idref`'s "what has been referenced so far" (reference: negative values).
 TABLE = -1
@@ -66,8 +66,8 @@ class Parser:
             last = self.scanner.last
             if last.file is None:
                 return CompileError(f"{text} (at the end of {self.script_name})")
-            return CompileError(text, SourceLocation(user_text(last.file), last.line, last.col))
-        return CompileError(text, SourceLocation(user_text(tok.file or ""), tok.line, tok.col))
+            return self.scanner.error_at(last, text)
+        return self.scanner.error_at(tok, text)
 
     def found(self) -> str:
         return "end of file" if self.tok.kind == T.EOF else self.tok.kind
@@ -180,10 +180,8 @@ class Parser:
         self.nodes.append(self.node("var", start, name).children)
         existing = self.lookup(name)
         if existing is not None and not existing.is_global:
-            raise CompileError(f"Duplicated symbol '{name}' (a local variable of that name is "
-                               "already visible here)",
-                               SourceLocation(user_text(self.tok.file or ""), self.tok.line,
-                                              self.tok.col))
+            raise self.scanner.error_at(self.tok, f"Duplicated symbol '{name}' (a local variable "
+                                                  "of that name is already visible here)")
         if len(self.scopes) == 1:
             symbol = self.global_symbol(name)
             self.emit(f"pushs {symbol.slot}")

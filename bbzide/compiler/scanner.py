@@ -123,6 +123,7 @@ class Scanner:
         self.warn = warn or (lambda message: None)
         self.included_files: list[str] = []
         self.stack: list[_OpenFile] = []
+        self.texts: dict[str, str] = {}  # realpath -> text of every file read (for messages)
         self.main_realpath = bytes_text(os.fsencode(os.path.realpath(path)))
         self._push(source_bytes, self.main_realpath, str(path))
         self.last: Token = EOF_TOKEN  # the last real token handed out
@@ -131,16 +132,26 @@ class Scanner:
 
     def _push(self, data: bytes, realpath: str, display: str) -> None:
         self.stack.append(_OpenFile(bytes_text(data) + "\n", realpath, display))
+        self.texts.setdefault(realpath, self.stack[-1].text)
+
+    def source_line(self, realpath: str | None, line: int) -> str | None:
+        """Line `line` (1-based) of a file this scanner read, as the user wrote it."""
+        text = self.texts.get(realpath) if realpath is not None else None
+        if text is None:
+            return None
+        lines = text.split("\n")
+        return user_text(lines[line - 1]) if 1 <= line <= len(lines) else None
+
+    def error_at(self, token: Token, message: str) -> CompileError:
+        """A CompileError located at `token` (which must come from a file, not EOF)."""
+        return CompileError(message, SourceLocation(user_text(token.file or ""), token.line,
+                                                    token.col),
+                            self.source_line(token.file, token.line))
 
     def _error(self, f: _OpenFile, message: str, col: int, line: int | None = None) -> CompileError:
         line = f.line if line is None else line
         return CompileError(message, SourceLocation(user_text(f.path), line, col),
-                            user_text(self._line_text(f, line)))
-
-    @staticmethod
-    def _line_text(f: _OpenFile, line: int) -> str:
-        lines = f.text.split("\n")
-        return lines[line - 1] if 1 <= line <= len(lines) else ""
+                            self.source_line(f.path, line))
 
     def _find_include(self, name: str, f: _OpenFile) -> str | None:
         candidates = [name]

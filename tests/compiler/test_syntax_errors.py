@@ -87,3 +87,18 @@ def test_bare_identifier_at_eof_is_a_proper_error(monkeypatch):
 def test_zz_summary():
     print(f"\nerror scripts: {sum(RESULTS.values())}/{len(ERROR_SCRIPTS)} as the reference")
     assert len(RESULTS) == len(ERROR_SCRIPTS) == 21
+
+
+def test_error_in_editor_buffer_shows_the_buffer_line(tmp_path):
+    script = tmp_path / "buffer.bzz"
+    script.write_text("x = 1\n")  # the saved file differs from the editor buffer
+    with pytest.raises(CompileError) as info:
+        compile_to_basm(script, source="x = 1\ny = (2\n")
+    rendered = info.value.render()
+    assert f"{script.resolve()}:2:5: error: Syntax error: expected ), found end of file" in rendered
+    assert rendered.splitlines()[1:] == ["  y = (2", "       ^"]
+
+
+def test_deep_nesting_is_a_compile_error(tmp_path):
+    with pytest.raises(CompileError, match="nested too deeply"):
+        compile_to_basm(tmp_path / "deep.bzz", source="x = " + "(" * 3000 + "1\n")
