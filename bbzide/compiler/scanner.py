@@ -292,7 +292,7 @@ class Scanner:
                 return self._string(f, pos, line, col)
             shown = user_text(c) if ord(c) < 128 else f"\\x{ord(c):02x}"
             raise self._error(f, f"Syntax error: unknown character '{shown}' (octal: {ord(c):o}; "
-                                 f"hex: {ord(c):x})" + _unknown_char_hint(c), col - 1)
+                                 f"hex: {ord(c):x})" + _unknown_char_hint(c), _lexer_col(col))
         return EOF_TOKEN
 
     def _string(self, f: _OpenFile, start: int, line: int, col: int) -> Token:
@@ -303,7 +303,8 @@ class Scanner:
         line_now, line_start = f.line, f.line_start
         while True:
             if end >= n:
-                raise self._error(f, "Syntax error: string closing quote not found", col - 1, line)
+                raise self._error(f, "Syntax error: string closing quote not found",
+                                  _lexer_col(col), line)
             ch = text[end]
             if ch == quote and not (text[end - 1] == "\\" and text[end - 2] != "\\"):
                 break
@@ -368,3 +369,9 @@ def _unknown_char_hint(c: str) -> str:
     if c == "_":
         return " (Buzz identifiers must start with a letter)"
     return ""
+
+
+def _lexer_col(col: int) -> int:
+    """Column the reference prints for a lexer error: one left of the character (corpus README
+    §6). At column 0 that would be -1; we print 0, since a column cannot be negative."""
+    return max(col - 1, 0)

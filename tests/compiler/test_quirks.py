@@ -53,7 +53,7 @@ def test_include_next_to_including_file(tmp_path, monkeypatch):
 def test_underscore_first_is_rejected(tmp_path, quirks):
     with pytest.raises(CompileError, match="unknown character '_'") as info:
         compile_text(tmp_path, "_x = 1\n", reference_quirks=quirks)
-    assert (info.value.location.line, info.value.location.col) == (1, -1)
+    assert (info.value.location.line, info.value.location.col) == (1, 0)  # not -1
 
 
 @pytest.mark.parametrize("quirks", [False, True])
