@@ -50,6 +50,10 @@ class CodeGenerator:
         self.label_counter += 1
         return label
 
+    def register_function(self, string_id: int, label: int) -> None:
+        """A named function: `pushs S / pushcn @__label_L / gstore` in the prologue."""
+        self.registrations.append((string_id, label))
+
     # -- chunks --------------------------------------------------------------------------
 
     def open_chunk(self, label: int) -> list[str]:

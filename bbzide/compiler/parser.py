@@ -39,6 +39,9 @@ class Symbol:
 
 
 class Parser:
+    """One parse of one script (and its includes); `parse_script` returns the syntax tree and
+    leaves the `.basm` in the code generator."""
+
     def __init__(self, scanner: Scanner, codegen: CodeGenerator, script_name: str, *,
                  reference_quirks: bool = False,
                  warn: Callable[[str], None] | None = None) -> None:
@@ -214,7 +217,7 @@ class Parser:
                 f"local functions, use the lambda syntax {name} = function() {{ ... }}.")
         symbol = self.global_symbol(name)
         label = self.gen.new_label()
-        self.gen.registrations.append((symbol.slot, label))
+        self.gen.register_function(symbol.slot, label)
         previous = self.gen.open_chunk(label)
         node = self.node("function", start, name)
         self.advance()
