@@ -35,11 +35,13 @@ __all__ = [
 
 
 def debug_map_from_records(
-    records: Sequence[tuple[int, SourceLocation]], instruction_offsets: Sequence[int]
+    records: Sequence[tuple[int, SourceLocation]],
+    instruction_offsets: Sequence[int],
+    fallback: SourceLocation | None = None,
 ) -> dict[int, SourceLocation]:
     """offset -> SourceLocation for every instruction: its own `.bdb` record, else the previous
     instruction's location, else (the registration prologue, which bzzparse leaves unannotated)
-    the first location that follows."""
+    the first location that follows; `fallback` (start of the script) when there is none."""
     recorded = dict(records)
     debug_map: dict[int, SourceLocation] = {}
     pending: list[int] = []
@@ -54,17 +56,23 @@ def debug_map_from_records(
         pending.clear()
         debug_map[offset] = location
         previous = location
+    if fallback is not None:
+        for waiting in pending:
+            debug_map[waiting] = fallback
     return debug_map
 
 
-def _program_from_basm(basm: str, filename: str, warnings: list[str]) -> CompiledProgram:
+def _program_from_basm(
+    basm: str, filename: str, warnings: list[str], source_file: str
+) -> CompiledProgram:
     assembly = assemble(basm, filename)
     bytecode = read_bo(assembly.bo, filename)
     records = [
         (record.offset, SourceLocation(record.file.decode("utf-8", "surrogateescape"), record.line, record.col))
         for record in assembly.debug_records
     ]
-    debug_map = debug_map_from_records(records, [i.offset for i in bytecode.instructions])
+    offsets = [i.offset for i in bytecode.instructions]
+    debug_map = debug_map_from_records(records, offsets, SourceLocation(source_file, 1, 0))
     return CompiledProgram(
         basm=basm,
         bo=assembly.bo,
@@ -95,7 +103,8 @@ def compile_file(
         reference_quirks=reference_quirks,
     )
     name = Path(os.fspath(path)).stem + ".bo"
-    return _program_from_basm(result.basm, name, list(result.warnings))
+    source_file = os.path.realpath(os.fspath(path))
+    return _program_from_basm(result.basm, name, list(result.warnings), source_file)
 
 
 def compile_source(
