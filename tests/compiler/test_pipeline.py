@@ -32,7 +32,8 @@ def _scripts(directory):
     return [p for p in sorted(directory.glob("*.bzz")) if p.with_suffix(".bo").exists()]
 
 
-def test_compiler_corpus_bo_and_bdb_identical() -> None:
+def test_compiler_corpus_bo_and_bdb_identical(monkeypatch) -> None:
+    monkeypatch.chdir(COMPILER_DIR)  # the reference ran in the script's folder (README §1)
     scripts = _scripts(COMPILER_DIR)
     failures = []
     for script in scripts:
@@ -49,7 +50,8 @@ def test_compiler_corpus_bo_and_bdb_identical() -> None:
     assert not failures, failures
 
 
-def test_bbz_corpus_bo_bdb_bbo_identical() -> None:
+def test_bbz_corpus_bo_bdb_bbo_identical(monkeypatch) -> None:
+    monkeypatch.chdir(BBZ_DIR)
     scripts = _scripts(BBZ_DIR)
     failures = []
     for script in scripts:
