@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.bytecode import read_strings
 from bbzide.compiler.opcodes import OPCODE_COUNT, Op
-from bbzide.diagnostics import BytecodeError, SourceLocation
+from bbzide.diagnostics import BytecodeError
 
 _INT16_OPS = frozenset({Op.PUSHI, Op.PUSHS, Op.LLOAD, Op.LSTORE, Op.LREMOVE})
 _ADDRESS_OPS = frozenset({Op.PUSHCN, Op.PUSHCC, Op.PUSHL, Op.JUMP, Op.JUMPZ, Op.JUMPNZ})
@@ -44,14 +44,14 @@ def bo_to_bbo(bo: bytes, name: str = "<bo>") -> Conversion:
         output.append(opcode)
         if opcode >= OPCODE_COUNT:
             raise BytecodeError(
-                f"{name}: offset {position}: unknown opcode {opcode}", SourceLocation(name, 0, position)
+                f"{name}: offset {position}: unknown opcode {opcode}"
             )
         position += 1
         if opcode < Op.PUSHF:
             continue
         if position + 4 > size:
             raise BytecodeError(
-                f"{name}: offset {position - 1}: truncated operand", SourceLocation(name, 0, position - 1)
+                f"{name}: offset {position - 1}: truncated operand"
             )
         raw = bo[position : position + 4]
         if opcode == Op.PUSHF:

@@ -66,7 +66,7 @@ class Bytecode:
 
 
 def _error(name: str, offset: int, message: str) -> BytecodeError:
-    return BytecodeError(f"{name}: offset {offset}: {message}", SourceLocation(name, 0, offset))
+    return BytecodeError(f"{name}: offset {offset}: {message}")
 
 
 def read_strings(data: bytes, name: str) -> tuple[int, list[str], int]:
