@@ -37,7 +37,8 @@ def generated_script(lines: int) -> str:
             "  return x",
             "}",
             f"var i{index} = 0",
-            f"while (i{index} < 3) {{ total = total + f{index}(i{index}, 1.5)  i{index} = i{index} + 1 }}",
+            f"while (i{index} < 3) {{ total = total + f{index}(i{index}, 1.5)  "
+            f"i{index} = i{index} + 1 }}",
         ]
         index += 1
     return "\n".join(out) + "\n"
@@ -62,7 +63,8 @@ def report(name: str, path: Path) -> None:
     front, back, basm_lines, bbo_size = measure(path)
     source_lines = path.read_text().count("\n")
     print(
-        f"{name:28s} {source_lines:6d} src lines {basm_lines:7d} basm lines  front {front * 1000:7.1f} ms"
+        f"{name:28s} {source_lines:6d} src lines {basm_lines:7d} basm lines  "
+        f"front {front * 1000:7.1f} ms"
         f"  back {back * 1000:7.1f} ms  total {(front + back) * 1000:7.1f} ms  .bbo {bbo_size} B"
     )
 

@@ -68,7 +68,10 @@ def _program_from_basm(
     assembly = assemble(basm, filename)
     bytecode = read_bo(assembly.bo, filename)
     records = [
-        (record.offset, SourceLocation(record.file.decode("utf-8", "surrogateescape"), record.line, record.col))
+        (
+            record.offset,
+            SourceLocation(record.file.decode("utf-8", "surrogateescape"), record.line, record.col),
+        )
         for record in assembly.debug_records
     ]
     offsets = [i.offset for i in bytecode.instructions]
@@ -150,10 +153,14 @@ def load_program(
     decoded = read_bo(bo_bytes, bo_name)
     conversion = bo_to_bbo(bo_bytes, bo_name)
     if conversion.bbo != bbo:
-        raise BytecodeError(f"{name}: does not match {bo_name} (the .bo converts to a different .bbo)")
+        raise BytecodeError(
+            f"{name}: does not match {bo_name} (the .bo converts to a different .bbo)"
+        )
     debug_map: dict[int, SourceLocation] = {}
     if bdb_bytes is not None:
         records = read_bdb(bdb_bytes, "<bdb>" if isinstance(bdb, bytes) else Path(bdb).name)
         by_bo = debug_map_from_records(records, [i.offset for i in decoded.instructions])
         debug_map = {conversion.bo_to_bbo[offset]: loc for offset, loc in by_bo.items()}
-    return BittyBuzzProgram(bbo, decoded.strings, debug_map, conversion.bo_to_bbo, conversion.warnings)
+    return BittyBuzzProgram(
+        bbo, decoded.strings, debug_map, conversion.bo_to_bbo, conversion.warnings
+    )

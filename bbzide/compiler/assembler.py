@@ -68,6 +68,8 @@ class Assembly:
 
 def strtoul32(text: bytes) -> tuple[int, bool]:
     """C `strtoul(text, &end, 10)` truncated to 32 bits; returns (value, consumed anything)."""
+    if text.isdigit() and len(text) < 20:  # fast path: the common plain decimal operand
+        return int(text) & 0xFFFFFFFF, True
     match = _INTEGER_PREFIX.match(text)
     if match is None:
         return 0, False
@@ -127,8 +129,9 @@ def assemble(basm: bytes | str, filename: str = "<basm>") -> Assembly:
         fields = info.split(b",")
         if len(fields) < 3:
             return
-        line_value, _ = strtoul32(fields[0])
-        col_value, _ = strtoul32(fields[1])
+        line_text, col_text = fields[0], fields[1]
+        line_value = int(line_text) if line_text.isdigit() else strtoul32(line_text)[0]
+        col_value = int(col_text) if col_text.isdigit() else strtoul32(col_text)[0]
         debug[offset] = (line_value, col_value, fields[2])
 
     lines = basm.split(b"\n")
@@ -173,7 +176,9 @@ def assemble(basm: bytes | str, filename: str = "<basm>") -> Assembly:
         output.append(opcode)
         if not has_operand(opcode):
             if argument:
-                warnings.append(f'WARNING: {filename}:{line_number} ignored argument "{_decode(argument)}"')
+                warnings.append(
+                    f'WARNING: {filename}:{line_number} ignored argument "{_decode(argument)}"'
+                )
             continue
         if not argument:
             raise fail(line_number, "missing argument")
@@ -194,7 +199,9 @@ def assemble(basm: bytes | str, filename: str = "<basm>") -> Assembly:
     for position, label, _line_number in references:
         target = labels.get(label)
         if target is None:
-            raise CompileError(f'unknown label "{_decode(label)}"', SourceLocation(filename, _line_number, 0))
+            raise CompileError(
+                f'unknown label "{_decode(label)}"', SourceLocation(filename, _line_number, 0)
+            )
         if target >= size:
             raise CompileError(
                 f'label "{_decode(label)}" is beyond the bytecode size',
@@ -207,10 +214,11 @@ def assemble(basm: bytes | str, filename: str = "<basm>") -> Assembly:
 
 
 def encode_bdb(records: list[DebugRecord]) -> bytes:
-    """`.bdb` bytes: u32 offset, u64 line, u64 col, u16 length, file name; records in given order."""
+    """`.bdb` bytes: u32 offset, u64 line, u64 col, u16 length, file name (in the given order)."""
     parts = []
     for record in records:
         parts.append(
-            struct.pack("<IQQH", record.offset, record.line, record.col, len(record.file)) + record.file
+            struct.pack("<IQQH", record.offset, record.line, record.col, len(record.file))
+            + record.file
         )
     return b"".join(parts)

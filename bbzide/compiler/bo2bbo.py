@@ -43,16 +43,12 @@ def bo_to_bbo(bo: bytes, name: str = "<bo>") -> Conversion:
         offsets[position] = len(output)
         output.append(opcode)
         if opcode >= OPCODE_COUNT:
-            raise BytecodeError(
-                f"{name}: offset {position}: unknown opcode {opcode}"
-            )
+            raise BytecodeError(f"{name}: offset {position}: unknown opcode {opcode}")
         position += 1
         if opcode < Op.PUSHF:
             continue
         if position + 4 > size:
-            raise BytecodeError(
-                f"{name}: offset {position - 1}: truncated operand"
-            )
+            raise BytecodeError(f"{name}: offset {position - 1}: truncated operand")
         raw = bo[position : position + 4]
         if opcode == Op.PUSHF:
             (bits,) = struct.unpack("<I", raw)
@@ -61,7 +57,8 @@ def bo_to_bbo(bo: bytes, name: str = "<bo>") -> Conversion:
             (value,) = struct.unpack("<i", raw)
             if not -32768 <= value <= 32767:
                 warnings.append(
-                    f"Warning [{name}:{position}]: Integer (0x{value & 0xFFFFFFFF:08X}) at position "
+                    f"Warning [{name}:{position}]: Integer (0x{value & 0xFFFFFFFF:08X}) "
+                    f"at position "
                     f"{position} is out of 16 bit integer range. A part of the data will be lost."
                 )
             output += struct.pack("<H", value & 0xFFFF)
@@ -70,6 +67,13 @@ def bo_to_bbo(bo: bytes, name: str = "<bo>") -> Conversion:
             patches.append((len(output), address))
             output += struct.pack("<H", address & 0xFFFF)
         position += 4
+    if len(output) > 0xFFFF:
+        # Not a reference warning: bo2bbo silently wraps addresses beyond 16 bits.
+        warnings.append(
+            f"Warning [{name}]: the .bbo is {len(output)} bytes; "
+            "BittyBuzz code addresses are 16-bit, "
+            "so jumps beyond offset 65535 wrap and the program cannot run"
+        )
     for at, address in patches:
         output[at : at + 2] = struct.pack("<H", offsets.get(address, 0) & 0xFFFF)
     return Conversion(bytes(output), offsets, warnings)

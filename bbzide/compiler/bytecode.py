@@ -80,7 +80,9 @@ def read_strings(data: bytes, name: str) -> tuple[int, list[str], int]:
         end = data.find(b"\0", position)
         if end < 0:
             raise _error(
-                name, position, f"string count {count} larger than the file (string {index} has no end)"
+                name,
+                position,
+                f"string count {count} larger than the file (string {index} has no end)",
             )
         strings.append(data[position:end].decode("utf-8", "surrogateescape"))
         position = end + 1
@@ -113,7 +115,8 @@ def decode_instructions(data: bytes, start: int, operand_size: int, name: str) -
                 raise _error(
                     name,
                     instruction.offset,
-                    f"{instruction.mnemonic} target {instruction.operand} is not an instruction in the code",
+                    f"{instruction.mnemonic} target {instruction.operand} "
+                    "is not an instruction in the code",
                 )
     return instructions
 

@@ -28,17 +28,27 @@ PLATFORMS = tuple(FLASH_BUDGETS)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    compile_parser = subparsers.add_parser("compile", help="compile a Buzz script (.bo, .bdb, .bbo)")
+    compile_parser = subparsers.add_parser(
+        "compile", help="compile a Buzz script (.bo, .bdb, .bbo)"
+    )
     compile_parser.add_argument("script", help="the .bzz file")
-    compile_parser.add_argument("-I", dest="include", action="append", default=[], help="include folder")
+    compile_parser.add_argument(
+        "-I", dest="include", action="append", default=[], help="include folder"
+    )
     compile_parser.add_argument("--bst", help="string table file (one string per line)")
     compile_parser.add_argument("-o", dest="bo", help="output .bo (default: beside the script)")
     compile_parser.add_argument("--bbo", help="also write the BittyBuzz .bbo here")
     compile_parser.add_argument("--basm", help="also write the .basm assembly here")
     compile_parser.add_argument("--bdb", help="output .bdb (default: beside the .bo)")
-    compile_parser.add_argument("--platform", choices=PLATFORMS, help="compile for this BittyBuzz platform")
-    compile_parser.add_argument("--host", action="append", default=[], help="host function name (repeatable)")
-    compile_parser.add_argument("--reference-quirks", action="store_true", help="reproduce bzzparse's quirks")
+    compile_parser.add_argument(
+        "--platform", choices=PLATFORMS, help="compile for this BittyBuzz platform"
+    )
+    compile_parser.add_argument(
+        "--host", action="append", default=[], help="host function name (repeatable)"
+    )
+    compile_parser.add_argument(
+        "--reference-quirks", action="store_true", help="reproduce bzzparse's quirks"
+    )
     compile_parser.set_defaults(handler=run_compile)
 
     disasm_parser = subparsers.add_parser("disasm", help="list the instructions of a .bo or .bbo")
@@ -47,7 +57,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     disasm_parser.add_argument("--source", action="store_true", help="show the source lines")
     disasm_parser.set_defaults(handler=run_disasm)
 
-    convert_parser = subparsers.add_parser("bo2bbo", help="convert a Buzz .bo into a BittyBuzz .bbo")
+    convert_parser = subparsers.add_parser(
+        "bo2bbo", help="convert a Buzz .bo into a BittyBuzz .bbo"
+    )
     convert_parser.add_argument("bo", help="the .bo file")
     convert_parser.add_argument("-o", dest="bbo", help="output .bbo (default: beside the .bo)")
     convert_parser.set_defaults(handler=run_bo2bbo)

@@ -38,7 +38,9 @@ class _SourceCache:
     def line(self, location: SourceLocation) -> str | None:
         if location.file not in self.files:
             try:
-                self.files[location.file] = Path(location.file).read_text(errors="replace").splitlines()
+                self.files[location.file] = (
+                    Path(location.file).read_text(errors="replace").splitlines()
+                )
             except OSError:
                 self.files[location.file] = None
         lines = self.files[location.file]
@@ -61,7 +63,8 @@ def disassemble(
     sources = _SourceCache()
     previous_line: tuple[str, int] | None = None
     for instruction in code.instructions:
-        text = f"{instruction.offset:6d}: {instruction.mnemonic:8s} {_operand_text(code, instruction, strings)}"
+        operand = _operand_text(code, instruction, strings)
+        text = f"{instruction.offset:6d}: {instruction.mnemonic:8s} {operand}"
         location = debug_map.get(instruction.offset) if debug_map else None
         if location is not None:
             text = f"{text:40s} | {location.line},{location.col},{location.file}"

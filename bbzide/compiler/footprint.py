@@ -35,8 +35,9 @@ FLASH_BUDGETS: dict[str, FlashBudget] = {
     "kilobot": FlashBudget(
         "kilobot",
         32 * KIB - 4 * KIB - MINIMAL_VM_BYTES,
-        "ATmega328P 32 KB flash (thesis §4.5) - 4 KB boot section (the ATmega328P's largest, used by "
-        "the Kilobot IR bootloader) - 17.1 KB smallest BBZVM (thesis §4.2); an upper bound, kilolib "
+        "ATmega328P 32 KB flash (thesis §4.5) - 4 KB boot section (the ATmega328P's "
+        "largest, used by the Kilobot IR bootloader) - 17.1 KB smallest BBZVM "
+        "(thesis §4.2); an upper bound, kilolib "
         "itself also takes flash",
     ),
     "zooids": FlashBudget(
@@ -76,7 +77,8 @@ class Footprint:
         lines = [
             f".bo size      {self.bo_size:8d} bytes",
             f".bbo size     {self.bbo_size:8d} bytes",
-            f"strings       {self.strings:8d} ({self.string_bytes} bytes in the .bo, ids only in the .bbo)",
+            f"strings       {self.strings:8d} ({self.string_bytes} bytes in the .bo, "
+            "ids only in the .bbo)",
             f"instructions  {self.instructions:8d}",
             "",
             f"{'platform':10s} {'budget':>8s}  {'used':>6s}  fits",
@@ -84,7 +86,8 @@ class Footprint:
         for name, budget in FLASH_BUDGETS.items():
             used = 100.0 * self.bbo_size / budget.bytes_for_bytecode
             lines.append(
-                f"{name:10s} {budget.bytes_for_bytecode:8d}  {used:5.1f}%  {'yes' if self.fits(name) else 'NO'}"
+                f"{name:10s} {budget.bytes_for_bytecode:8d}  {used:5.1f}%  "
+                f"{'yes' if self.fits(name) else 'NO'}"
             )
         return "\n".join(lines)
 

@@ -11,7 +11,11 @@ from bbzide.compiler.bo2bbo import bo_to_bbo
 
 def test_every_bbz_bo_converts_byte_identical() -> None:
     files = sorted(BBZ_DIR.glob("*.bo"))
-    failures = [p.name for p in files if bo_to_bbo(p.read_bytes(), p.name).bbo != p.with_suffix(".bbo").read_bytes()]
+    failures = [
+        p.name
+        for p in files
+        if bo_to_bbo(p.read_bytes(), p.name).bbo != p.with_suffix(".bbo").read_bytes()
+    ]
     print(f"bo2bbo corpus: {len(files) - len(failures)}/{len(files)} identical")
     assert len(files) == 33
     assert not failures, failures
@@ -34,6 +38,14 @@ def test_address_to_a_non_instruction_becomes_zero() -> None:
 
 def test_spec_vector_section_d3() -> None:
     bo = (
-        b"\x00\x00" + bytes([36]) + struct.pack("<i", 5) + bytes([35]) + struct.pack("<f", 2.5) + b"\x07\x01"
+        b"\x00\x00"
+        + bytes([36])
+        + struct.pack("<i", 5)
+        + bytes([35])
+        + struct.pack("<f", 2.5)
+        + b"\x07\x01"
     )
-    assert bo_to_bbo(bo).bbo == b"\x00\x00" + bytes([36]) + b"\x05\x00" + bytes([35]) + b"\x80\x40" + b"\x07\x01"
+    assert (
+        bo_to_bbo(bo).bbo
+        == b"\x00\x00" + bytes([36]) + b"\x05\x00" + bytes([35]) + b"\x80\x40" + b"\x07\x01"
+    )

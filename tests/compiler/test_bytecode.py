@@ -29,7 +29,10 @@ def test_every_corpus_file_decodes_and_matches_bbzconf_listing() -> None:
     # bbzconf (independent oracle) lists one line per instruction: compare the counts on one file.
     sample = BBZ_DIR / "arith16.bbo"
     listing = subprocess.run(
-        [sys.executable, str(BBZCONF), "bbo", str(sample)], capture_output=True, text=True, check=True
+        [sys.executable, str(BBZCONF), "bbo", str(sample)],
+        capture_output=True,
+        text=True,
+        check=True,
     ).stdout
     mnemonics = [i.mnemonic for i in read_bbo(sample.read_bytes()).instructions]
     assert sum(1 for line in listing.splitlines() if any(f" {m}" in line for m in ("gstore",))) >= 1
@@ -51,13 +54,17 @@ def test_specific_malformations_are_named() -> None:
     assert "string count" in _one_line_error(read_bo, b"\xff\xff" + b"a\0", "x.bo")
     assert "x.bo: offset" in _one_line_error(read_bo, b"\x00\x00\x99", "x.bo")
     assert "unknown opcode 153" in _one_line_error(read_bo, b"\x00\x00\x99", "x.bo")
-    assert "truncated operand of pushi" in _one_line_error(read_bo, b"\x00\x00" + bytes([36, 1, 2]), "x.bo")
+    assert "truncated operand of pushi" in _one_line_error(
+        read_bo, b"\x00\x00" + bytes([36, 1, 2]), "x.bo"
+    )
     assert "no string count" in _one_line_error(read_bo, good[:1], "x.bo")
     jump_out = b"\x00\x00" + bytes([44]) + struct.pack("<I", 5000) + b"\x01"
     assert "not an instruction" in _one_line_error(read_bo, jump_out, "x.bo")
     assert "truncated operand" in _one_line_error(read_bbo, b"\x00\x00" + bytes([36, 1]), "x.bbo")
     assert "truncated" in _one_line_error(read_bdb, b"\x01\x00\x00", "x.bdb")
-    assert "file name" in _one_line_error(read_bdb, struct.pack("<IQQH", 2, 1, 0, 50) + b"ab", "x.bdb")
+    assert "file name" in _one_line_error(
+        read_bdb, struct.pack("<IQQH", 2, 1, 0, 50) + b"ab", "x.bdb"
+    )
     assert "truncated operand" in _one_line_error(bo_to_bbo, b"\x00\x00" + bytes([36, 1]), "x.bo")
 
 

@@ -21,11 +21,27 @@ def _copy(name: str, source_dir: Path, tmp_path: Path) -> Path:
     return tmp_path / f"{name}.bzz"
 
 
-def test_compile_for_kilobot_writes_reference_identical_files(tmp_path, monkeypatch, capsys) -> None:
+def test_compile_for_kilobot_writes_reference_identical_files(
+    tmp_path, monkeypatch, capsys
+) -> None:
     script = _copy("arith16", BBZ_DIR, tmp_path)
     monkeypatch.chdir(tmp_path)
-    status = main(["compile", script.name, "--bst", "arith16.bst", "-o", "out.bo", "--bbo", "out.bbo",
-                   "--basm", "out.basm", "--platform", "kilobot"])  # fmt: skip
+    status = main(
+        [
+            "compile",
+            script.name,
+            "--bst",
+            "arith16.bst",
+            "-o",
+            "out.bo",
+            "--bbo",
+            "out.bbo",
+            "--basm",
+            "out.basm",
+            "--platform",
+            "kilobot",
+        ]
+    )
     assert status == 0
     assert (tmp_path / "out.bo").read_bytes() == (BBZ_DIR / "arith16.bo").read_bytes()
     assert (tmp_path / "out.bbo").read_bytes() == (BBZ_DIR / "arith16.bbo").read_bytes()
@@ -39,7 +55,9 @@ def test_platform_without_bst_uses_base_strings_and_hosts(tmp_path, monkeypatch)
     script = _copy("arith16", BBZ_DIR, tmp_path)
     monkeypatch.chdir(tmp_path)
     # arith16.bst = the 46 base strings + "log" (README §1): --host log reproduces it.
-    assert main(["compile", script.name, "--platform", "pc", "--host", "log", "--bbo", "x.bbo"]) == 0
+    assert (
+        main(["compile", script.name, "--platform", "pc", "--host", "log", "--bbo", "x.bbo"]) == 0
+    )
     assert (tmp_path / "x.bbo").read_bytes() == (BBZ_DIR / "arith16.bbo").read_bytes()
 
 
@@ -72,12 +90,22 @@ def test_subprocess_exit_codes_and_no_traceback(tmp_path) -> None:
     env = {**os.environ, "PYTHONPATH": str(REPO)}
     bad = tmp_path / "bad.bbo"
     bad.write_bytes(b"\x00\x00" + bytes([44, 0x40, 0]))
-    failed = subprocess.run([sys.executable, "-m", "bbzide", "disasm", str(bad)],
-                            capture_output=True, text=True, env=env, cwd=tmp_path)  # fmt: skip
+    failed = subprocess.run(
+        [sys.executable, "-m", "bbzide", "disasm", str(bad)],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     assert failed.returncode == 1 and "Traceback" not in failed.stderr
     assert "bad.bbo: offset 2" in failed.stderr
     script = _copy("arith16", BBZ_DIR, tmp_path)
-    ok = subprocess.run([sys.executable, "-m", "bbzide", "compile", script.name, "--platform", "kilobot"],
-                        capture_output=True, text=True, env=env, cwd=tmp_path)  # fmt: skip
+    ok = subprocess.run(
+        [sys.executable, "-m", "bbzide", "compile", script.name, "--platform", "kilobot"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     assert ok.returncode == 0, ok.stderr
     assert "instructions" in ok.stdout and "Traceback" not in ok.stderr

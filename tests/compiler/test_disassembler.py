@@ -14,11 +14,14 @@ from bbzide.compiler.disassembler import disassemble
 def test_bo_listing_decodes_floats_strings_and_targets() -> None:
     bo = (
         b"\x01\x00hello\x00"
-        + bytes([35]) + struct.pack("<f", 2.5)
-        + bytes([37]) + struct.pack("<I", 0)
-        + bytes([44]) + struct.pack("<I", 23)
+        + bytes([35])
+        + struct.pack("<f", 2.5)
+        + bytes([37])
+        + struct.pack("<I", 0)
+        + bytes([44])
+        + struct.pack("<I", 23)
         + b"\x01"
-    )  # fmt: skip
+    )
     listing = disassemble(read_bo(bo))
     assert "     8: pushf    2.5" in listing
     assert "    13: pushs    0  ; 'hello'" in listing
