@@ -80,3 +80,21 @@ def test_load_program_from_stored_bbo_uses_bo_strings_and_bdb() -> None:
     assert program.location_of(2) is not None
     assert any(loc.file == "$DIR/arith16.bzz" for loc in program.debug_map.values())
     assert len(program.warnings) == 4
+
+
+def test_base_strings_match_every_corpus_bst() -> None:
+    from bbzide.compiler.string_table import (
+        BITTYBUZZ_BASE_STRINGS,
+        bittybuzz_string_table,
+        format_bst,
+        parse_bst,
+    )
+
+    bst_files = sorted(BBZ_DIR.glob("*.bst"))
+    for path in bst_files:
+        strings = read_bst(path)
+        assert strings[:46] == list(BITTYBUZZ_BASE_STRINGS), path.name
+        assert bittybuzz_string_table(strings[46:]) == strings
+        assert parse_bst(format_bst(strings)) == strings
+    assert len(BITTYBUZZ_BASE_STRINGS) == 46 and BITTYBUZZ_BASE_STRINGS[32] == "stigmergy"
+    print(f"string tables: {len(bst_files)} corpus .bst start with the 46 base strings")
