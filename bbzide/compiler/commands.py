@@ -21,7 +21,12 @@ from bbzide.compiler import compile_file, load_program
 from bbzide.compiler.bo2bbo import bo_to_bbo
 from bbzide.compiler.bytecode import read_bbo, read_bdb, read_bo
 from bbzide.compiler.footprint import FLASH_BUDGETS, measure
-from bbzide.compiler.string_table import KILOBOT_HOST_NAMES, bittybuzz_string_table, read_bst
+from bbzide.compiler.string_table import (
+    BITTYBUZZ_BASE_STRINGS,
+    KILOBOT_HOST_NAMES,
+    bittybuzz_string_table,
+    read_bst,
+)
 from bbzide.diagnostics import UserError
 
 PLATFORMS = tuple(FLASH_BUDGETS)
@@ -125,7 +130,9 @@ def run_disasm(args: argparse.Namespace) -> int:
             bo=bo_path if bo_path.is_file() else None,
             bdb=bdb_path if bdb_path.is_file() and bo_path.is_file() else None,
         )
-        print(disassemble(code, program.strings, program.debug_map, args.source), end="")
+        # Without the .bo, ids 0..45 are still known: BittyBuzz fixes them (spec §D.2).
+        strings = program.strings or list(BITTYBUZZ_BASE_STRINGS)
+        print(disassemble(code, strings, program.debug_map, args.source), end="")
         return 0
     code = read_bo(data, path.name)
     debug_map = {}

@@ -6,6 +6,8 @@ import struct
 
 import pytest
 from corpus import BBZ_DIR, COMPILER_DIR, COMPILER_ERRORS_DIR
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from bbzide.compiler.assembler import assemble, strtof32, strtoul32
 from bbzide.diagnostics import CompileError
@@ -68,3 +70,39 @@ def test_ignored_argument_warns_like_the_reference() -> None:
     assembly = assemble(b"!0\n\tnop 3\t|1,0,f\n", "x.basm")
     assert assembly.warnings == ['WARNING: x.basm:2 ignored argument "3"']
     assert assembly.bo == b"\x00\x00\x00"
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(
+        st.one_of(
+            st.sampled_from(
+                [
+                    b"!2",
+                    b"'a",
+                    b"'",
+                    b"\tnop",
+                    b"\tpushi 3",
+                    b"\tpushf x",
+                    b"\tjump @l",
+                    b"@l",
+                    b"\tpushl @l\t|1,2,f",
+                    b"\tfoo",
+                    b"\tpushi",
+                    b"#c",
+                    b"",
+                    b"\tdone 1",
+                ]
+            ),
+            st.binary(max_size=12),
+        ),
+        max_size=12,
+    )
+)
+def test_any_basm_assembles_or_raises_compile_error(lines: list[bytes]) -> None:
+    try:
+        assembly = assemble(b"\n".join(lines) + b"\n", "fuzz.basm")
+    except CompileError as error:
+        assert "\n" not in error.message
+    else:
+        assert isinstance(assembly.bo, bytes)

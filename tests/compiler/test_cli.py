@@ -109,3 +109,11 @@ def test_subprocess_exit_codes_and_no_traceback(tmp_path) -> None:
     )
     assert ok.returncode == 0, ok.stderr
     assert "instructions" in ok.stdout and "Traceback" not in ok.stderr
+
+
+def test_disasm_of_a_lone_bbo_names_the_base_strings(tmp_path, capsys) -> None:
+    lone = tmp_path / "lone.bbo"
+    lone.write_bytes((BBZ_DIR / "arith16.bbo").read_bytes())
+    assert main(["disasm", str(lone)]) == 0
+    out = capsys.readouterr().out
+    assert "pushs    4  ; 'init'" in out and "pushs    47\n" in out
