@@ -196,21 +196,25 @@ def assemble(basm: bytes | str, filename: str = "<basm>") -> Assembly:
                 references.append((len(output), argument, line_number))
             output += struct.pack("<I", value)
     size = len(output)
-    for position, label, _line_number in references:
+    for position, label, line_number in references:
         target = labels.get(label)
         if target is None:
-            raise CompileError(
-                f'unknown label "{_decode(label)}"', SourceLocation(filename, _line_number, 0)
-            )
+            raise _pass2_error(filename, line_number, f'unknown label "{_decode(label)}"')
         if target >= size:
-            raise CompileError(
-                f'label "{_decode(label)}" is beyond the bytecode size',
-                SourceLocation(filename, _line_number, 0),
+            raise _pass2_error(
+                filename, line_number, f'label "{_decode(label)}" is beyond the bytecode size'
             )
         output[position : position + 4] = struct.pack("<I", target)
     records = [DebugRecord(offset, line, col, file) for offset, (line, col, file) in debug.items()]
     records.sort(key=lambda record: (record.offset % DEBUG_HASH_BUCKETS, record.offset))
     return Assembly(bytes(output), records, labels, warnings)
+
+
+def _pass2_error(filename: str, line_number: int, message: str) -> CompileError:
+    """Pass-2 errors: the reference names only the file (`ERROR: F: ...`); we add the line."""
+    error = CompileError(message, SourceLocation(filename, line_number, 0))
+    error.reference_message = f"ERROR: {filename}: {message}"  # type: ignore[attr-defined]
+    return error
 
 
 def encode_bdb(records: list[DebugRecord]) -> bytes:
