@@ -277,23 +277,31 @@ def darray_destroy(heap: Heap, d: int) -> None:
     heap.set_mdata(d, heap.mdata(d) & ~VALID)
 
 
-def lambda_alloc(heap: Heap, src: int) -> int:
+def lambda_alloc(heap: Heap, src: int) -> tuple[int, bool]:
     """``bbzdarray_lambda_alloc``: a reserved-slot darray holding a copy of ``src``.
 
-    Raises HeapFull when no reserved slot is free (or no segment is left).
+    Returns (index, ok). index is -1 when no reserved slot is free; ok is False when the
+    slot was taken but its first segment could not be allocated (it stays valid). Pushes
+    that run out of segments are ignored, as in the firmware.
     """
     for i in range(heap.reserved):
         m = heap.mdata(i)
         if not m & VALID:
-            heap.set_mdata(i, ((m | VALID) & ~TYPE_MASK & ~FLAG2) | TABLE | FLAG1)
-            seg = heap.seg_alloc()
+            heap.set_mdata(i, ((m | VALID) & ~TYPE_MASK & ~FLAG2 & 0xFF) | TABLE | FLAG1)
+            try:
+                seg = heap.seg_alloc()
+            except HeapFull:
+                return i, False
             heap.set_u16(i, seg)
             n = darray_size(heap, src)
             for k in range(n):
                 e = darray_get(heap, src, k)
-                darray_push(heap, i, e if e is not None else 0)
-            return i
-    raise HeapFull
+                try:
+                    darray_push(heap, i, e if e is not None else 0)
+                except HeapFull:
+                    pass
+            return i, True
+    return -1, False
 
 
 __all__ = [
