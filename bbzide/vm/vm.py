@@ -517,6 +517,7 @@ class VM:
             return
         self.pc = self.heap.u16(self.stack[self.stackptr])
         self.pop()
+        self.push(self.nil)
 
     def ret1(self) -> None:
         if not self.assert_stack(4):
