@@ -631,7 +631,7 @@ class VM:
         if t == INT:
             self.pop()
             self.push_int(-h.int_value(o))
-        elif t == FLOAT and self.profile.float_ops:
+        elif t == FLOAT:
             self.pop()
             self.push_float(bbzfloat.negate(h.u16(o)))
         else:

@@ -75,8 +75,8 @@ def heap_differences(ref: Snapshot, mine: Snapshot, obj_size: int) -> list[int]:
     return bad
 
 
-def _kind_function(kind: str, vm: VM):  # noqa: ANN202 - small closure factory
-    rng = {"x": 0}
+def _kind_function(kind: str, vm: VM, seed: int = 0):  # noqa: ANN202 - closure factory
+    rng = {"x": seed}
 
     if kind in ("print", "log", "ret0"):
         return ("h_print" if kind in ("print", "log") else "h_ret0"), lambda v: v.ret0()
@@ -147,6 +147,7 @@ def run_script(bbz_dir: Path, dump_name: str, stress_gc: bool = True) -> list[Sn
     regs = [words[i + 1] for i, w in enumerate(words) if w == "--reg"]
     loop = words[words.index("--loop") + 1] if "--loop" in words else "pop"
     steps = int(info["steps"])
+    seed = int(words[words.index("--seed") + 1]) if "--seed" in words else 0
     robot = int(info["robot"])
     name = info["bbo"][:-4]
     strings = (bbz_dir / (name + ".bst")).read_text().splitlines()
@@ -167,13 +168,13 @@ def run_script(bbz_dir: Path, dump_name: str, stress_gc: bool = True) -> list[Sn
             t = vm.push_table()
             while i < len(regs) and regs[i].split("=", 1)[0].startswith(tbl + "."):
                 fnm, fkind = regs[i].split("=", 1)
-                sym, fn = _kind_function(fkind, vm)
+                sym, fn = _kind_function(fkind, vm, seed)
                 vm.add_function(t, sid[fnm.split(".", 1)[1]], sym, fn)
                 i += 1
             vm.gsym_register(sid[tbl], t)
             vm.pop()
             continue
-        sym, fn = _kind_function(kind, vm)
+        sym, fn = _kind_function(kind, vm, seed)
         vm.function_register(sid[nm], sym, fn)
         i += 1
     out.append(_snap(vm, "setup"))
