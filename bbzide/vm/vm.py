@@ -136,6 +136,8 @@ class VM:
         self.error_events: list[tuple[str, int]] = []
         self.error_receiver: Callable[[VM, Error], None] | None = None
         self.instructions_executed = 0
+        #: fast mode: True while heap and stack are unchanged since the last collection
+        self._gc_clean = False
         self.swarm = SwarmState()
         self.vstig = VstigStore()
         self.neighbors = NeighborsState()
@@ -217,6 +219,7 @@ class VM:
 
     def gc(self) -> None:
         """``bbzvm_gc``."""
+        self._gc_clean = False
         gcmod.collect(self.heap, self.stack, self.stackptr)
 
     def alloc_or_mem(self, fn: Callable[[Heap], int]) -> int:
@@ -297,6 +300,7 @@ class VM:
         return self.stack[self.stackptr - i]
 
     def push(self, v: int) -> None:
+        self._gc_clean = False
         if self.stackptr + 1 >= self.stack_size:
             self.seterror(Error.STACK)
             return
@@ -304,6 +308,7 @@ class VM:
         self.stack[self.stackptr] = v
 
     def pop(self) -> None:
+        self._gc_clean = False
         if self.stackptr < 0:
             self.seterror(Error.STACK)
             return
@@ -411,6 +416,7 @@ class VM:
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
          events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
         self.heap.restore(hs)
+        self._gc_clean = False
         self.stack[:] = stack
         self.error_events = list(events)
         self.swarm, self.vstig, self.neighbors, self.queues = copy.deepcopy(recs)
@@ -421,8 +427,18 @@ class VM:
     def step(self) -> None:
         """``bbzvm_step``: GC, then one instruction."""
         if self.state == State.READY:
-            gcmod.collect(self.heap, self.stack, self.stackptr)
+            # Fast mode skips the collection only before instructions that change nothing
+            # but pc (nop, calls, jump): the previous collection already left exactly the
+            # state this one would produce (a collection on an unchanged heap and stack is
+            # idempotent), so every observable state is identical to stress mode.
+            if self.stress_gc or not self._gc_clean:
+                gcmod.collect(self.heap, self.stack, self.stackptr)
+            pc = self.pc
             self.exec_instr()
+            # Clean = nothing changed since the last collection: true only right after a
+            # pc-only instruction that itself followed a (real or skipped) collection.
+            self._gc_clean = (pc < self.bcode_size and self.bcode[pc] in _PC_ONLY_OPCODES
+                              and self.state == State.READY)
 
     def exec_instr(self) -> None:
         offset = self.pc
@@ -1063,6 +1079,9 @@ def _s32(v: int) -> int:
     v &= 0xFFFFFFFF
     return v - 0x100000000 if v & 0x80000000 else v
 
+
+#: Opcodes that change nothing but pc: nop, calls, jump.
+_PC_ONLY_OPCODES = frozenset({0, 34, 44})
 
 _SIMPLE_OPS: list[Callable[[VM], None]] = [
     VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,
