@@ -30,6 +30,9 @@ from bbzide.vm.heap import (
     Heap,
 )
 
+#: byte translation table clearing the GC mark bit of every metadata byte
+_CLEAR_MARK = bytes(b & ~GC_MARK & 0xFF for b in range(256))
+
 
 def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
     """Run one collection. ``stack[0..stack_top]`` are the live stack words."""
@@ -47,8 +50,7 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
     # 1. clear marks
     for j in range(k - 1, -1, -1):
         d[size - (j + 1) * g + mo + 1] &= ~(SEG_MARK >> 8) & 0xFF
-    for i in range(n - 1, -1, -1):
-        d[i * s] &= ~GC_MARK & 0xFF
+    d[0:n * s:s] = d[0:n * s:s].translate(_CLEAR_MARK)
 
     depth = 1
 
@@ -67,7 +69,10 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
                     d[base + mo + 1] |= SEG_MARK >> 8
                     for w in range(nwords):
                         word = d[base + 2 * w] | (d[base + 2 * w + 1] << 8)
-                        if word & ELEM_VALID:
+                        # Calling mark on an already-marked object, or beyond the depth
+                        # limit, has no effect: skip the call (hot path).
+                        if word & ELEM_VALID and depth < depth_limit and \
+                                not d[(word & ELEM_INDEX) * s] & GC_MARK:
                             mark(word & ELEM_INDEX)
                     nxt = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
                     if nxt == SEG_NEXT:
