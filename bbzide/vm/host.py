@@ -49,7 +49,7 @@ _FIRST_FREE_ADDRESS = 0x500000
 
 
 @dataclass
-class HostCall:
+class RegisteredHostFunction:
     """One registered host function: its symbol, the address stored in the heap, the code."""
 
     symbol: str
@@ -62,8 +62,8 @@ class HostRegistry:
 
     def __init__(self, ptr_size: int) -> None:
         self.mask = (1 << (8 * ptr_size)) - 1
-        self.by_address: dict[int, HostCall] = {}
-        self.by_symbol: dict[str, HostCall] = {}
+        self.by_address: dict[int, RegisteredHostFunction] = {}
+        self.by_symbol: dict[str, RegisteredHostFunction] = {}
         self._next_free = _FIRST_FREE_ADDRESS
 
     def register(self, symbol: str, function: HostFunction, address: int | None = None) -> int:
@@ -74,10 +74,99 @@ class HostRegistry:
             address = self._next_free
             self._next_free += 0x40
         address &= self.mask
-        call = HostCall(symbol, address, function)
+        call = RegisteredHostFunction(symbol, address, function)
         self.by_address[address] = call
         self.by_symbol[symbol] = call
         return address
 
-    def lookup(self, address: int) -> HostCall | None:
+    def lookup(self, address: int) -> RegisteredHostFunction | None:
         return self.by_address.get(address & self.mask)
+
+
+NIL = None  # the Buzz nil as a decoded argument / return value
+
+
+class HostCall:
+    """The contract-level view of one C-closure call (ARCHITECTURE.md "vm → worlds, ui").
+
+    Wraps the VM inside ``callc``: decoded arguments, ``expect_args`` (LNUM), ``ret`` and
+    ``fail``. ``ret`` must be called at most once; when never called, ``finish`` does ret0.
+    """
+
+    def __init__(self, vm: VM, strings: list[str] | None = None) -> None:
+        self.vm = vm
+        self.robot_id = vm.robot
+        self.strings = strings or []
+        self._done = False
+
+    @property
+    def arg_count(self) -> int:
+        from bbzide.vm.tables import darray_elements
+
+        return len(darray_elements(self.vm.heap, self.vm.lsyms)) - 1
+
+    def arg_index(self, i: int) -> int:
+        """Heap index of argument i (1-based; 0 = self)."""
+        return self.vm.lsym(i)
+
+    def arg(self, i: int) -> object:
+        """Argument i decoded: None, int, float, string name, or ("table"/"closure", index)."""
+        from bbzide.compiler import bbzfloat
+        from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
+        from bbzide.vm.heap import NIL as TNIL
+
+        h = self.vm.heap
+        o = self.vm.lsym(i)
+        t = h.obj_type(o)
+        if t == TNIL:
+            return None
+        if t == INT:
+            return h.int_value(o)
+        if t == FLOAT:
+            return bbzfloat.to_float(h.u16(o))
+        if t == STRING:
+            sid = h.u16(o)
+            return self.strings[sid] if sid < len(self.strings) else sid
+        if t == TABLE:
+            return ("table", o)
+        if t == CLOSURE:
+            return ("closure", o)
+        return ("userdata", o)
+
+    @property
+    def args(self) -> list[object]:
+        return [self.arg(i) for i in range(1, self.arg_count + 1)]
+
+    def expect_args(self, n: int) -> bool:
+        return self.vm.assert_lnum(n)
+
+    def ret(self, value: object = None) -> None:
+        from bbzide.compiler import bbzfloat
+
+        vm = self.vm
+        self._done = True
+        if value is None:
+            vm.push_nil()
+        elif isinstance(value, bool | int):
+            vm.push_int(int(value))
+        elif isinstance(value, float):
+            vm.push_float(bbzfloat.from_float(value))
+        elif isinstance(value, dict):
+            t = vm.push_table()
+            for k, v in value.items():
+                key = vm.new_string_obj(self.strings.index(k))
+                val = vm.new_int(v) if isinstance(v, int) else vm.new_float(bbzfloat.from_float(v))
+                vm.table_put_raw(t, val, key)
+        else:
+            vm.push_nil()
+        vm.ret1()
+
+    def fail(self, kind: str) -> None:
+        from bbzide.vm.vm import Error
+
+        self._done = True
+        self.vm.seterror(Error[kind])
+
+    def finish(self) -> None:
+        if not self._done and self.vm.state.name == "READY":
+            self.vm.ret0()

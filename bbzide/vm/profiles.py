@@ -58,6 +58,9 @@ class Profile:
         )
 
 
+#: The name ARCHITECTURE.md uses for a profile.
+PlatformProfile = Profile
+
 # The host (x86-64) build that produced the corpus `*.pc.dump` files.
 PC = Profile(name="pc", heap_size=3264, ptr_size=8)
 

@@ -397,21 +397,24 @@ class VM:
         self.tput()
 
     # =================================================================== snapshots
-    def snapshot(self) -> object:
-        """The whole VM state, cheap to take (heap copy + small records)."""
+    def snapshot(self) -> bytes:
+        """The whole VM state as bytes (heap copy + small records, pickled)."""
         import copy
+        import pickle
 
-        return (
+        return pickle.dumps((
             self.heap.snapshot(), list(self.stack), self.stackptr, self.blockptr, self.pc,
             self.state, self.error, self.lsyms, self.gsyms, self.nil, self.dflt_actrec,
             self.flist, self.robot, list(self.error_events), self.instructions_executed,
             copy.deepcopy((self.swarm, self.vstig, self.neighbors, self.queues)),
             self.bcode,
-        )
+        ))
 
-    def restore(self, snap: object) -> None:
+    def restore(self, snapshot: bytes) -> None:
         import copy
+        import pickle
 
+        snap = pickle.loads(snapshot)
         (hs, stack, self.stackptr, self.blockptr, self.pc, self.state, self.error,
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
          events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
