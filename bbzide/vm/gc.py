@@ -1,0 +1,109 @@
+"""The BittyBuzz mark-and-sweep garbage collector (spec §E.9).
+
+Faithful to ``bbzheap_gc``: roots are the permanent objects (scanned from the highest
+index down, validity not checked) and then the stack from top to bottom. Marking is
+depth-limited: a counter starts at 1 and is incremented on entry of ``mark``; an object
+is marked only while the counter is ≤ ``gcmark_depth``, so roots sit at level 2 and only
+``depth - 1`` levels are traversed — deeper reachable objects ARE freed, as on the robot.
+Traversal order matters (first visit wins), so the order below is the reference order.
+Mark bits stay set after a collection (they are visible in the heap bytes).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from bbzide.vm.heap import (
+    CLOSURE,
+    ELEM_INDEX,
+    ELEM_VALID,
+    FLAG2,
+    GC_MARK,
+    NO_ACTREC,
+    PERMANENT,
+    SEG_MARK,
+    SEG_NEXT,
+    SEG_VALID,
+    TABLE,
+    TYPE_MASK,
+    VALID,
+    Heap,
+)
+
+#: byte translation table clearing the GC mark bit of every metadata byte
+_CLEAR_MARK = bytes(b & ~GC_MARK & 0xFF for b in range(256))
+
+
+def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
+    """Run one collection. ``stack[0..stack_top]`` are the live stack words."""
+    d = heap.data
+    s = heap.obj_size
+    n = heap.rtobj // s
+    k = (heap.size - heap.ltseg) // heap.seg_size
+    size = heap.size
+    g = heap.seg_size
+    mo = 4 * heap.elems          # offset of the mdata word inside a segment
+    nwords = 2 * heap.elems
+    depth_limit = heap.profile.gcmark_depth
+    heap.gc_runs += 1
+
+    # 1. clear marks
+    for j in range(k - 1, -1, -1):
+        d[size - (j + 1) * g + mo + 1] &= ~(SEG_MARK >> 8) & 0xFF
+    d[0:n * s:s] = d[0:n * s:s].translate(_CLEAR_MARK)
+
+    depth = 1
+
+    def mark(x: int) -> None:
+        nonlocal depth
+        depth += 1
+        o = x * s
+        if depth <= depth_limit and not d[o] & GC_MARK:
+            d[o] |= GC_MARK
+            m = d[o]
+            t = m & TYPE_MASK
+            if t == TABLE:
+                seg = d[o + 1] | (d[o + 2] << 8)
+                while True:
+                    base = size - (seg + 1) * g
+                    d[base + mo + 1] |= SEG_MARK >> 8
+                    for w in range(nwords):
+                        word = d[base + 2 * w] | (d[base + 2 * w + 1] << 8)
+                        # Calling mark on an already-marked object, or beyond the depth
+                        # limit, has no effect: skip the call (hot path).
+                        if word & ELEM_VALID and depth < depth_limit and \
+                                not d[(word & ELEM_INDEX) * s] & GC_MARK:
+                            mark(word & ELEM_INDEX)
+                    nxt = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
+                    if nxt == SEG_NEXT:
+                        break
+                    seg = nxt
+            elif t == CLOSURE and m & FLAG2 and d[o + 2] != NO_ACTREC:
+                mark(d[o + 2])
+        depth -= 1
+
+    # 2. permanent roots, 3. stack roots
+    for i in range(n - 1, -1, -1):
+        if d[i * s] & PERMANENT:
+            mark(i)
+    for j in range(stack_top, -1, -1):
+        mark(stack[j])
+
+    # 4. sweep
+    for i in range(n - 1, -1, -1):
+        o = i * s
+        m = d[o]
+        if not m & GC_MARK and m & VALID:
+            d[o] = m & ~VALID & 0xFF
+            if m & TYPE_MASK == TABLE:
+                seg = d[o + 1] | (d[o + 2] << 8)
+                if not heap.seg_mdata(seg) & SEG_MARK:
+                    for sj in heap.segment_chain(seg):
+                        heap.set_seg_mdata(sj, heap.seg_mdata(sj) & ~SEG_VALID)
+
+    # 5-6. shrink both ends over invalid slots
+    low = heap.reserved * s
+    while heap.rtobj > low and not d[heap.rtobj - s] & VALID:
+        heap.rtobj -= s
+    while heap.ltseg < size and not d[heap.ltseg + mo + 1] & (SEG_VALID >> 8):
+        heap.ltseg += g

@@ -1,0 +1,172 @@
+"""Host (C-closure) functions: Python callables that stand for BittyBuzz C functions.
+
+A C closure in the heap stores a function *address* in its pointer-sized payload. To be
+byte-faithful on the PC profile the model stores exactly the addresses the reference host
+build stored (corpus ``bbz/pc_cfunctions.tsv``: the library closures of the x86-64
+harness, linked -no-pie). On other profiles the same numbers are stored truncated to the
+pointer width; the corpus masks C-closure payloads anyway (README §5 level (a)).
+
+A host function is called as ``fn(vm)`` from ``callc``, exactly where the firmware calls the
+C function: the activation record (``vm.lsyms``) holds self at 0 and the arguments at
+1..n. It reads them with ``vm.lload(i)`` / ``vm.lsym(i)``, may allocate through the VM
+helpers (``vm.push_int`` ...), raises an error with ``vm.seterror(Error.X)`` and must end
+with ``vm.ret0()`` or ``vm.ret1()`` (ret1 returns the top of the stack).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from bbzide.vm.vm import VM
+
+HostFunction = Callable[["VM"], None]
+
+#: Addresses of the BittyBuzz library functions in the reference PC harness.
+LIBRARY_ADDRESSES: dict[str, int] = {
+    "h_print": 0x401ADD, "h_ret0": 0x401B8E, "h_ret0_a0": 0x401B9F, "h_ret0_a1": 0x401BD6,
+    "h_ret0_a2": 0x401C0D, "h_ret0_a3": 0x401C44, "h_retnil": 0x401C7B, "h_rand": 0x401C96,
+    "h_min": 0x401CD4, "h_reti": 0x401D94,
+    "bbzneighbors_broadcast": 0x4080A4, "bbzneighbors_listen": 0x408137,
+    "bbzneighbors_ignore": 0x40822D, "bbzneighbors_foreach": 0x408351,
+    "bbzneighbors_map": 0x4085E6, "bbzneighbors_filter": 0x408678,
+    "bbzneighbors_reduce": 0x40874F, "bbzneighbors_get": 0x408AC3,
+    "bbzneighbors_count": 0x408B79,
+    "table_foreach": 0x409BBF, "table_map": 0x409EDC, "table_filter": 0x409F62,
+    "table_reduce": 0x40A045, "table_size": 0x40A179,
+    "bbzvstig_create": 0x40E106, "bbzvstig_onconflict": 0x40E20F,
+    "bbzvstig_onconflictlost": 0x40E2B1, "bbzvstig_get": 0x40E353, "bbzvstig_put": 0x40E59D,
+    "bbzvstig_size": 0x40EAC7,
+    "bbzswarm_create": 0x40EEB9, "bbzswarm_id": 0x40EF53, "bbzswarm_join": 0x40F08B,
+    "bbzswarm_leave": 0x40F0FE, "bbzswarm_in": 0x40F171, "bbzswarm_select": 0x40F2E7,
+    "bbzswarm_unselect": 0x40F328, "bbzswarm_exec": 0x40F369,
+}
+
+#: First address handed to host functions that have no reference address.
+_FIRST_FREE_ADDRESS = 0x500000
+
+
+@dataclass
+class RegisteredHostFunction:
+    """One registered host function: its symbol, the address stored in the heap, the code."""
+
+    symbol: str
+    address: int
+    function: HostFunction
+
+
+class HostRegistry:
+    """Address ↔ host function map of one VM (addresses masked to the pointer width)."""
+
+    def __init__(self, ptr_size: int) -> None:
+        self.mask = (1 << (8 * ptr_size)) - 1
+        self.by_address: dict[int, RegisteredHostFunction] = {}
+        self.by_symbol: dict[str, RegisteredHostFunction] = {}
+        self._next_free = _FIRST_FREE_ADDRESS
+
+    def register(self, symbol: str, function: HostFunction, address: int | None = None) -> int:
+        """Register ``function`` under ``symbol``; returns the address to store in the heap."""
+        if address is None:
+            address = LIBRARY_ADDRESSES.get(symbol)
+        if address is None:
+            address = self._next_free
+            self._next_free += 0x40
+        address &= self.mask
+        call = RegisteredHostFunction(symbol, address, function)
+        self.by_address[address] = call
+        self.by_symbol[symbol] = call
+        return address
+
+    def lookup(self, address: int) -> RegisteredHostFunction | None:
+        return self.by_address.get(address & self.mask)
+
+
+NIL = None  # the Buzz nil as a decoded argument / return value
+
+
+class HostCall:
+    """The contract-level view of one C-closure call (ARCHITECTURE.md "vm → worlds, ui").
+
+    Wraps the VM inside ``callc``: decoded arguments, ``expect_args`` (LNUM), ``ret`` and
+    ``fail``. ``ret`` must be called at most once; when never called, ``finish`` does ret0.
+    """
+
+    def __init__(self, vm: VM, strings: list[str] | None = None) -> None:
+        self.vm = vm
+        self.robot_id = vm.robot
+        self.strings = strings or []
+        self._done = False
+
+    @property
+    def arg_count(self) -> int:
+        from bbzide.vm.tables import darray_elements
+
+        return len(darray_elements(self.vm.heap, self.vm.lsyms)) - 1
+
+    def arg_index(self, i: int) -> int:
+        """Heap index of argument i (1-based; 0 = self)."""
+        return self.vm.lsym(i)
+
+    def arg(self, i: int) -> object:
+        """Argument i decoded: None, int, float, string name, or ("table"/"closure", index)."""
+        from bbzide.compiler import bbzfloat
+        from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
+        from bbzide.vm.heap import NIL as TNIL
+
+        h = self.vm.heap
+        o = self.vm.lsym(i)
+        t = h.obj_type(o)
+        if t == TNIL:
+            return None
+        if t == INT:
+            return h.int_value(o)
+        if t == FLOAT:
+            return bbzfloat.to_float(h.u16(o))
+        if t == STRING:
+            sid = h.u16(o)
+            return self.strings[sid] if sid < len(self.strings) else sid
+        if t == TABLE:
+            return ("table", o)
+        if t == CLOSURE:
+            return ("closure", o)
+        return ("userdata", o)
+
+    @property
+    def args(self) -> list[object]:
+        return [self.arg(i) for i in range(1, self.arg_count + 1)]
+
+    def expect_args(self, n: int) -> bool:
+        return self.vm.assert_lnum(n)
+
+    def ret(self, value: object = None) -> None:
+        from bbzide.compiler import bbzfloat
+
+        vm = self.vm
+        self._done = True
+        if value is None:
+            vm.push_nil()
+        elif isinstance(value, bool | int):
+            vm.push_int(int(value))
+        elif isinstance(value, float):
+            vm.push_float(bbzfloat.from_float(value))
+        elif isinstance(value, dict):
+            t = vm.push_table()
+            for k, v in value.items():
+                key = vm.new_string_obj(self.strings.index(k))
+                val = vm.new_int(v) if isinstance(v, int) else vm.new_float(bbzfloat.from_float(v))
+                vm.table_put_raw(t, val, key)
+        else:
+            vm.push_nil()
+        vm.ret1()
+
+    def fail(self, kind: str) -> None:
+        from bbzide.vm.vm import Error
+
+        self._done = True
+        self.vm.seterror(Error[kind])
+
+    def finish(self) -> None:
+        if not self._done and self.vm.state.name == "READY":
+            self.vm.ret0()

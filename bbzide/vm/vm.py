@@ -1,0 +1,1099 @@
+"""The BittyBuzz virtual machine record and its instructions (spec §D.5-D.6, §E.8, §F.1-F.3).
+
+One :class:`VM` is one robot's ``bbzvm_t``: the heap buffer, the u16 stack of heap indices,
+pc/blockptr/lsyms, the singletons (nil, default activation record, function list, globals)
+and the non-heap records of swarms, stigmergy, neighbors and message queues. Every
+instruction reproduces the reference C routine step by step — including the order of pops,
+allocations and checks — because that order is visible in the heap bytes and in the state
+left behind by an error.
+
+Error handling mirrors the C macros: ``seterror`` puts the VM in ERROR and records the
+event; the instruction then returns at the same point the C code returns. Allocation
+failures (``HeapFull`` from the heap) become BBZVM_ERROR_MEM exactly where the C wrappers
+(``bbzint_new`` ...) return ``vm->nil``.
+
+Our additions (not in BittyBuzz), documented in ARCHITECTURE.md:
+* ``Error.BUDGET`` (number 15): ``run``/``closure_call`` exceeded ``instruction_budget``.
+* Malformed bytecode never raises: reading an opcode at pc ≥ size is a PC error (the C
+  fetch function would read past the array), an unknown opcode is INSTR.
+* Integer division or modulo by zero (a crash in C) is a MATH error.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from enum import IntEnum
+
+from bbzide.compiler import bbzfloat
+from bbzide.vm import gc as gcmod
+from bbzide.vm.heap import (
+    CLOSURE,
+    FLAG1,
+    FLAG2,
+    FLOAT,
+    INT,
+    NIL,
+    NO_ACTREC,
+    PERMANENT,
+    STRING,
+    TABLE,
+    TYPE_MASK,
+    USERDATA,
+    VALID,
+    Heap,
+    HeapFull,
+)
+from bbzide.vm.host import HostFunction, HostRegistry
+from bbzide.vm.messages import MessageQueues
+from bbzide.vm.neighbors import NeighborsState
+from bbzide.vm.profiles import PC, Profile
+from bbzide.vm.swarm import SwarmState
+from bbzide.vm.tables import (
+    compare as type_compare,
+)
+from bbzide.vm.tables import (
+    darray_clone,
+    darray_destroy,
+    darray_find,
+    darray_get,
+    darray_new,
+    darray_pop,
+    darray_push,
+    darray_set,
+    darray_size,
+    lambda_alloc,
+    table_get,
+    table_set,
+)
+from bbzide.vm.vstig import VstigStore
+
+
+class State(IntEnum):
+    """``bbzvm_state`` (BittyBuzz numbering)."""
+
+    NOCODE = 0
+    READY = 1
+    STOPPED = 2
+    DONE = 3
+    ERROR = 4
+
+
+class Error(IntEnum):
+    """``bbzvm_error``; BUDGET is our own addition (instruction budget exhausted)."""
+
+    NONE = 0
+    INSTR = 1
+    STACK = 2
+    LNUM = 3
+    PC = 4
+    FLIST = 5
+    TYPE = 6
+    OUTOFRANGE = 7
+    NOTIMPL = 8
+    RET = 9
+    STRING = 10
+    SWARM = 11
+    VSTIG = 12
+    MEM = 13
+    MATH = 14
+    BUDGET = 15
+
+
+_I16 = 0xFFFF
+
+
+def _s16(v: int) -> int:
+    v &= 0xFFFF
+    return v - 0x10000 if v & 0x8000 else v
+
+
+class VM:
+    """One BittyBuzz VM (``bbzvm_t``)."""
+
+    def __init__(self, profile: Profile = PC, robot: int = 0, stress_gc: bool = True) -> None:
+        self.profile = profile
+        self.heap = Heap(profile)
+        self.host = HostRegistry(profile.ptr_size)
+        self.stress_gc = stress_gc
+        self.stack: list[int] = [0] * profile.stack_size
+        self.stack_size = profile.stack_size
+        self.stackptr = -1
+        self.blockptr = -1
+        self.pc = 0
+        self.bcode = b""
+        self.bcode_size = 0
+        self.state = State.NOCODE
+        self.error = Error.NONE
+        self.lsyms = 0
+        self.gsyms = 0
+        self.nil = 0
+        self.dflt_actrec = 0
+        self.flist = 0
+        self.robot = robot
+        self.instruction_budget: int | None = None
+        #: (error name, pc when the receiver was called) of every error, oldest first.
+        self.error_events: list[tuple[str, int]] = []
+        self.error_receiver: Callable[[VM, Error], None] | None = None
+        self.instructions_executed = 0
+        #: fast mode: True while heap and stack are unchanged since the last collection
+        self._gc_clean = False
+        self.swarm = SwarmState()
+        self.vstig = VstigStore()
+        self.neighbors = NeighborsState()
+        self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap)
+
+    # =================================================================== construct
+    def construct(self, robot: int | None = None) -> None:
+        """``bbzvm_construct`` (spec §E.11): singletons, globals, library tables."""
+        from bbzide.vm import neighbors, swarm, table_library, vstig
+
+        if robot is not None:
+            self.robot = robot
+        self.bcode = b""
+        self.bcode_size = 0
+        self.pc = 0
+        self.state = State.NOCODE
+        self.error = Error.NONE
+        self.stackptr = -1
+        self.blockptr = -1
+        self.lsyms = 0
+        self.flist = 0
+        h = self.heap
+        h.clear()
+        self.queues.clear()
+        self.nil = h.obj_alloc(NIL)
+        h.set_mdata(self.nil, h.mdata(self.nil) | PERMANENT)
+        h.set_u16(self.nil, 0)
+        self.dflt_actrec = darray_new(h)
+        self.make_permanent(self.dflt_actrec)
+        darray_push(h, self.dflt_actrec, self.nil)
+        self.flist = darray_new(h)
+        self.make_permanent(self.flist)
+        self.gsyms = h.obj_alloc(TABLE)
+        self.make_permanent(self.gsyms)
+        # bbzvm_register_globals: id := robot
+        self.push_int(self.robot)
+        self.gsym_register(0, self.stack[self.stackptr])
+        self.pop()
+        vstig.register(self)
+        swarm.register(self)
+        neighbors.register(self)
+        table_library.register(self)
+
+    def set_bcode(self, bcode: bytes) -> None:
+        """``bbzvm_set_bcode``: run the string-registration preamble up to its ``nop``."""
+        self.bcode = bytes(bcode)
+        self.bcode_size = len(self.bcode)
+        self.state = State.READY
+        self.error = Error.NONE
+        self.pc = 2
+        while True:
+            if self.pc >= self.bcode_size:
+                self.seterror(Error.PC)
+                return
+            if self.bcode[self.pc] == 0:
+                break
+            self.step()
+            if self.state != State.READY:
+                return
+        self.step()
+
+    # =================================================================== errors
+    def seterror(self, code: Error) -> None:
+        self.state = State.ERROR
+        self.error = code
+        self.error_events.append((code.name, self.pc))
+        if self.error_receiver is not None:
+            self.error_receiver(self, code)
+
+    def not_implemented(self) -> None:
+        self.seterror(Error.NOTIMPL)
+
+    # =================================================================== heap helpers
+    def make_permanent(self, i: int) -> None:
+        self.heap.set_mdata(i, self.heap.mdata(i) | PERMANENT)
+
+    def unmake_permanent(self, i: int) -> None:
+        self.heap.set_mdata(i, self.heap.mdata(i) & ~PERMANENT & 0xFF)
+
+    def gc(self) -> None:
+        """``bbzvm_gc``."""
+        self._gc_clean = False
+        gcmod.collect(self.heap, self.stack, self.stackptr)
+
+    def alloc_or_mem(self, fn: Callable[[Heap], int]) -> int:
+        """Run an allocating heap function; MEM error and nil on failure."""
+        try:
+            return fn(self.heap)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+
+    def new_int(self, value: int) -> int:
+        """``bbzint_new``."""
+        try:
+            i = self.heap.obj_alloc(INT)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+        self.heap.set_u16(i, value & _I16)
+        return i
+
+    def new_float(self, bits: int) -> int:
+        try:
+            i = self.heap.obj_alloc(FLOAT)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+        self.heap.set_u16(i, bits & _I16)
+        return i
+
+    def new_string_obj(self, sid: int) -> int:
+        """``bbzstring_get``: dedupe or allocate."""
+        try:
+            i = self.heap.obj_alloc(STRING, sid)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+        self.heap.set_u16(i, sid)
+        return i
+
+    def new_table_obj(self) -> int:
+        try:
+            return self.heap.obj_alloc(TABLE)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+
+    def new_closure_obj(self, value: int) -> int:
+        try:
+            i = self.heap.obj_alloc(CLOSURE)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+        self.heap.set_ptr(i, value)
+        return i
+
+    def new_userdata(self, value: int) -> int:
+        try:
+            i = self.heap.obj_alloc(USERDATA)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return self.nil
+        self.heap.set_ptr(i, value)
+        return i
+
+    def table_put_raw(self, t: int, value: int, key: int) -> None:
+        """``bbztable_set(t, key, value)`` with MEM on failure (value allocated first)."""
+        try:
+            table_set(self.heap, t, key, value)
+        except HeapFull:
+            self.seterror(Error.MEM)
+
+    # =================================================================== stack
+    def stack_depth(self) -> int:
+        return self.stackptr + 1
+
+    def stack_at(self, i: int) -> int:
+        """``bbzvm_stack_at``: the i-th entry from the top (0 = top)."""
+        return self.stack[self.stackptr - i]
+
+    def push(self, v: int) -> None:
+        self._gc_clean = False
+        if self.stackptr + 1 >= self.stack_size:
+            self.seterror(Error.STACK)
+            return
+        self.stackptr += 1
+        self.stack[self.stackptr] = v
+
+    def pop(self) -> None:
+        self._gc_clean = False
+        if self.stackptr < 0:
+            self.seterror(Error.STACK)
+            return
+        self.stackptr -= 1
+
+    def push_int(self, v: int) -> None:
+        self.push(self.new_int(v))
+
+    def push_float(self, bits: int) -> None:
+        self.push(self.new_float(bits))
+
+    def push_string(self, sid: int) -> int:
+        o = self.new_string_obj(sid)
+        self.push(o)
+        return o
+
+    def push_table(self) -> int:
+        o = self.new_table_obj()
+        self.push(o)
+        return o
+
+    def push_nil(self) -> None:
+        self.push(self.nil)
+
+    def push_closure(self, value: int, native: bool) -> int:
+        """``bbzvm_pushc``."""
+        o = self.new_closure_obj(value)
+        if native:
+            self.heap.set_mdata(o, self.heap.mdata(o) | FLAG1)
+        self.push(o)
+        return o
+
+    def assert_stack(self, n: int) -> bool:
+        if self.stackptr + 1 < n:
+            self.seterror(Error.STACK)
+            return False
+        return True
+
+    def assert_type(self, i: int, typ: int) -> bool:
+        if self.heap.obj_type(i) != typ:
+            self.seterror(Error.TYPE)
+            return False
+        return True
+
+    def assert_lnum(self, n: int) -> bool:
+        """``bbzvm_assert_lnum``: the activation record holds self + n arguments."""
+        if darray_size(self.heap, self.lsyms) != n + 1:
+            self.seterror(Error.LNUM)
+            return False
+        return True
+
+    def lsym(self, i: int) -> int:
+        """Local symbol i of the current activation record (nil if absent)."""
+        v = darray_get(self.heap, self.lsyms, i)
+        return self.nil if v is None else v
+
+    # =================================================================== registration
+    def gsym_register(self, sid: int, v: int) -> None:
+        self.push_string(sid)
+        self.push(v)
+        self.gstore()
+
+    def register_host(self, symbol: str, fn: HostFunction, address: int | None = None) -> int:
+        return self.host.register(symbol, fn, address)
+
+    def function_register(self, sid: int, symbol: str, fn: HostFunction,
+                          address: int | None = None) -> int:
+        """``bbzvm_function_register``: closure first, then the name (gstore)."""
+        addr = self.host.register(symbol, fn, address)
+        self.push_closure(addr, native=False)
+        if self.state == State.ERROR:
+            return self.nil
+        cpos = self.stack[self.stackptr]
+        self.pop()
+        if sid >= 0:
+            self.gsym_register(sid, cpos)
+        return cpos
+
+    def add_function(self, t: int, sid: int, symbol: str, fn: HostFunction,
+                     address: int | None = None) -> None:
+        """``bbztable_add_function``: push t, pushs name, pushcc, tput."""
+        addr = self.host.register(symbol, fn, address)
+        self.push(t)
+        self.push_string(sid)
+        self.push_closure(addr, native=False)
+        self.tput()
+
+    # =================================================================== snapshots
+    def snapshot(self) -> bytes:
+        """The whole VM state as bytes (heap copy + small records, pickled)."""
+        import copy
+        import pickle
+
+        return pickle.dumps((
+            self.heap.snapshot(), list(self.stack), self.stackptr, self.blockptr, self.pc,
+            self.state, self.error, self.lsyms, self.gsyms, self.nil, self.dflt_actrec,
+            self.flist, self.robot, list(self.error_events), self.instructions_executed,
+            copy.deepcopy((self.swarm, self.vstig, self.neighbors, self.queues)),
+            self.bcode,
+        ))
+
+    def restore(self, snapshot: bytes) -> None:
+        import copy
+        import pickle
+
+        snap = pickle.loads(snapshot)
+        (hs, stack, self.stackptr, self.blockptr, self.pc, self.state, self.error,
+         self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
+         events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
+        self.heap.restore(hs)
+        self._gc_clean = False
+        self.stack[:] = stack
+        self.error_events = list(events)
+        self.swarm, self.vstig, self.neighbors, self.queues = copy.deepcopy(recs)
+        self.bcode = bcode
+        self.bcode_size = len(bcode)
+
+    # =================================================================== execution
+    def step(self) -> None:
+        """``bbzvm_step``: GC, then one instruction."""
+        if self.state == State.READY:
+            # Fast mode skips the collection only before instructions that change nothing
+            # but pc (nop, calls, jump): the previous collection already left exactly the
+            # state this one would produce (a collection on an unchanged heap and stack is
+            # idempotent), so every observable state is identical to stress mode.
+            if self.stress_gc or not self._gc_clean:
+                gcmod.collect(self.heap, self.stack, self.stackptr)
+            pc = self.pc
+            self.exec_instr()
+            # Clean = nothing changed since the last collection: true only right after a
+            # pc-only instruction that itself followed a (real or skipped) collection.
+            self._gc_clean = (pc < self.bcode_size and self.bcode[pc] in _PC_ONLY_OPCODES
+                              and self.state == State.READY)
+
+    def exec_instr(self) -> None:
+        offset = self.pc
+        size = self.bcode_size
+        if offset >= size:
+            self.seterror(Error.PC)
+            self.pc = offset
+            return
+        op = self.bcode[offset]
+        self.instructions_executed += 1
+        if op != 1:
+            self.pc = offset + 1
+        if op >= 35:
+            if op > 46:
+                self.seterror(Error.INSTR)
+            elif self.pc + 2 > size:
+                self.seterror(Error.PC)
+            else:
+                arg = self.bcode[self.pc] | (self.bcode[self.pc + 1] << 8)
+                self.pc += 2
+                _OPERAND_OPS[op - 35](self, arg)
+        else:
+            _SIMPLE_OPS[op](self)
+        if self.state != State.READY:
+            self.pc = offset
+
+    def _assert_pc(self, idx: int) -> bool:
+        if idx > self.bcode_size:
+            self.seterror(Error.PC)
+            return False
+        return True
+
+    # ---- simple instructions -------------------------------------------------------
+    def op_nop(self) -> None:
+        pass
+
+    def op_done(self) -> None:
+        self.state = State.DONE
+
+    def op_pushnil(self) -> None:
+        self.push(self.nil)
+
+    def op_dup(self) -> None:
+        n = self.stackptr + 1
+        if not (0 < n < self.stack_size):
+            self.seterror(Error.STACK)
+            return
+        h = self.heap
+        try:
+            idx = h.obj_alloc(USERDATA)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return
+        s = h.obj_size
+        src = self.stack[self.stackptr] * s
+        dst = idx * s
+        h.data[dst:dst + s] = h.data[src:src + s]
+        h.data[dst] = (h.data[dst] | VALID) & ~PERMANENT & 0xFF
+        self.push(idx)
+
+    def op_pop(self) -> None:
+        self.pop()
+
+    def op_ret0(self) -> None:
+        self.ret0()
+        if self.state == State.READY:
+            self._assert_pc(self.pc)
+
+    def op_ret1(self) -> None:
+        self.ret1()
+        if self.state == State.READY:
+            self._assert_pc(self.pc)
+
+    def _unwind(self) -> bool:
+        h = self.heap
+        self.stackptr = self.blockptr
+        self.blockptr = h.int_value(self.stack[self.stackptr])
+        self.pop()
+        self.unmake_permanent(self.lsyms)
+        darray_destroy(h, self.lsyms)
+        self.lsyms = self.stack[self.stackptr]
+        self.pop()
+        return True
+
+    def ret0(self) -> None:
+        if not self.assert_stack(3):
+            return
+        self._unwind()
+        if not self.assert_stack(1):
+            return
+        if not self.assert_type(self.stack[self.stackptr], INT):
+            return
+        self.pc = self.heap.u16(self.stack[self.stackptr])
+        self.pop()
+        self.push(self.nil)
+
+    def ret1(self) -> None:
+        if not self.assert_stack(4):
+            return
+        ret = self.stack[self.stackptr]
+        self._unwind()
+        if not self.assert_type(self.stack[self.stackptr], INT):
+            return
+        self.pc = self.heap.u16(self.stack[self.stackptr])
+        self.pop()
+        self.push(ret)
+
+    def _arith(self, kind: int) -> None:
+        if not self.assert_stack(2):
+            return
+        h = self.heap
+        rhs = self.stack[self.stackptr]
+        lhs = self.stack[self.stackptr - 1]
+        self.stackptr -= 2
+        tl = h.obj_type(lhs)
+        tr = h.obj_type(rhs)
+        if not self.profile.float_ops:
+            if tl == FLOAT or tr == FLOAT:
+                self.seterror(Error.TYPE)
+                return
+            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)))
+            return
+        if tl == INT and tr == INT:
+            self._int_arith(kind, h.int_value(lhs), h.int_value(rhs))
+            return
+        if tl not in (INT, FLOAT) or tr not in (INT, FLOAT):
+            self.seterror(Error.MATH)
+            return
+        a = float(h.int_value(lhs)) if tl == INT else bbzfloat.to_float(h.u16(lhs))
+        b = float(h.int_value(rhs)) if tr == INT else bbzfloat.to_float(h.u16(rhs))
+        try:
+            if kind == 0:
+                r = a + b
+            elif kind == 1:
+                r = a - b
+            elif kind == 2:
+                r = a * b
+            elif kind == 3:
+                r = a / b if b != 0 else (math.copysign(math.inf, a) * math.copysign(1, b)
+                                          if a != 0 else math.nan)
+            elif kind == 4:
+                if tl == INT:
+                    a = float(h.u16(lhs))
+                q = a / b if b != 0 else math.inf
+                r = a - float(_s16(int(q))) * b if math.isfinite(q) else math.nan
+            else:
+                self.seterror(Error.MATH)
+                return
+        except OverflowError:
+            r = math.inf
+        self.push_float(bbzfloat.from_float(r))
+
+    def _int_arith(self, kind: int, a: int, b: int) -> None:
+        if kind == 0:
+            r = a + b
+        elif kind == 1:
+            r = a - b
+        elif kind == 2:
+            r = a * b
+        elif kind == 3 or kind == 4:
+            if b == 0:
+                self.seterror(Error.MATH)
+                return
+            q = abs(a) // abs(b)
+            if (a < 0) != (b < 0):
+                q = -q
+            r = q if kind == 3 else a - q * b
+        else:
+            if b >= 0:
+                r = 1
+                for _ in range(b):
+                    r = _s32(r * a)
+            elif a == 1:
+                r = 1
+            elif a == -1:
+                r = -1
+            else:
+                self.seterror(Error.MATH)
+                r = 0
+        self.push_int(r)
+
+    def op_add(self) -> None:
+        self._arith(0)
+
+    def op_sub(self) -> None:
+        self._arith(1)
+
+    def op_mul(self) -> None:
+        self._arith(2)
+
+    def op_div(self) -> None:
+        self._arith(3)
+
+    def op_mod(self) -> None:
+        self._arith(4)
+
+    def op_pow(self) -> None:
+        self._arith(5)
+
+    def op_unm(self) -> None:
+        if not self.assert_stack(1):
+            return
+        h = self.heap
+        o = self.stack[self.stackptr]
+        t = h.obj_type(o)
+        if t == INT:
+            self.pop()
+            self.push_int(-h.int_value(o))
+        elif t == FLOAT:
+            self.pop()
+            self.push_float(bbzfloat.negate(h.u16(o)))
+        else:
+            self.seterror(Error.TYPE)
+
+    def _truth(self, o: int) -> int:
+        h = self.heap
+        return 1 if h.obj_type(o) == INT and h.u16(o) != 0 else 0
+
+    def _logic(self, kind: int) -> None:
+        if not self.assert_stack(2):
+            return
+        rhs = self.stack[self.stackptr]
+        lhs = self.stack[self.stackptr - 1]
+        self.stackptr -= 2
+        a = self._truth(lhs)
+        b = self._truth(rhs)
+        self.push_int((a & b) if kind == 0 else (a | b))
+
+    def op_land(self) -> None:
+        self._logic(0)
+
+    def op_lor(self) -> None:
+        self._logic(1)
+
+    def op_band(self) -> None:
+        self._logic(0)
+
+    def op_bor(self) -> None:
+        self._logic(1)
+
+    def op_lnot(self) -> None:
+        if not self.assert_stack(1):
+            return
+        o = self.stack[self.stackptr]
+        self.pop()
+        if self.heap.obj_type(o) in (NIL, INT):
+            self.push_int(1 if self.heap.u16(o) != 0 else 0)
+        else:
+            self.seterror(Error.TYPE)
+
+    def op_bnot(self) -> None:
+        if not self.assert_stack(1):
+            return
+        o = self.stack[self.stackptr]
+        self.pop()
+        if self.heap.obj_type(o) in (NIL, INT):
+            self.push_int(~self.heap.u16(o))
+        else:
+            self.seterror(Error.TYPE)
+
+    def op_shift(self) -> None:
+        self.seterror(Error.INSTR)
+
+    def _cmp(self, kind: int) -> None:
+        if not self.assert_stack(2):
+            return
+        rhs = self.stack[self.stackptr]
+        lhs = self.stack[self.stackptr - 1]
+        self.stackptr -= 2
+        c = type_compare(self.heap, lhs, rhs)
+        if kind == 0:
+            r = c == 0
+        elif kind == 1:
+            r = c != 0
+        elif kind == 2:
+            r = c > 0
+        elif kind == 3:
+            r = c >= 0
+        elif kind == 4:
+            r = c < 0
+        else:
+            r = c <= 0
+        self.push_int(1 if r else 0)
+
+    def op_eq(self) -> None:
+        self._cmp(0)
+
+    def op_neq(self) -> None:
+        self._cmp(1)
+
+    def op_gt(self) -> None:
+        self._cmp(2)
+
+    def op_gte(self) -> None:
+        self._cmp(3)
+
+    def op_lt(self) -> None:
+        self._cmp(4)
+
+    def op_lte(self) -> None:
+        self._cmp(5)
+
+    def op_gload(self) -> None:
+        self.gload()
+
+    def gload(self) -> None:
+        if not self.assert_stack(1):
+            return
+        s = self.stack[self.stackptr]
+        if not self.assert_type(s, STRING):
+            return
+        self.pop()
+        v = table_get(self.heap, self.gsyms, s)
+        self.push(self.nil if v is None else v)
+
+    def op_gstore(self) -> None:
+        self.gstore()
+
+    def gstore(self) -> None:
+        if not self.assert_stack(2):
+            return
+        s = self.stack[self.stackptr - 1]
+        o = self.stack[self.stackptr]
+        if not self.assert_type(s, STRING):
+            return
+        self.stackptr -= 2
+        try:
+            table_set(self.heap, self.gsyms, s, o)
+        except HeapFull:
+            self.seterror(Error.MEM)
+
+    def op_pusht(self) -> None:
+        self.push(self.new_table_obj())
+
+    def op_tput(self) -> None:
+        self.tput()
+
+    def tput(self) -> None:
+        if not self.assert_stack(3):
+            return
+        h = self.heap
+        v = self.stack[self.stackptr]
+        k = self.stack[self.stackptr - 1]
+        t = self.stack[self.stackptr - 2]
+        if not self.assert_type(t, TABLE):
+            return
+        self.stackptr -= 3
+        m = h.mdata(v)
+        if (m & TYPE_MASK == CLOSURE and m & FLAG2 and h.data[v * h.obj_size + 2] != NO_ACTREC
+                and not h.mdata(h.data[v * h.obj_size + 2]) & FLAG2):
+            self._bind_method(t, k, v)
+            return
+        try:
+            table_set(h, t, k, v)
+        except HeapFull:
+            self.seterror(Error.MEM)
+
+    def _bind_method(self, t: int, k: int, v: int) -> None:
+        """tput of a lambda created inside a function: bind self (spec §E.8)."""
+        h = self.heap
+        s = h.obj_size
+        try:
+            o = h.obj_alloc(USERDATA)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return
+        h.data[o * s:o * s + s] = h.data[v * s:v * s + s]
+        h.set_mdata(o, h.mdata(o) | FLAG2)
+        vm_ = h.mdata(v)
+        try:
+            d = h.obj_alloc(INT if vm_ & FLAG1 else USERDATA)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return
+        ar = h.data[v * s + 2]
+        o2 = darray_get(h, self.flist, h.data[v * s + 1])
+        if o2 is None:
+            self.seterror(Error.FLIST)
+            return
+        h.data[d * s + 1:d * s + s] = h.data[o2 * s + 1:o2 * s + s]
+        pos = darray_find(h, self.flist, d)
+        if pos == darray_size(h, self.flist):
+            try:
+                darray_push(h, self.flist, d)
+            except HeapFull:
+                self.seterror(Error.MEM)
+                return
+        else:
+            h.set_mdata(d, h.mdata(d) & ~VALID & 0xFF)
+        idx, ok = lambda_alloc(h, ar)
+        if idx >= 0:
+            h.data[o * s + 2] = idx
+        if not ok:
+            self.seterror(Error.MEM)
+            return
+        h.set_mdata(idx, h.mdata(idx) | FLAG2)
+        h.data[o * s + 1] = pos & 0xFF
+        if not darray_set(h, idx, 0, t):
+            self.seterror(Error.FLIST)
+            return
+        try:
+            table_set(h, t, k, o)
+        except HeapFull:
+            self.seterror(Error.MEM)
+
+    def op_tget(self) -> None:
+        if not self.assert_stack(2):
+            return
+        k = self.stack[self.stackptr]
+        t = self.stack[self.stackptr - 1]
+        if not self.assert_type(t, TABLE):
+            return
+        self.stackptr -= 2
+        v = table_get(self.heap, t, k)
+        self.push(self.nil if v is None else v)
+
+    def op_callc(self) -> None:
+        self.callc()
+        if self.state == State.READY:
+            self._assert_pc(self.pc)
+
+    def callc(self) -> None:
+        h = self.heap
+        s = h.obj_size
+        if not self.assert_stack(1):
+            return
+        if not self.assert_type(self.stack[self.stackptr], INT):
+            return
+        argn = h.u16(self.stack[self.stackptr])
+        self.pop()
+        if not self.assert_stack(argn + 1):
+            return
+        c = self.stack[self.stackptr - argn]
+        if not self.assert_type(c, CLOSURE):
+            return
+        cm = h.mdata(c)
+        is_lambda = bool(cm & FLAG2)
+        ref = h.data[c * s + 1]
+        actrec = h.data[c * s + 2]
+        if is_lambda and ref >= darray_size(h, self.flist):
+            self.seterror(Error.FLIST)
+            return
+        old_lsyms = self.lsyms
+        src = self.dflt_actrec if (not is_lambda or actrec == NO_ACTREC) else actrec
+        try:
+            self.lsyms = darray_clone(h, src)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return
+        self.make_permanent(self.lsyms)
+        for i in range(argn, 0, -1):
+            try:
+                darray_push(h, self.lsyms, self.stack[self.stackptr - (i - 1)])
+            except HeapFull:
+                pass
+        self.stackptr -= argn + 1
+        if not is_lambda or actrec == NO_ACTREC or not h.mdata(actrec) & FLAG2:
+            darray_set(h, self.lsyms, 0, self.stack[self.stackptr])
+        self.pop()
+        self.push_int(self.pc)
+        if self.state != State.READY:
+            return
+        self.push(old_lsyms)
+        if self.state != State.READY:
+            return
+        self.push_int(self.blockptr)
+        if self.state != State.READY:
+            return
+        self.blockptr = self.stackptr
+        if is_lambda:
+            fo = darray_get(h, self.flist, ref)
+            x = h.ptr_value(fo if fo is not None else 0)
+        else:
+            x = h.ptr_value(c)
+        if cm & FLAG1:
+            self.pc = x & 0xFFFF
+        else:
+            call = self.host.lookup(x)
+            if call is None:
+                self.seterror(Error.NOTIMPL)
+            else:
+                call.function(self)
+
+    def op_calls(self) -> None:
+        pass
+
+    # ---- operand instructions --------------------------------------------------------
+    def op_pushf(self, arg: int) -> None:
+        self.push(self.new_float(arg))
+
+    def op_pushi(self, arg: int) -> None:
+        self.push(self.new_int(arg))
+
+    def op_pushs(self, arg: int) -> None:
+        self.push(self.new_string_obj(arg))
+
+    def op_pushcn(self, arg: int) -> None:
+        self.push_closure(arg, native=True)
+
+    def op_pushcc(self, arg: int) -> None:
+        self.push_closure(_s16(arg), native=False)
+
+    def op_pushl(self, addr: int) -> None:
+        h = self.heap
+        s = h.obj_size
+        try:
+            o = h.obj_alloc(CLOSURE)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return
+        h.set_mdata(o, h.mdata(o) | FLAG1 | FLAG2)
+        try:
+            idx = h.obj_alloc(INT)
+        except HeapFull:
+            self.seterror(Error.MEM)
+            return
+        h.set_u16(idx, addr)
+        pos = darray_find(h, self.flist, idx)
+        if pos == darray_size(h, self.flist):
+            try:
+                darray_push(h, self.flist, idx)
+            except HeapFull:
+                self.seterror(Error.MEM)
+                return
+        else:
+            h.set_mdata(idx, h.mdata(idx) & ~VALID & 0xFF)
+        h.data[o * s + 1] = pos & 0xFF
+        if self.lsyms:
+            ar, ok = lambda_alloc(h, self.lsyms)
+            if ar >= 0:
+                h.data[o * s + 2] = ar
+            if not ok:
+                self.seterror(Error.MEM)
+                return
+        self.push(o)
+
+    def op_lload(self, idx: int) -> None:
+        v = darray_get(self.heap, self.lsyms, idx)
+        if v is None:
+            self.seterror(Error.LNUM)
+            return
+        self.push(v)
+
+    def op_lstore(self, idx: int) -> None:
+        h = self.heap
+        o = self.stack[self.stackptr]
+        size = darray_size(h, self.lsyms)
+        while size <= idx:
+            size += 1
+            try:
+                darray_push(h, self.lsyms, self.nil)
+            except HeapFull:
+                self.seterror(Error.MEM)
+                return
+        darray_set(h, self.lsyms, idx, o)
+        self.pop()
+
+    def op_lremove(self, num: int) -> None:
+        for _ in range(num):
+            if not darray_pop(self.heap, self.lsyms):
+                self.seterror(Error.LNUM)
+                return
+
+    def op_jump(self, target: int) -> None:
+        self.pc = target
+        self._assert_pc(target)
+
+    def _jump_cond(self, target: int, on_zero: bool) -> None:
+        if not self.assert_stack(1):
+            return
+        h = self.heap
+        o = self.stack[self.stackptr]
+        if h.obj_type(o) not in (NIL, INT):
+            self.seterror(Error.TYPE)
+            return
+        if (h.u16(o) == 0) == on_zero:
+            self.pc = target
+        if not self._assert_pc(self.pc):
+            return
+        self.pop()
+
+    def op_jumpz(self, target: int) -> None:
+        self._jump_cond(target, True)
+
+    def op_jumpnz(self, target: int) -> None:
+        self._jump_cond(target, False)
+
+    # =================================================================== host calls
+    def closure_call(self, argc: int) -> None:
+        """``bbzvm_closure_call``: stack holds self, closure, args; result stays on top."""
+        if self.state != State.READY:
+            return
+        self.push_int(argc)
+        saved = self.blockptr
+        self.callc()
+        budget = self.instruction_budget
+        n = 0
+        while saved < self.blockptr:
+            if self.state != State.READY:
+                return
+            self.step()
+            n += 1
+            if budget is not None and n > budget:
+                self.seterror(Error.BUDGET)
+                return
+
+    def function_call(self, sid: int, argc: int) -> None:
+        """``bbzvm_function_call``: call the global ``sid`` with ``argc`` args on the stack."""
+        if self.state == State.DONE:
+            self.state = State.READY
+        if self.state != State.READY:
+            return
+        self.push_string(sid)
+        if self.state != State.READY:
+            return
+        self.gload()
+        if not self.assert_type(self.stack[self.stackptr], CLOSURE):
+            return
+        if argc > 0:
+            c = self.stack[self.stackptr]
+            for i in range(argc):
+                self.stack[self.stackptr - i] = self.stack[self.stackptr - i - 1]
+            self.stack[self.stackptr - argc] = c
+        self.closure_call(argc)
+
+    def run(self, max_instructions: int | None = None) -> None:
+        """Step until the VM is no longer READY (or the budget is exhausted)."""
+        budget = max_instructions if max_instructions is not None else self.instruction_budget
+        n = 0
+        while self.state == State.READY:
+            self.step()
+            n += 1
+            if budget is not None and n >= budget and self.state == State.READY:
+                self.seterror(Error.BUDGET)
+
+
+def _s32(v: int) -> int:
+    v &= 0xFFFFFFFF
+    return v - 0x100000000 if v & 0x80000000 else v
+
+
+#: Opcodes that change nothing but pc: nop, calls, jump.
+_PC_ONLY_OPCODES = frozenset({0, 34, 44})
+
+_SIMPLE_OPS: list[Callable[[VM], None]] = [
+    VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,
+    VM.op_add, VM.op_sub, VM.op_mul, VM.op_div, VM.op_mod, VM.op_pow, VM.op_unm,
+    VM.op_land, VM.op_lor, VM.op_lnot, VM.op_band, VM.op_bor, VM.op_bnot,
+    VM.op_shift, VM.op_shift, VM.op_eq, VM.op_neq, VM.op_gt, VM.op_gte, VM.op_lt, VM.op_lte,
+    VM.op_gload, VM.op_gstore, VM.op_pusht, VM.op_tput, VM.op_tget, VM.op_callc, VM.op_calls,
+]
+_OPERAND_OPS: list[Callable[[VM, int], None]] = [
+    VM.op_pushf, VM.op_pushi, VM.op_pushs, VM.op_pushcn, VM.op_pushcc, VM.op_pushl,
+    VM.op_lload, VM.op_lstore, VM.op_lremove, VM.op_jump, VM.op_jumpz, VM.op_jumpnz,
+]
