@@ -41,7 +41,9 @@ def test_comment_and_blank() -> None:
     assert parse_injection_line("   ") is None
 
 
-MALFORMED = ["x bc 1 t int 1", "1 zz 1 2 3 4", "1 vput 1 k int 3 300", "1 nb 1 2", "1 bc 1 t blob 1"]
+MALFORMED = [
+    "x bc 1 t int 1", "1 zz 1 2 3 4", "1 vput 1 k int 3 300", "1 nb 1 2", "1 bc 1 t blob 1",
+]
 
 
 @pytest.mark.parametrize("line", MALFORMED)
