@@ -1,0 +1,43 @@
+import numpy as np
+import pytest
+
+from bbzide.worlds.radio import WorldConfigError, drop_lost, pairs_within_range
+
+
+def brute_force(points, comm_range):
+    n = len(points)
+    return {(i, j) for i in range(n) for j in range(n)
+            if i != j and np.linalg.norm(points[i] - points[j]) <= comm_range}
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_grid_search_matches_all_pairs(seed):
+    rng = np.random.default_rng(seed)
+    points = np.column_stack([rng.uniform(-1, 1, 300), rng.uniform(-1, 1, 300), np.zeros(300)])
+    links = pairs_within_range(points, 0.1)
+    found = set(zip(links.senders.tolist(), links.receivers.tolist(), strict=True))
+    assert found == brute_force(points, 0.1)
+    assert len(found) > 0
+
+
+def test_two_robots_at_known_distance():
+    links = pairs_within_range(np.array([[0.0, 0, 0], [0.07, 0, 0], [0.5, 0, 0]]), 0.1)
+    pairs = zip(links.senders.tolist(), links.receivers.tolist(), strict=True)
+    assert sorted(pairs) == [(0, 1), (1, 0)]
+    assert np.allclose(links.distances, 0.07)
+
+
+def test_negative_range_is_a_user_error():
+    with pytest.raises(WorldConfigError):
+        pairs_within_range(np.zeros((2, 3)), -1.0)
+
+
+def test_loss_rate_is_statistically_right_and_seeded():
+    rng = np.random.default_rng(0)
+    points = np.column_stack([rng.uniform(0, 0.3, 400), rng.uniform(0, 0.3, 400), np.zeros(400)])
+    links = pairs_within_range(points, 0.1)
+    a = drop_lost(links, 0.2, np.random.default_rng(7))
+    b = drop_lost(links, 0.2, np.random.default_rng(7))
+    assert np.array_equal(a.senders, b.senders)
+    kept = len(a.senders) / len(links.senders)
+    assert abs(kept - 0.8) < 0.02
