@@ -1,8 +1,10 @@
 """Headless Chromium for the browser tests (recipe: ui-stack-notes §3).
 
 Debian's /usr/bin/chromium through Playwright's Python package; a fresh profile per browser;
-no network other than 127.0.0.1 (every other request is aborted, so a stray CDN or telemetry
-call fails the page visibly instead of silently reaching the internet).
+every request the pages make is recorded in `context.foreign_requests` when it goes anywhere but
+127.0.0.1 (tests assert that list stays empty). Requests are only observed, never routed: a
+Playwright route handler runs only while the test thread is inside a Playwright call, so routing
+would stall the editor's fetches whenever a test sleeps or polls the server.
 """
 
 from __future__ import annotations
@@ -46,14 +48,15 @@ def chromium_context(width: int = 1400, height: int = 900) -> Iterator[object]:
             profile, executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS,
             viewport={"width": width, "height": height})
 
-        def only_localhost(route: object) -> None:
-            url = route.request.url  # type: ignore[attr-defined]
-            if url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
-                route.continue_()  # type: ignore[attr-defined]
-            else:
-                route.abort()  # type: ignore[attr-defined]
+        foreign: list[str] = []
 
-        context.route("**/*", only_localhost)
+        def record(request: object) -> None:
+            url = request.url  # type: ignore[attr-defined]
+            if not url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
+                foreign.append(url)
+
+        context.on("request", record)
+        context.foreign_requests = foreign  # type: ignore[attr-defined]
         try:
             yield context
         finally:
