@@ -78,8 +78,8 @@ def status_text(status: RunStatus, has_program: bool) -> str:
     if not has_program:
         return "**no program yet**: fix the errors in the editor"
     state = "running" if status.running else "paused"
-    parts = [f"**step {status.step}**", state, f"{status.steps_per_second:.0f} steps/s",
-             f"{status.robots} robots"]
+    rate = f"{status.steps_per_second:.0f} steps/s" if status.running else "0 steps/s"
+    parts = [f"**step {status.step}**", state, rate, f"{status.robots} robots"]
     errors = status.robots_in_error
     parts.append(f"<span style='color:#c92a2a'>**{errors} in error**</span>" if errors else "0 in error")
     text = " · ".join(parts)

@@ -39,7 +39,7 @@ def render_heap_svg(inspection: RobotInspection) -> str:
     rows = (size + per_row - 1) // per_row
     width = per_row * byte_px + 60
     height = rows * (ROW_PX + ROW_GAP_PX) + 24
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height}" '
+    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="100%" viewBox="-2 -12 {width:.0f} {height + 12}" '
              f'class="heap-map" data-rop="{inspection.rop}" data-lsp="{inspection.lsp}" '
              'font-family="monospace" font-size="9">']
     for row in range(rows):
