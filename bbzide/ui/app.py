@@ -23,7 +23,8 @@ from bbzide.ui.controls import RunControls
 from bbzide.ui.editor_server import EditorServer
 from bbzide.ui.file_watcher import FileWatcher
 from bbzide.ui.inspector_panel import InspectorPanel
-from bbzide.ui.program_session import CompileOutcome, ProgramSession
+from bbzide.ui.pitfalls import find_pitfalls
+from bbzide.ui.program_session import CompileOutcome, Diagnostic, ProgramSession
 from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.world_backend import SwarmFrame, WorldBackend
@@ -44,7 +45,8 @@ class IdeApp:
         self.server.gui.configure_theme(control_width="large", show_share_button=False,
                                         dark_mode=False)
         self.controller = RunController(backend, settings)
-        self.session = ProgramSession(source_path, self._compile, self.controller.load_program)
+        self.session = ProgramSession(source_path, self._compile, self.controller.load_program,
+                                      lint_fn=self._pitfalls)
         self.editor_server = EditorServer(self.session, host=host)
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
@@ -114,6 +116,10 @@ class IdeApp:
     # ---- program -------------------------------------------------------------------------------
     def _compile(self, text: str, path: Path) -> tuple[object, object]:
         return self.backend.compile(text, path, self.controller.settings.world)
+
+    def _pitfalls(self, text: str) -> list[Diagnostic]:
+        platform = self.backend.platform(self.controller.settings.world)
+        return find_pitfalls(text, floats_supported=bool(getattr(platform, "floats", True)))
 
     def _reload_from_disk(self) -> None:
         self.session.reload_from_disk()

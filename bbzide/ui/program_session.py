@@ -86,9 +86,11 @@ class ProgramSession:
     """Source text, revisions, compile results and the last good program of one `.bzz` file."""
 
     def __init__(self, path: Path, compile_fn: CompileFunction,
-                 on_program: Callable[[Any], None] | None = None) -> None:
+                 on_program: Callable[[Any], None] | None = None,
+                 lint_fn: Callable[[str], list[Diagnostic]] | None = None) -> None:
         self.path = path.resolve()
         self._compile_fn = compile_fn
+        self._lint_fn = lint_fn
         self._on_program = on_program
         self._listeners: list[Callable[[CompileOutcome], None]] = []
         self._lock = threading.RLock()          # text, revision and outcome change together
@@ -156,8 +158,10 @@ class ProgramSession:
             started = time.perf_counter()
             try:
                 compiled, program = self._compile_fn(text, self.path)
-                outcome = CompileOutcome(revision, True, _warnings_of(compiled, program),
-                                         compiled, program)
+                warnings = _warnings_of(compiled, program)
+                if self._lint_fn is not None:
+                    warnings += self._lint_fn(text)
+                outcome = CompileOutcome(revision, True, warnings, compiled, program)
             except UserError as error:
                 outcome = CompileOutcome(revision, False, diagnostics_from_error(error, self.path))
             except Exception as error:  # noqa: BLE001 - a compiler bug must not kill the IDE
