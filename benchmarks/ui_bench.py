@@ -41,8 +41,11 @@ def frames(count: int, rng: np.random.Generator) -> list[SwarmFrame]:
         links = rng.integers(0, count, size=(3 * count, 2)).astype(np.int32)
         colors = rng.uniform(0, 1, size=(count, 3))
         failed = rng.uniform(size=count) < 0.02
-        out.append(SwarmFrame(step, positions.copy(), headings.copy(), colors, failed, links,
-                              list(range(count))))
+        out.append(
+            SwarmFrame(
+                step, positions.copy(), headings.copy(), colors, failed, links, list(range(count))
+            )
+        )
     return out
 
 
@@ -54,7 +57,7 @@ def measure(scene: SwarmScene, count: int, overlays: bool) -> list[float]:
         started = time.perf_counter()
         scene.draw(frame)
         timings.append((time.perf_counter() - started) * 1000)
-    return timings[10:]          # the first frames build the mesh
+    return timings[10:]  # the first frames build the mesh
 
 
 def main() -> None:
@@ -71,8 +74,10 @@ def main() -> None:
                 p95 = timings[int(0.95 * len(timings))]
                 verdict = "ok" if median <= GOAL_MS else "OVER"
                 label = "all" if overlays else "links only"
-                print(f"{count:>7} {label:>12} {median:>10.2f} {p95:>8.2f} {verdict:>6}"
-                      f"  ({median / GOAL_MS:.2f} of the {GOAL_MS:.0f} ms goal)")
+                print(
+                    f"{count:>7} {label:>12} {median:>10.2f} {p95:>8.2f} {verdict:>6}"
+                    f"  ({median / GOAL_MS:.2f} of the {GOAL_MS:.0f} ms goal)"
+                )
     finally:
         server.stop()
 

@@ -38,15 +38,23 @@ INSPECT_LOCK_TIMEOUT = 0.2
 
 
 class IdeApp:
-    def __init__(self, source_path: Path, backend: WorldBackend, settings: RunSettings,
-                 host: str = "127.0.0.1", port: int = 8080) -> None:
+    def __init__(
+        self,
+        source_path: Path,
+        backend: WorldBackend,
+        settings: RunSettings,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+    ) -> None:
         self.backend = backend
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        self.server.gui.configure_theme(control_width="large", show_share_button=False,
-                                        dark_mode=False)
+        self.server.gui.configure_theme(
+            control_width="large", show_share_button=False, dark_mode=False
+        )
         self.controller = RunController(backend, settings)
-        self.session = ProgramSession(source_path, self._compile, self.controller.load_program,
-                                      lint_fn=self._pitfalls)
+        self.session = ProgramSession(
+            source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls
+        )
         self.editor_server = EditorServer(self.session, host=host)
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
@@ -55,7 +63,9 @@ class IdeApp:
         self._world_generation = -1
         self._build_dirty = True
         self._stop = threading.Event()
-        self._ticker = threading.Thread(target=self._tick_loop, name="bbzide-ui-ticker", daemon=True)
+        self._ticker = threading.Thread(
+            target=self._tick_loop, name="bbzide-ui-ticker", daemon=True
+        )
         self.watcher = FileWatcher(source_path, self._reload_from_disk)
         self._build_gui(host)
         self.controller.add_frame_listener(self._on_frame)
@@ -67,13 +77,15 @@ class IdeApp:
     @property
     def url(self) -> str:
         host = self.server.get_host()
-        return f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}/"
+        return (
+            f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}/"
+        )
 
     def start(self, run: bool = True) -> IdeApp:
         self.editor_server.start()
         self.controller.start()
         self.watcher.start()
-        self.session.compile_now()          # first program -> controller builds the world
+        self.session.compile_now()  # first program -> controller builds the world
         if run:
             self.controller.play()
         self._ticker.start()
@@ -97,7 +109,8 @@ class IdeApp:
             gui.add_html(
                 f'<iframe src="{self.editor_server.url(browser_host)}" title="Buzz editor" '
                 'class="bbzide-editor" style="width:100%;height:calc(100vh - 140px);border:0;'
-                'display:block"></iframe>')
+                'display:block"></iframe>'
+            )
         with panel.add_tab("Build", icon=viser.Icon.FILE_CODE):
             self.footprint = gui.add_markdown("*not compiled yet*")
             self.listing = gui.add_html("")
@@ -132,7 +145,7 @@ class IdeApp:
             return
         self.controller.update_settings(world=world, robots=self.backend.default_robots(world))
         self.controls.robots.value = self.backend.default_robots(world)
-        self.session.compile_now()          # host functions differ per platform
+        self.session.compile_now()  # host functions differ per platform
 
     def _refresh_build_view(self) -> None:
         self._build_dirty = False
@@ -142,17 +155,26 @@ class IdeApp:
         if outcome is not None and not outcome.ok:
             first = outcome.diagnostics[0] if outcome.diagnostics else None
             where = f"line {first.line}:{first.col}: {html.escape(first.message)}" if first else ""
-            note = f"\n\n⚠ **the current text does not compile** ({where}); the robots run the last good program."
+            note = (
+                f"\n\n⚠ **the current text does not compile** ({where}); "
+                "the robots run the last good program."
+            )
         if good is None:
             self.footprint.content = "*no successful compile yet*" + note
             self.listing.content = ""
             return
         world = self.controller.settings.world
         platform = self.backend.platform(world)
-        budget = getattr(platform, "flash_budget", None) or getattr(platform, "bytecode_budget", None)
+        budget = getattr(platform, "flash_budget", None) or getattr(
+            platform, "bytecode_budget", None
+        )
         name = getattr(platform, "name", world)
-        self.footprint.content = footprint_markdown(good.compiled, good.program, name, budget) + note
-        self.listing.content = listing_html(good.compiled.basm, self.session.text, self.session.path)
+        self.footprint.content = (
+            footprint_markdown(good.compiled, good.program, name, budget) + note
+        )
+        self.listing.content = listing_html(
+            good.compiled.basm, self.session.text, self.session.path
+        )
 
     # ---- frames and selection -------------------------------------------------------------------
     def _on_frame(self, frame: SwarmFrame) -> None:
@@ -190,7 +212,7 @@ class IdeApp:
                     return
                 view = sim.inspect(index)
         except StepInProgress:
-            return          # keep the last view; the status line says a step is running long
+            return  # keep the last view; the status line says a step is running long
         inspector.refresh(view)
 
     # ---- ticker ----------------------------------------------------------------------------------
@@ -210,7 +232,9 @@ class IdeApp:
         if self._build_dirty:
             self._refresh_build_view()
         busy_since = self.controller.status.step_started_at
-        step_is_long = busy_since is not None and time.monotonic() - busy_since > INSPECT_LOCK_TIMEOUT
+        step_is_long = (
+            busy_since is not None and time.monotonic() - busy_since > INSPECT_LOCK_TIMEOUT
+        )
         for inspector in list(self._inspectors.values()):
             if inspector.selected is not None and not step_is_long:
                 self._refresh_inspector(inspector)

@@ -17,12 +17,15 @@ from typing import Any
 _ANNOTATION = re.compile(r"\t\|(\d+),(\d+),(.*)$")
 
 
-def footprint_markdown(compiled: Any, program: Any, platform_name: str,
-                       flash_budget: int | None) -> str:
+def footprint_markdown(
+    compiled: Any, program: Any, platform_name: str, flash_budget: int | None
+) -> str:
     bo_size = len(compiled.bo)
     bbo_size = len(program.bbo)
     rows = ["| artefact | bytes | of budget |", "|---|---:|---:|"]
-    budget_cell = (lambda size: f"{100 * size / flash_budget:.1f} %") if flash_budget else (lambda _: "–")
+    budget_cell = (
+        (lambda size: f"{100 * size / flash_budget:.1f} %") if flash_budget else (lambda _: "–")
+    )
     rows.append(f"| `.bo` (Buzz) | {bo_size} | {budget_cell(bo_size)} |")
     rows.append(f"| `.bbo` (BittyBuzz, flashed) | {bbo_size} | {budget_cell(bbo_size)} |")
     rows.append(f"| strings | {len(program.strings)} | |")
@@ -36,10 +39,10 @@ def footprint_markdown(compiled: Any, program: Any, platform_name: str,
 def listing_html(basm: str, source_text: str, source_path: Path) -> str:
     """The assembly grouped under its source lines, as preformatted HTML."""
     source_lines = source_text.splitlines()
-    groups: list[tuple[int, list[str]]] = []   # (source line or 0, instructions)
+    groups: list[tuple[int, list[str]]] = []  # (source line or 0, instructions)
     for raw in basm.splitlines():
         if not raw.startswith(("\t", "@")):
-            continue          # string table and blank lines
+            continue  # string table and blank lines
         match = _ANNOTATION.search(raw)
         line = 0
         if match and Path(match.group(3)).name == source_path.name:
@@ -52,12 +55,17 @@ def listing_html(basm: str, source_text: str, source_path: Path) -> str:
     out = []
     for line, instructions in groups:
         if 1 <= line <= len(source_lines):
-            out.append(f'<span style="color:#1864ab">{line:4d} │ {html.escape(source_lines[line - 1])}</span>')
+            out.append(
+                f'<span style="color:#1864ab">{line:4d} │ '
+                f"{html.escape(source_lines[line - 1])}</span>"
+            )
         elif line == 0:
             out.append('<span style="color:#868e96">     │ (no source line)</span>')
         for instruction in instructions:
             colour = "#5f3dc4" if instruction.startswith("@") else "#212529"
             out.append(f'<span style="color:{colour}">     │     {html.escape(instruction)}</span>')
     body = "\n".join(out)
-    return ('<pre style="font:11px/1.35 ui-monospace,monospace;max-height:60vh;overflow:auto;'
-            f'margin:0;white-space:pre" class="asm-listing">{body}</pre>')
+    return (
+        '<pre style="font:11px/1.35 ui-monospace,monospace;max-height:60vh;overflow:auto;'
+        f'margin:0;white-space:pre" class="asm-listing">{body}</pre>'
+    )

@@ -32,14 +32,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ide.add_argument("--world", help="world to open (default: the Kilobot table)")
     ide.add_argument("--robots", type=int, help="number of robots (default: the world's)")
     ide.add_argument("--seed", type=int, default=1, help="world seed (default 1)")
-    ide.add_argument("--speed", type=float, default=30.0,
-                     help="control steps per second, 0 = as fast as possible (default 30)")
+    ide.add_argument(
+        "--speed",
+        type=float,
+        default=30.0,
+        help="control steps per second, 0 = as fast as possible (default 30)",
+    )
     ide.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     ide.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (default 8080)")
     ide.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     ide.add_argument("--paused", action="store_true", help="start paused")
-    ide.set_defaults(handler=run_ide, script=None, world=None, robots=None, seed=1, speed=30.0,
-                     host="127.0.0.1", port=DEFAULT_PORT, no_browser=False, paused=False)
+    ide.set_defaults(
+        handler=run_ide,
+        script=None,
+        world=None,
+        robots=None,
+        seed=1,
+        speed=30.0,
+        host="127.0.0.1",
+        port=DEFAULT_PORT,
+        no_browser=False,
+        paused=False,
+    )
 
 
 def run_ide(args: argparse.Namespace) -> int:
@@ -50,13 +64,16 @@ def run_ide(args: argparse.Namespace) -> int:
     backend = WorldsBackend()
     world = args.world or backend.default_world()
     if world not in backend.world_names():
-        raise IdeError(f"unknown world {world!r}; choose one of: {', '.join(backend.world_names())}")
+        raise IdeError(
+            f"unknown world {world!r}; choose one of: {', '.join(backend.world_names())}"
+        )
     robots = args.robots if args.robots is not None else backend.default_robots(world)
     if robots < 1:
         raise IdeError("--robots must be at least 1")
     script = resolve_script(args.script, backend.example_path(world))
-    settings = RunSettings(world=world, robots=robots, seed=args.seed,
-                           steps_per_second=max(0.0, args.speed))
+    settings = RunSettings(
+        world=world, robots=robots, seed=args.seed, steps_per_second=max(0.0, args.speed)
+    )
     app = IdeApp(script, backend, settings, host=args.host, port=args.port)
     app.start(run=not args.paused)
     print(f"bbzide IDE: {app.url}  (editing {script}; Ctrl-C to stop)", flush=True)

@@ -40,8 +40,9 @@ class EditorServer:
         self._httpd.daemon_threads = True
         self.host = host
         self.port = self._httpd.server_address[1]
-        self._thread = threading.Thread(target=self._httpd.serve_forever, name="bbzide-editor",
-                                        daemon=True)
+        self._thread = threading.Thread(
+            target=self._httpd.serve_forever, name="bbzide-editor", daemon=True
+        )
 
     def start(self) -> EditorServer:
         self._thread.start()

@@ -36,9 +36,9 @@ MAX_ENTRIES_SHOWN = 40
 
 @dataclass(frozen=True)
 class HeapGeometry:
-    size: int             # heap bytes
-    object_size: int      # S
-    reserved: int         # R, reserved activation-record slots
+    size: int  # heap bytes
+    object_size: int  # S
+    reserved: int  # R, reserved activation-record slots
     elems_per_segment: int  # E
 
     @property
@@ -57,8 +57,9 @@ class DecodedHeap:
 
 
 class HeapReader:
-    def __init__(self, heap: bytes, geometry: HeapGeometry, rop: int, lsp: int,
-                 strings: Sequence[str] = ()) -> None:
+    def __init__(
+        self, heap: bytes, geometry: HeapGeometry, rop: int, lsp: int, strings: Sequence[str] = ()
+    ) -> None:
         self.heap = bytes(heap)
         self.g = geometry
         self.rop = rop
@@ -136,12 +137,12 @@ class HeapReader:
             seen.add(segment)
             words = self.segment_words(segment)
             if darray:
-                for word in words[:2 * elems]:
+                for word in words[: 2 * elems]:
                     if not word & ELEMENT_VALID:
                         return entries
                     entries.append((None, word & 0x7FFF))
             else:
-                for key, value in zip(words[:elems], words[elems:2 * elems], strict=True):
+                for key, value in zip(words[:elems], words[elems : 2 * elems], strict=True):
                     if key & ELEMENT_VALID:
                         entries.append((key & 0x7FFF, value & 0x7FFF))
             following = words[-1] & NO_NEXT_SEGMENT
@@ -171,23 +172,53 @@ class HeapReader:
             type_name = self.type_name(index) if valid else ""
             reserved = index < g.reserved
             label = f"#{index} @{start}: " + (self.value_text(index) if valid else "free slot")
-            blocks.append(HeapBlock(start, g.object_size, "actrec" if reserved else "object",
-                                    type_name, index, valid, label))
+            blocks.append(
+                HeapBlock(
+                    start,
+                    g.object_size,
+                    "actrec" if reserved else "object",
+                    type_name,
+                    index,
+                    valid,
+                    label,
+                )
+            )
             if valid:
                 valid_objects += 1
                 objects.append(self._object_row(index))
-        blocks.append(HeapBlock(self.rop, max(0, self.lsp - self.rop), "free", label=
-                                f"free gap {self.lsp - self.rop} B ({self.rop}..{self.lsp})"))
+        blocks.append(
+            HeapBlock(
+                self.rop,
+                max(0, self.lsp - self.rop),
+                "free",
+                label=f"free gap {self.lsp - self.rop} B ({self.rop}..{self.lsp})",
+            )
+        )
         valid_segments = 0
         for segment in range(self.segment_count()):
             offset = self.segment_offset(segment)
             valid = bool(self.segment_words(segment)[-1] & 0x8000)
             valid_segments += valid
-            blocks.append(HeapBlock(offset, g.segment_size, "segment", "segment", segment, valid,
-                                    f"segment {segment} @{offset}" + ("" if valid else " (free)")))
+            blocks.append(
+                HeapBlock(
+                    offset,
+                    g.segment_size,
+                    "segment",
+                    "segment",
+                    segment,
+                    valid,
+                    f"segment {segment} @{offset}" + ("" if valid else " (free)"),
+                )
+            )
         free = max(0, self.lsp - self.rop)
-        return DecodedHeap(sorted(blocks, key=lambda b: b.start), objects, g.size - free, free,
-                           valid_objects, valid_segments)
+        return DecodedHeap(
+            sorted(blocks, key=lambda b: b.start),
+            objects,
+            g.size - free,
+            free,
+            valid_objects,
+            valid_segments,
+        )
 
     def _object_row(self, index: int) -> HeapObjectRow:
         meta = self.meta(index)
@@ -199,5 +230,10 @@ class HeapReader:
                     break
                 key_text = str(position) if key is None else self.value_text(key)
                 children.append((key_text, f"{self.value_text(value)} (#{value})"))
-        return HeapObjectRow(index, self.type_name(index), self.value_text(index), children,
-                             permanent=bool(meta & PERMANENT_BIT))
+        return HeapObjectRow(
+            index,
+            self.type_name(index),
+            self.value_text(index),
+            children,
+            permanent=bool(meta & PERMANENT_BIT),
+        )

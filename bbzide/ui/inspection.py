@@ -23,13 +23,13 @@ TYPE_NAMES = ("nil", "int", "float", "string", "table", "closure", "userdata", "
 class HeapBlock:
     """A run of heap bytes drawn as one box: an object slot, a segment, or the free gap."""
 
-    start: int          # byte offset in the heap
-    size: int           # bytes
-    kind: str           # "actrec" | "object" | "segment" | "free"
-    type_name: str = ""     # object type ("table", "int", ...), "darray", or "" for free/invalid
-    index: int = -1         # object index or segment number
-    valid: bool = True      # an invalid (freed) slot inside the used areas
-    label: str = ""         # tooltip text
+    start: int  # byte offset in the heap
+    size: int  # bytes
+    kind: str  # "actrec" | "object" | "segment" | "free"
+    type_name: str = ""  # object type ("table", "int", ...), "darray", or "" for free/invalid
+    index: int = -1  # object index or segment number
+    valid: bool = True  # an invalid (freed) slot inside the used areas
+    label: str = ""  # tooltip text
 
 
 @dataclass
@@ -37,7 +37,7 @@ class HeapObjectRow:
     index: int
     type_name: str
     value: str
-    children: list[tuple[str, str]] = field(default_factory=list)   # table entries (key, value)
+    children: list[tuple[str, str]] = field(default_factory=list)  # table entries (key, value)
     permanent: bool = False
 
 
@@ -46,18 +46,18 @@ class RobotInspection:
     robot_index: int
     robot_id: int
     step: int
-    state: str                       # "running", "error", "done", ...
+    state: str  # "running", "error", "done", ...
     pc: int | None
     heap_size: int
-    rop: int                         # BittyBuzz rtobj, byte offset
-    lsp: int                         # BittyBuzz ltseg, byte offset
-    reserved_bytes: int              # activation-record slots 0..R-1
+    rop: int  # BittyBuzz rtobj, byte offset
+    lsp: int  # BittyBuzz ltseg, byte offset
+    reserved_bytes: int  # activation-record slots 0..R-1
     blocks: list[HeapBlock]
     used_bytes: int
     free_bytes: int
     peak_bytes: int | None
     gc_runs: int | None
-    ram_bytes: int | None            # the platform's RAM (Kilobot: 2048)
+    ram_bytes: int | None  # the platform's RAM (Kilobot: 2048)
     objects: list[HeapObjectRow] = field(default_factory=list)
     frames: list[str] = field(default_factory=list)
     globals: list[tuple[str, str]] = field(default_factory=list)
@@ -69,7 +69,7 @@ class RobotInspection:
     last_error: str | None = None
     last_error_line: str | None = None
     warnings: list[str] = field(default_factory=list)
-    notes: list[str] = field(default_factory=list)   # what could not be read (API gaps)
+    notes: list[str] = field(default_factory=list)  # what could not be read (API gaps)
 
 
 def value_text(value: Any) -> str:

@@ -40,8 +40,15 @@ class InspectorPanel:
 
     def show_nothing(self, message: str) -> None:
         _set(self.header, message)
-        for handle in (self.heap, self.memory, self.objects, self.stack, self.globals, self.comm,
-                       self.problems):
+        for handle in (
+            self.heap,
+            self.memory,
+            self.objects,
+            self.stack,
+            self.globals,
+            self.comm,
+            self.problems,
+        ):
             _set(handle, "")
         self.deselect.visible = self.selected is not None
 
@@ -49,17 +56,27 @@ class InspectorPanel:
         self.deselect.visible = True
         state = view.state if view.last_error is None else "error"
         pc = f" · pc {view.pc}" if view.pc is not None else ""
-        _set(self.header, f"**Robot {view.robot_id}** (#{view.robot_index}) · step {view.step} · "
-                          f"{state}{pc}  \nROP **{view.rop}** · LSP **{view.lsp}** · heap {view.heap_size} B")
-        _set(self.heap, f'<div class="heap-wrap" data-rop="{view.rop}" data-lsp="{view.lsp}">'
-                        f"{render_heap_svg(view)}{legend_html()}</div>")
+        _set(
+            self.header,
+            f"**Robot {view.robot_id}** (#{view.robot_index}) · step {view.step} · "
+            f"{state}{pc}  \nROP **{view.rop}** · LSP **{view.lsp}** · heap {view.heap_size} B",
+        )
+        _set(
+            self.heap,
+            f'<div class="heap-wrap" data-rop="{view.rop}" data-lsp="{view.lsp}">'
+            f"{render_heap_svg(view)}{legend_html()}</div>",
+        )
         _set(self.memory, _memory_markdown(view))
         _set(self.objects, _objects_html(view))
         _set(self.stack, _list_markdown("Stack frames", view.frames))
         _set(self.globals, _pairs_markdown("Globals", view.globals))
-        comm = [_pairs_markdown("Stigmergy", view.stigmergy), _pairs_markdown("Neighbors", view.neighbors),
-                _list_markdown("Swarms", view.swarms), _list_markdown("Incoming queue", view.in_queue),
-                _list_markdown("Outgoing queue", view.out_queue)]
+        comm = [
+            _pairs_markdown("Stigmergy", view.stigmergy),
+            _pairs_markdown("Neighbors", view.neighbors),
+            _list_markdown("Swarms", view.swarms),
+            _list_markdown("Incoming queue", view.in_queue),
+            _list_markdown("Outgoing queue", view.out_queue),
+        ]
         _set(self.comm, "\n\n".join(comm))
         _set(self.problems, _problems_markdown(view))
 
@@ -71,14 +88,18 @@ def _set(handle: viser.GuiMarkdownHandle | viser.GuiHtmlHandle, text: str) -> No
 
 def _memory_markdown(view: RobotInspection) -> str:
     used_pct = 100 * view.used_bytes / view.heap_size if view.heap_size else 0
-    lines = [f"**Heap** used {view.used_bytes} B · free {view.free_bytes} B ({used_pct:.0f} % used)"]
+    lines = [
+        f"**Heap** used {view.used_bytes} B · free {view.free_bytes} B ({used_pct:.0f} % used)"
+    ]
     extras = []
     if view.peak_bytes is not None:
         extras.append(f"peak {view.peak_bytes} B")
     if view.gc_runs is not None:
         extras.append(f"GC runs {view.gc_runs}")
     if view.ram_bytes:
-        extras.append(f"heap = {100 * view.heap_size / view.ram_bytes:.0f} % of the {view.ram_bytes} B RAM")
+        extras.append(
+            f"heap = {100 * view.heap_size / view.ram_bytes:.0f} % of the {view.ram_bytes} B RAM"
+        )
     if extras:
         lines.append(" · ".join(extras))
     return "  \n".join(lines)
@@ -91,13 +112,20 @@ def _objects_html(view: RobotInspection) -> str:
     for row in view.objects:
         name = f"#{row.index} {html.escape(row.type_name)}{' (permanent)' if row.permanent else ''}"
         if row.children:
-            entries = "".join(f"<div style='padding-left:14px'>{html.escape(k)} = {html.escape(v)}</div>"
-                              for k, v in row.children)
-            rows.append(f"<details><summary>{name}: {html.escape(row.value)}</summary>{entries}</details>")
+            entries = "".join(
+                f"<div style='padding-left:14px'>{html.escape(k)} = {html.escape(v)}</div>"
+                for k, v in row.children
+            )
+            rows.append(
+                f"<details><summary>{name}: {html.escape(row.value)}</summary>{entries}</details>"
+            )
         else:
             rows.append(f"<div>{name}: {html.escape(row.value)}</div>")
-    return ('<div style="font:11px/1.45 ui-monospace,monospace;max-height:40vh;overflow:auto">'
-            + "".join(rows) + "</div>")
+    return (
+        '<div style="font:11px/1.45 ui-monospace,monospace;max-height:40vh;overflow:auto">'
+        + "".join(rows)
+        + "</div>"
+    )
 
 
 def _list_markdown(title: str, items: list[str]) -> str:

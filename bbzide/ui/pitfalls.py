@@ -23,7 +23,8 @@ from bbzide.ui.program_session import Diagnostic
 _TOKEN = re.compile(
     r"(?P<comment>#[^\n]*)|(?P<string>\"(?:\\.|[^\"\\])*\"|'(?:\\.|[^'\\])*')"
     r"|(?P<number>\d[\d.]*)|(?P<word>[A-Za-z][A-Za-z0-9_]*)"
-    r"|(?P<op><<|>>|==|!=|<=|>=|[<>&|+\-*/%^])|(?P<newline>\n)|(?P<other>\S)")
+    r"|(?P<op><<|>>|==|!=|<=|>=|[<>&|+\-*/%^])|(?P<newline>\n)|(?P<other>\S)"
+)
 INT16_MIN, INT16_MAX = -32768, 32767
 COMPARISONS = {"==", "!=", "<", "<=", ">", ">="}
 ARITHMETIC = {"+", "-", "*", "/", "%", "^"}
@@ -72,8 +73,11 @@ def find_pitfalls(text: str, floats_supported: bool = True) -> list[Diagnostic]:
             warn(token, "BittyBuzz `not x` gives the truth value of x (not 0 is 0): write `x == 0`")
         elif token.kind == "op" and token.text in COMPARISONS:
             if any(t.kind == "number" and "." in t.text for t in neighbours):
-                warn(token, "comparing with a float compares raw 16-bit payloads unsigned on "
-                            "BittyBuzz (1.5 < 2 is false)")
+                warn(
+                    token,
+                    "comparing with a float compares raw 16-bit payloads unsigned on "
+                    "BittyBuzz (1.5 < 2 is false)",
+                )
         elif token.kind == "op" and token.text in ("&", "|"):
             warn(token, f"`{token.text}` is logical on BittyBuzz (6 & 3 is 1), not bitwise")
         elif token.kind == "op" and token.text in ("<<", ">>"):
@@ -82,10 +86,16 @@ def find_pitfalls(text: str, floats_supported: bool = True) -> list[Diagnostic]:
             value = int(token.text)
             negative = before is not None and before.text == "-"
             if value > (-INT16_MIN if negative else INT16_MAX):
-                warn(token, f"{'-' if negative else ''}{value} does not fit in BittyBuzz's int16: "
-                            "it is truncated")
+                warn(
+                    token,
+                    f"{'-' if negative else ''}{value} does not fit in BittyBuzz's int16: "
+                    "it is truncated",
+                )
         elif token.kind == "number" and not floats_supported:
             if any(t.kind == "op" and t.text in ARITHMETIC for t in neighbours):
-                warn(token, "this platform has no float operations: arithmetic on a float "
-                            "stops the robot (TYPE error)")
+                warn(
+                    token,
+                    "this platform has no float operations: arithmetic on a float "
+                    "stops the robot (TYPE error)",
+                )
     return found

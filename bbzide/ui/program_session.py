@@ -27,7 +27,8 @@ from typing import Any
 
 from bbzide.diagnostics import UserError
 
-#: `compile_fn(text, path) -> (compiled_program, bittybuzz_program)`; raises `UserError` on bad input.
+#: `compile_fn(text, path) -> (compiled_program, bittybuzz_program)`; raises `UserError` on bad
+#: input.
 CompileFunction = Callable[[str, Path], tuple[Any, Any]]
 
 
@@ -41,8 +42,12 @@ class Diagnostic:
     severity: str = "error"  # "error" | "warning"
 
     def as_json(self) -> dict[str, Any]:
-        return {"line": self.line, "col": self.col, "message": self.message,
-                "severity": self.severity}
+        return {
+            "line": self.line,
+            "col": self.col,
+            "message": self.message,
+            "severity": self.severity,
+        }
 
 
 @dataclass
@@ -52,8 +57,8 @@ class CompileOutcome:
     revision: int
     ok: bool
     diagnostics: list[Diagnostic]
-    compiled: Any = None       # CompiledProgram (bo, bdb, basm, ...) when ok
-    program: Any = None        # BittyBuzzProgram (bbo, debug_map, ...) when ok
+    compiled: Any = None  # CompiledProgram (bo, bdb, basm, ...) when ok
+    program: Any = None  # BittyBuzzProgram (bbo, debug_map, ...) when ok
     seconds: float = 0.0
     finished_at: float = field(default_factory=time.monotonic)
 
@@ -69,8 +74,10 @@ def diagnostics_from_error(error: UserError, path: Path) -> list[Diagnostic]:
 
 
 def write_atomically(path: Path, text: str) -> None:
-    """Replace `path` with `text` in one step: readers see the old file or the new one, never half."""
-    descriptor, temp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    """Replace `path` with `text` in one step: readers see the old file or the new, never half."""
+    descriptor, temp_name = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=".tmp", dir=path.parent
+    )
     try:
         with os.fdopen(descriptor, "w", encoding="utf-8", newline="") as handle:
             handle.write(text)
@@ -85,16 +92,20 @@ def write_atomically(path: Path, text: str) -> None:
 class ProgramSession:
     """Source text, revisions, compile results and the last good program of one `.bzz` file."""
 
-    def __init__(self, path: Path, compile_fn: CompileFunction,
-                 on_program: Callable[[Any], None] | None = None,
-                 lint_fn: Callable[[str], list[Diagnostic]] | None = None) -> None:
+    def __init__(
+        self,
+        path: Path,
+        compile_fn: CompileFunction,
+        on_program: Callable[[Any], None] | None = None,
+        lint_fn: Callable[[str], list[Diagnostic]] | None = None,
+    ) -> None:
         self.path = path.resolve()
         self._compile_fn = compile_fn
         self._lint_fn = lint_fn
         self._on_program = on_program
         self._listeners: list[Callable[[CompileOutcome], None]] = []
-        self._lock = threading.RLock()          # text, revision and outcome change together
-        self._compile_lock = threading.Lock()   # one compile at a time
+        self._lock = threading.RLock()  # text, revision and outcome change together
+        self._compile_lock = threading.Lock()  # one compile at a time
         self.text = self.path.read_text(encoding="utf-8")
         self._disk_text = self.text
         self.revision = 0
@@ -126,7 +137,7 @@ class ProgramSession:
         try:
             text = self.path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError):
-            return None   # mid-rename or unreadable: the next event will bring it
+            return None  # mid-rename or unreadable: the next event will bring it
         with self._lock:
             if text == self._disk_text:
                 return None
@@ -150,7 +161,7 @@ class ProgramSession:
     def _compile(self, revision: int) -> CompileOutcome:
         with self._compile_lock:
             with self._lock:
-                if revision != self.revision:          # a newer text arrived meanwhile
+                if revision != self.revision:  # a newer text arrived meanwhile
                     revision, text = self.revision, self.text
                 else:
                     text = self.text
@@ -206,5 +217,7 @@ class ProgramSession:
 
 def _warnings_of(compiled: Any, program: Any) -> list[Diagnostic]:
     """Compiler and bo2bbo warnings as line-1 markers (they carry no location in the contract)."""
-    messages = list(getattr(compiled, "warnings", []) or []) + list(getattr(program, "warnings", []) or [])
+    messages = list(getattr(compiled, "warnings", []) or []) + list(
+        getattr(program, "warnings", []) or []
+    )
     return [Diagnostic(1, 0, str(message), "warning") for message in messages]

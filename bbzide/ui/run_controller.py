@@ -38,7 +38,7 @@ class RunSettings:
     world: str
     robots: int
     seed: int
-    steps_per_second: float = 0.0      # 0 = as fast as the machine goes
+    steps_per_second: float = 0.0  # 0 = as fast as the machine goes
     keep_state_on_reload: bool = True  # a new program keeps poses (True) or resets the world
 
 
@@ -51,14 +51,18 @@ class RunStatus:
     steps_per_second: float = 0.0
     robots: int = 0
     robots_in_error: int = 0
-    step_started_at: float | None = None   # monotonic time the current step began (None = idle)
-    error: str | None = None               # a world/engine failure (not a robot's VM error)
-    program_generation: int = 0            # bumps when a new program is loaded
+    step_started_at: float | None = None  # monotonic time the current step began (None = idle)
+    error: str | None = None  # a world/engine failure (not a robot's VM error)
+    program_generation: int = 0  # bumps when a new program is loaded
 
 
 class RunController:
-    def __init__(self, backend: WorldBackend, settings: RunSettings,
-                 on_frame: Callable[[SwarmFrame], None] | None = None) -> None:
+    def __init__(
+        self,
+        backend: WorldBackend,
+        settings: RunSettings,
+        on_frame: Callable[[SwarmFrame], None] | None = None,
+    ) -> None:
         self.backend = backend
         self.settings = settings
         self.status = RunStatus(robots=settings.robots)
@@ -217,7 +221,7 @@ class RunController:
             self._wake.wait(1.0 / target)
             self._wake.clear()
         else:
-            time.sleep(0)   # let viser's threads in even at full speed
+            time.sleep(0)  # let viser's threads in even at full speed
 
     def _publish(self, force: bool) -> None:
         if self._sim is None:

@@ -37,7 +37,9 @@ SELECTION_COLOR = (255, 170, 0)
 LED_OFF_COLOR = np.array([0.55, 0.55, 0.58])
 
 
-def cylinder_mesh(radius: float, height: float, sides: int = BODY_SIDES) -> tuple[np.ndarray, np.ndarray]:
+def cylinder_mesh(
+    radius: float, height: float, sides: int = BODY_SIDES
+) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and faces of a closed cylinder standing on z = 0 (caps and walls)."""
     angles = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
     ring = np.stack([radius * np.cos(angles), radius * np.sin(angles)], axis=1)
@@ -49,7 +51,7 @@ def cylinder_mesh(radius: float, height: float, sides: int = BODY_SIDES) -> tupl
     faces = []
     for i in range(sides):
         j = (i + 1) % sides
-        faces += [(i, j, sides + j), (i, sides + j, sides + i)]        # wall
+        faces += [(i, j, sides + j), (i, sides + j, sides + i)]  # wall
         faces += [(bottom_centre, j, i), (top_centre, sides + i, sides + j)]  # caps
     return vertices, np.array(faces, dtype=np.uint32)
 
@@ -66,15 +68,19 @@ def heading_quaternions(headings: np.ndarray) -> np.ndarray:
 def circle_segments(centres: np.ndarray, radius: float, z: float) -> np.ndarray:
     """(N * CIRCLE_SEGMENTS, 2, 3) segments of a circle of `radius` around each centre."""
     angles = np.linspace(0.0, 2.0 * math.pi, CIRCLE_SEGMENTS + 1)
-    unit = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius        # (S+1, 2)
-    points = centres[:, None, :] + unit[None, :, :]                            # (N, S+1, 2)
+    unit = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius  # (S+1, 2)
+    points = centres[:, None, :] + unit[None, :, :]  # (N, S+1, 2)
     starts, ends = points[:, :-1, :], points[:, 1:, :]
     segments = np.stack([starts, ends], axis=2).reshape(-1, 2, 2)
-    return np.concatenate([segments, np.full(segments.shape[:2] + (1,), z)], axis=2).astype(np.float32)
+    return np.concatenate([segments, np.full(segments.shape[:2] + (1,), z)], axis=2).astype(
+        np.float32
+    )
 
 
 def _lift(points_2d: np.ndarray, z: float) -> np.ndarray:
-    return np.concatenate([points_2d, np.full(points_2d.shape[:-1] + (1,), z)], axis=-1).astype(np.float32)
+    return np.concatenate([points_2d, np.full(points_2d.shape[:-1] + (1,), z)], axis=-1).astype(
+        np.float32
+    )
 
 
 #: Line segment nodes cannot be empty in viser: an invisible zero-length segment stands in.
@@ -84,8 +90,11 @@ _NO_SEGMENTS = np.zeros((1, 2, 3), dtype=np.float32)
 class SwarmScene:
     """Draws `SwarmFrame`s into a viser server; reports robot clicks as (client, robot index)."""
 
-    def __init__(self, server: viser.ViserServer,
-                 on_robot_click: Callable[[viser.ClientHandle, int], None] | None = None) -> None:
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        on_robot_click: Callable[[viser.ClientHandle, int], None] | None = None,
+    ) -> None:
         self.server = server
         self._on_robot_click = on_robot_click
         self._lock = threading.Lock()
@@ -96,39 +105,63 @@ class SwarmScene:
         self._robots: viser.BatchedMeshHandle | None = None
         self._robot_count = -1
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
-        self._selection: dict[int, int] = {}     # client id -> selected robot index
+        self._selection: dict[int, int] = {}  # client id -> selected robot index
         self.last_frame: SwarmFrame | None = None
         server.scene.set_up_direction("+z")
         self._headings = server.scene.add_line_segments(
-            "/swarm/headings", _NO_SEGMENTS, HEADING_COLOR, thickness=2.0, thickness_units="screen")
+            "/swarm/headings", _NO_SEGMENTS, HEADING_COLOR, thickness=2.0, thickness_units="screen"
+        )
         self._failures = server.scene.add_line_segments(
-            "/swarm/failures", _NO_SEGMENTS, FAILED_COLOR, thickness=3.0, thickness_units="screen")
+            "/swarm/failures", _NO_SEGMENTS, FAILED_COLOR, thickness=3.0, thickness_units="screen"
+        )
         self._links = server.scene.add_line_segments(
-            "/swarm/links", _NO_SEGMENTS, LINK_COLOR, thickness=1.5, thickness_units="screen")
+            "/swarm/links", _NO_SEGMENTS, LINK_COLOR, thickness=1.5, thickness_units="screen"
+        )
         self._ranges = server.scene.add_line_segments(
-            "/swarm/ranges", _NO_SEGMENTS, RANGE_COLOR, thickness=1.0, thickness_units="screen",
-            visible=False)
+            "/swarm/ranges",
+            _NO_SEGMENTS,
+            RANGE_COLOR,
+            thickness=1.0,
+            thickness_units="screen",
+            visible=False,
+        )
         self._trails = server.scene.add_point_cloud(
-            "/swarm/trails", np.zeros((1, 3), dtype=np.float32), (120, 120, 140),
-            point_size=0.004, point_shape="circle", visible=False)
+            "/swarm/trails",
+            np.zeros((1, 3), dtype=np.float32),
+            (120, 120, 140),
+            point_size=0.004,
+            point_shape="circle",
+            visible=False,
+        )
 
     # ---- world -------------------------------------------------------------------------------
     def set_world(self, geometry: WorldGeometry) -> None:
         """Draw the floor, grid and overlay of a world and aim the default camera at it."""
         with self._lock:
             self.geometry = geometry
-            self._robot_count = -1          # rebuild the robot mesh at the new size
+            self._robot_count = -1  # rebuild the robot mesh at the new size
             self._trail.clear()
         xmin, ymin, xmax, ymax = geometry.bounds
         width, depth = xmax - xmin, ymax - ymin
         centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
         scene = self.server.scene
-        scene.add_grid("/world/grid", width=width, height=depth, plane="xy",
-                       cell_size=max(width, depth) / 20, section_size=max(width, depth) / 4,
-                       position=(centre[0], centre[1], -0.0005))
+        scene.add_grid(
+            "/world/grid",
+            width=width,
+            height=depth,
+            plane="xy",
+            cell_size=max(width, depth) / 20,
+            section_size=max(width, depth) / 4,
+            position=(centre[0], centre[1], -0.0005),
+        )
         if geometry.overlay_segments.size:
-            scene.add_line_segments("/world/overlay", _lift(geometry.overlay_segments, 0.001),
-                                    (90, 90, 110), thickness=3.0, thickness_units="screen")
+            scene.add_line_segments(
+                "/world/overlay",
+                _lift(geometry.overlay_segments, 0.001),
+                (90, 90, 110),
+                thickness=3.0,
+                thickness_units="screen",
+            )
         else:
             scene.add_line_segments("/world/overlay", _NO_SEGMENTS, (90, 90, 110), visible=False)
         distance = 1.1 * max(width, depth)
@@ -147,8 +180,9 @@ class SwarmScene:
         client.camera.look_at = (centre[0], centre[1], 0.0)
 
     # ---- toggles -------------------------------------------------------------------------------
-    def set_toggles(self, links: bool | None = None, ranges: bool | None = None,
-                    trails: bool | None = None) -> None:
+    def set_toggles(
+        self, links: bool | None = None, ranges: bool | None = None, trails: bool | None = None
+    ) -> None:
         if links is not None:
             self.show_links = links
             self._links.visible = links
@@ -182,13 +216,21 @@ class SwarmScene:
                     self._robots.batched_wxyzs = wxyzs
                     self._robots.batched_colors = colors
                 self._headings.points = self._heading_segments(frame, radius, top)
-                self._failures.points = (circle_segments(frame.positions[frame.failed], radius * 1.35, top)
-                                         if frame.failed.any() else _NO_SEGMENTS)
+                self._failures.points = (
+                    circle_segments(frame.positions[frame.failed], radius * 1.35, top)
+                    if frame.failed.any()
+                    else _NO_SEGMENTS
+                )
                 if self.show_links:
-                    self._links.points = (_lift(frame.positions[frame.links], top)
-                                          if frame.links.shape[0] else _NO_SEGMENTS)
+                    self._links.points = (
+                        _lift(frame.positions[frame.links], top)
+                        if frame.links.shape[0]
+                        else _NO_SEGMENTS
+                    )
                 if self.show_ranges:
-                    self._ranges.points = circle_segments(frame.positions, geometry.comm_range, z + 0.0003)
+                    self._ranges.points = circle_segments(
+                        frame.positions, geometry.comm_range, z + 0.0003
+                    )
                 self._trail.append(frame.positions.astype(np.float32).copy())
                 if self.show_trails and len(self._trail) > 1:
                     same = [p for p in self._trail if p.shape == frame.positions.shape]
@@ -197,17 +239,32 @@ class SwarmScene:
 
     def _heading_segments(self, frame: SwarmFrame, radius: float, top: float) -> np.ndarray:
         tips = frame.positions + 1.1 * radius * np.stack(
-            [np.cos(frame.headings), np.sin(frame.headings)], axis=1)
+            [np.cos(frame.headings), np.sin(frame.headings)], axis=1
+        )
         return _lift(np.stack([frame.positions, tips], axis=1), top)
 
-    def _build_robot_mesh(self, count: int, radius: float, wxyzs: np.ndarray,
-                          positions: np.ndarray, colors: np.ndarray) -> None:
+    def _build_robot_mesh(
+        self,
+        count: int,
+        radius: float,
+        wxyzs: np.ndarray,
+        positions: np.ndarray,
+        colors: np.ndarray,
+    ) -> None:
         if self._robots is not None:
             self._robots.remove()
         vertices, faces = cylinder_mesh(radius, 0.6 * radius)
         self._robots = self.server.scene.add_batched_meshes_simple(
-            "/swarm/robots", vertices, faces, batched_wxyzs=wxyzs, batched_positions=positions,
-            batched_colors=colors, lod="off", cast_shadow=False, receive_shadow=False)
+            "/swarm/robots",
+            vertices,
+            faces,
+            batched_wxyzs=wxyzs,
+            batched_positions=positions,
+            batched_colors=colors,
+            lod="off",
+            cast_shadow=False,
+            receive_shadow=False,
+        )
         self._robot_count = count
         self._trail.clear()
 
@@ -240,17 +297,27 @@ class SwarmScene:
         index = self._selection.get(client.client_id)
         geometry = self.geometry
         if index is None or geometry is None or index >= frame.count:
-            client.scene.add_line_segments("/selection/ring", _NO_SEGMENTS, SELECTION_COLOR, visible=False)
+            client.scene.add_line_segments(
+                "/selection/ring", _NO_SEGMENTS, SELECTION_COLOR, visible=False
+            )
             client.scene.add_label("/selection/label", "", visible=False)
             return
         radius = geometry.robot_radius
         top = geometry.height + 0.6 * radius + 0.001
-        centre = frame.positions[index:index + 1]
-        client.scene.add_line_segments("/selection/ring", circle_segments(centre, radius * 1.7, top),
-                                       SELECTION_COLOR, thickness=3.0, thickness_units="screen")
+        centre = frame.positions[index : index + 1]
+        client.scene.add_line_segments(
+            "/selection/ring",
+            circle_segments(centre, radius * 1.7, top),
+            SELECTION_COLOR,
+            thickness=3.0,
+            thickness_units="screen",
+        )
         robot_id = frame.robot_ids[index] if index < len(frame.robot_ids) else index
-        client.scene.add_label("/selection/label", f"robot {robot_id}",
-                               position=(float(centre[0, 0]), float(centre[0, 1]) + 2.2 * radius, top))
+        client.scene.add_label(
+            "/selection/label",
+            f"robot {robot_id}",
+            position=(float(centre[0, 0]), float(centre[0, 1]) + 2.2 * radius, top),
+        )
 
 
 def led_colors_to_rgb(led_colors: np.ndarray) -> np.ndarray:

@@ -22,12 +22,12 @@ class SwarmFrame:
     """Everything the scene draws for one simulation step, as arrays indexed by robot."""
 
     step: int
-    positions: np.ndarray          # (N, 2) float, metres, world frame (x right, y up)
-    headings: np.ndarray           # (N,) float, radians, 0 = +x, counter-clockwise
-    led_colors: np.ndarray         # (N, 3) float in 0..1
-    failed: np.ndarray             # (N,) bool: the robot's VM stopped with an error
+    positions: np.ndarray  # (N, 2) float, metres, world frame (x right, y up)
+    headings: np.ndarray  # (N,) float, radians, 0 = +x, counter-clockwise
+    led_colors: np.ndarray  # (N, 3) float in 0..1
+    failed: np.ndarray  # (N,) bool: the robot's VM stopped with an error
     links: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int32))  # (M, 2)
-    robot_ids: list[int] = field(default_factory=list)   # Buzz `id` of each robot
+    robot_ids: list[int] = field(default_factory=list)  # Buzz `id` of each robot
 
     @property
     def count(self) -> int:
@@ -38,11 +38,11 @@ class SwarmFrame:
 class WorldGeometry:
     """Static facts for drawing a world: robot size, radio range and the lines of its overlay."""
 
-    robot_radius: float                 # metres (Kilobot: 0.0165)
-    comm_range: float                   # metres
-    bounds: tuple[float, float, float, float]   # xmin, ymin, xmax, ymax
-    overlay_segments: np.ndarray        # (K, 2, 2) walls, zones, ... in metres
-    height: float = 0.0                 # z of the robots (drones fly)
+    robot_radius: float  # metres (Kilobot: 0.0165)
+    comm_range: float  # metres
+    bounds: tuple[float, float, float, float]  # xmin, ymin, xmax, ymax
+    overlay_segments: np.ndarray  # (K, 2, 2) walls, zones, ... in metres
+    height: float = 0.0  # z of the robots (drones fly)
 
 
 class SimulationHandle(Protocol):
@@ -51,8 +51,8 @@ class SimulationHandle(Protocol):
     def step(self) -> None: ...
     def frame(self) -> SwarmFrame: ...
     def geometry(self) -> WorldGeometry: ...
-    def robot(self, index: int) -> Any: ...             # a bbzide.vm.robot.Robot
-    def inspect(self, index: int) -> RobotInspection: ...   # memory and state of one robot
+    def robot(self, index: int) -> Any: ...  # a bbzide.vm.robot.Robot
+    def inspect(self, index: int) -> RobotInspection: ...  # memory and state of one robot
     def load_program(self, program: Any, keep_state: bool) -> None: ...
     @property
     def step_count(self) -> int: ...
@@ -66,5 +66,5 @@ class WorldBackend(Protocol):
     def default_robots(self, world: str) -> int: ...
     def example_path(self, world: str) -> Path | None: ...
     def compile(self, text: str, path: Path, world: str) -> tuple[Any, Any]: ...
-    def platform(self, world: str) -> Any: ...          # a bbzide.vm.profiles.PlatformProfile
+    def platform(self, world: str) -> Any: ...  # a bbzide.vm.profiles.PlatformProfile
     def create(self, world: str, program: Any, robots: int, seed: int) -> SimulationHandle: ...

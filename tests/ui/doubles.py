@@ -52,7 +52,7 @@ class FakeSimulation:
 
     def step(self) -> None:
         if "while(1)" in self.program.text.replace(" ", ""):
-            time.sleep(1.5)     # what a script stuck in a loop feels like to the run thread
+            time.sleep(1.5)  # what a script stuck in a loop feels like to the run thread
         self.headings += 0.05
         self.positions += 0.002 * np.stack([np.cos(self.headings), np.sin(self.headings)], axis=1)
         self.step_count += 1
@@ -61,12 +61,25 @@ class FakeSimulation:
         red = 1.0 if "red" in self.program.text else 0.0
         colors = np.tile([red, 0.0 if red else 0.8, 0.2], (self.count, 1))
         links = np.array([[i, i + 1] for i in range(self.count - 1)], dtype=np.int32).reshape(-1, 2)
-        return SwarmFrame(self.step_count, self.positions.copy(), self.headings.copy(), colors,
-                          np.zeros(self.count, dtype=bool), links, list(range(self.count)))
+        return SwarmFrame(
+            self.step_count,
+            self.positions.copy(),
+            self.headings.copy(),
+            colors,
+            np.zeros(self.count, dtype=bool),
+            links,
+            list(range(self.count)),
+        )
 
     def geometry(self) -> WorldGeometry:
-        walls = np.array([[[-0.5, -0.5], [0.5, -0.5]], [[0.5, -0.5], [0.5, 0.5]],
-                          [[0.5, 0.5], [-0.5, 0.5]], [[-0.5, 0.5], [-0.5, -0.5]]])
+        walls = np.array(
+            [
+                [[-0.5, -0.5], [0.5, -0.5]],
+                [[0.5, -0.5], [0.5, 0.5]],
+                [[0.5, 0.5], [-0.5, 0.5]],
+                [[-0.5, 0.5], [-0.5, -0.5]],
+            ]
+        )
         return WorldGeometry(0.0165, 0.1, (-0.5, -0.5, 0.5, 0.5), walls)
 
     def robot(self, index: int) -> object:
@@ -77,11 +90,29 @@ class FakeSimulation:
 
     def inspect(self, index: int) -> RobotInspection:
         size, rop, lsp = 1088, 300 + index * 3, 900
-        blocks = [HeapBlock(0, 84, "actrec"), HeapBlock(84, rop - 84, "object", "int"),
-                  HeapBlock(rop, lsp - rop, "free"), HeapBlock(lsp, size - lsp, "segment")]
-        return RobotInspection(index, index, self.step_count, "running", 12, size, rop, lsp, 84, blocks,
-                               used_bytes=size - (lsp - rop), free_bytes=lsp - rop, peak_bytes=None,
-                               gc_runs=None, ram_bytes=2048)
+        blocks = [
+            HeapBlock(0, 84, "actrec"),
+            HeapBlock(84, rop - 84, "object", "int"),
+            HeapBlock(rop, lsp - rop, "free"),
+            HeapBlock(lsp, size - lsp, "segment"),
+        ]
+        return RobotInspection(
+            index,
+            index,
+            self.step_count,
+            "running",
+            12,
+            size,
+            rop,
+            lsp,
+            84,
+            blocks,
+            used_bytes=size - (lsp - rop),
+            free_bytes=lsp - rop,
+            peak_bytes=None,
+            gc_runs=None,
+            ram_bytes=2048,
+        )
 
 
 class FakeBackend:
@@ -107,7 +138,9 @@ class FakeBackend:
         depth = 0
         for number, line in enumerate(text.splitlines(), start=1):
             if "@@" in line:
-                raise CompileError("unexpected '@@'", SourceLocation(str(path), number, line.index("@@")))
+                raise CompileError(
+                    "unexpected '@@'", SourceLocation(str(path), number, line.index("@@"))
+                )
             depth += line.count("{") - line.count("}")
         if depth != 0:
             raise CompileError("unbalanced braces", SourceLocation(str(path), 0, 1))

@@ -63,22 +63,34 @@ class IdeSession:
         box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
         fov = float(client.camera.fov)  # type: ignore[attr-defined]
         pixels_per_metre = box["height"] / (2 * height * math.tan(fov / 2))
-        page.mouse.click(box["x"] + box["width"] / 2 - shift * pixels_per_metre,  # type: ignore[attr-defined]
-                         box["y"] + box["height"] / 2)
+        page.mouse.click(
+            box["x"] + box["width"] / 2 - shift * pixels_per_metre,  # type: ignore[attr-defined]
+            box["y"] + box["height"] / 2,
+        )
 
     def open_tab(self) -> tuple[object, object]:
         """A second browser tab on the same run: (page, its viser client)."""
         known = set(self.app.server.get_clients())
         page = self.context.new_page()  # type: ignore[attr-defined]
         page.goto(self.app.url, wait_until="domcontentloaded")
-        client_id = wait_until(lambda: set(self.app.server.get_clients()) - known, 30, message="2nd tab")
+        client_id = wait_until(
+            lambda: set(self.app.server.get_clients()) - known, 30, message="2nd tab"
+        )
         return page, self.app.server.get_clients()[next(iter(client_id))]
 
 
 @contextlib.contextmanager
-def running_ide(script: Path, backend: WorldBackend, world: str, robots: int,
-                speed: float = 30.0, run: bool = True) -> Iterator[IdeSession]:
-    app = IdeApp(script, backend, RunSettings(world, robots, 1, speed), port=free_port()).start(run=run)
+def running_ide(
+    script: Path,
+    backend: WorldBackend,
+    world: str,
+    robots: int,
+    speed: float = 30.0,
+    run: bool = True,
+) -> Iterator[IdeSession]:
+    app = IdeApp(script, backend, RunSettings(world, robots, 1, speed), port=free_port()).start(
+        run=run
+    )
     try:
         with chromium_context() as context:
             page = context.new_page()  # type: ignore[attr-defined]
@@ -88,7 +100,7 @@ def running_ide(script: Path, backend: WorldBackend, world: str, robots: int,
             page.wait_for_selector("canvas")
             client = next(iter(app.server.get_clients().values()))
             started = time.monotonic()
-            client.get_render(height=200, width=300)         # barrier: a frame was rendered
+            client.get_render(height=200, width=300)  # barrier: a frame was rendered
             print(f"first render after {time.monotonic() - started:.1f} s")
             yield IdeSession(app, context, page)
     finally:

@@ -39,12 +39,12 @@ def test_page_loads_and_scene_renders(ide: IdeSession) -> None:
     pixels = np.asarray(Image.open(io.BytesIO(shot.read_bytes())).convert("RGB"), dtype=np.float32)
     canvas = ide.page.locator("canvas").first.bounding_box()
     x0, y0 = int(canvas["x"]), int(canvas["y"])
-    scene = pixels[y0:y0 + int(canvas["height"]), x0:x0 + int(canvas["width"])]
+    scene = pixels[y0 : y0 + int(canvas["height"]), x0 : x0 + int(canvas["width"])]
     assert scene.std() > 10, "the 3D view is blank"
     editor_lines = ide.editor.locator("#gutter div")
     assert editor_lines.count() == SCRIPT.count("\n") + 1
     assert ide.editor.locator(".tok-keyword").first.inner_text() == "function"
-    assert ide.context.foreign_requests == []                 # nothing leaves the machine
+    assert ide.context.foreign_requests == []  # nothing leaves the machine
 
 
 def test_play_advances_the_step_counter(ide: IdeSession) -> None:
@@ -67,7 +67,7 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     source = ide.editor.locator("#source")
     source.click()
     ide.page.keyboard.press("Control+End")
-    ide.page.keyboard.type("\nred = @@ 2")                  # line 10, column 6
+    ide.page.keyboard.type("\nred = @@ 2")  # line 10, column 6
     marker = ide.editor.locator("#gutter div.error-line")
     marker.wait_for(timeout=10_000)
     assert marker.get_attribute("data-line") == "10"
@@ -77,13 +77,16 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     step = ide.shown_step()
     wait_until(lambda: ide.shown_step() > step + 3, 10, message="robots keep running the old code")
     assert app.controller.status.program_generation == generation
-    assert "@@" in Path(app.session.path).read_text()         # the edit is saved, broken or not
+    assert "@@" in Path(app.session.path).read_text()  # the edit is saved, broken or not
     for _ in range(4):
-        ide.page.keyboard.press("Backspace")                 # "red = @@ 2" -> "red = "
+        ide.page.keyboard.press("Backspace")  # "red = @@ 2" -> "red = "
     ide.page.keyboard.type("2")
     ide.editor.locator("#gutter div.error-line").wait_for(state="detached", timeout=10_000)
-    wait_until(lambda: app.controller.status.program_generation == generation + 1, 10,
-               message="robots reloaded")
+    wait_until(
+        lambda: app.controller.status.program_generation == generation + 1,
+        10,
+        message="robots reloaded",
+    )
     sim = app.backend.created[-1]  # type: ignore[attr-defined]
     assert sim.program.text.endswith("\nred = 2")
     wait_until(lambda: ide.shown_step() > 0, 10, message="running")
@@ -115,7 +118,7 @@ def test_two_tabs_keep_their_own_selection(ide: IdeSession) -> None:
         page2.get_by_text("Robot 7").first.wait_for(timeout=30_000)
         assert app._inspectors[first.client_id].selected == 3
         assert app._inspectors[client2.client_id].selected == 7
-        assert ide.page.get_by_text("Robot 7").count() == 0      # tab 1 still shows its own robot
+        assert ide.page.get_by_text("Robot 7").count() == 0  # tab 1 still shows its own robot
         ide.screenshot("mechanics_selected_robot3")
         app.controller.play()
     finally:
@@ -126,15 +129,23 @@ def test_infinite_loop_leaves_the_controls_responsive(ide: IdeSession) -> None:
     app = ide.app
     source = ide.editor.locator("#source")
     source.fill(SCRIPT + "while(1) {}\n")
-    wait_until(lambda: app.controller.status.step_started_at is not None
-               and time.monotonic() - app.controller.status.step_started_at > 1.0, 15,
-               message="a long step")
+    wait_until(
+        lambda: (
+            app.controller.status.step_started_at is not None
+            and time.monotonic() - app.controller.status.step_started_at > 1.0
+        ),
+        15,
+        message="a long step",
+    )
     wait_until(lambda: "one step has run for" in ide.status_text(), 10, message="long-step warning")
     ide.screenshot("mechanics_stuck_step")
     clicked_at = time.monotonic()
     ide.page.get_by_role("button", name="Pause").click()
-    wait_until(lambda: app.controls.status_line.content and "paused" in ide.status_text(), 10,
-               message="pause to take effect")
+    wait_until(
+        lambda: app.controls.status_line.content and "paused" in ide.status_text(),
+        10,
+        message="pause to take effect",
+    )
     print(f"pause honoured after {time.monotonic() - clicked_at:.2f} s (one stuck step is 1.5 s)")
     source.fill(SCRIPT)
     ide.page.get_by_role("button", name="Play").click()

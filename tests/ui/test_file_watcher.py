@@ -50,9 +50,9 @@ def test_every_save_style_is_noticed_once_within_half_a_second(tmp_path: Path) -
             latency = calls[-1] - saved_at
             print(f"{save.__name__}: noticed after {latency * 1000:.0f} ms")
             assert latency < 0.5
-            time.sleep(0.3)                       # the burst is over: no second call
+            time.sleep(0.3)  # the burst is over: no second call
             assert len(calls) == number, f"{save.__name__} gave {len(calls) - number + 1} calls"
-        (tmp_path / "other.bzz").write_text("y = 1\n")   # another file: ignored
+        (tmp_path / "other.bzz").write_text("y = 1\n")  # another file: ignored
         time.sleep(0.3)
         assert len(calls) == 3
     finally:

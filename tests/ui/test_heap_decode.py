@@ -24,18 +24,18 @@ def kilobot_heap() -> tuple[bytearray, int, int]:
     def segment(number: int, words: list[int], mdata: int) -> None:
         struct.pack_into("<11H", heap, KILOBOT.size - (number + 1) * G, *(words + [mdata]))
 
-    obj(0, 0x4C, 1)                     # reserved actrec: darray (table + bit 6), valid
-    obj(28, 0x38)                       # nil: valid, permanent, marked
-    obj(29, 0x09, 42)                   # int 42
-    obj(30, 0x0B, 1)                    # string id 1
-    obj(31, 0x0C, 0)                    # table -> segment 0
-    obj(32, 0x4C, 1)                    # darray -> segment 1
-    obj(33, 0x01, 7)                    # int, not valid (freed)
+    obj(0, 0x4C, 1)  # reserved actrec: darray (table + bit 6), valid
+    obj(28, 0x38)  # nil: valid, permanent, marked
+    obj(29, 0x09, 42)  # int 42
+    obj(30, 0x0B, 1)  # string id 1
+    obj(31, 0x0C, 0)  # table -> segment 0
+    obj(32, 0x4C, 1)  # darray -> segment 1
+    obj(33, 0x01, 7)  # int, not valid (freed)
     segment(0, [0x8000 | 30, 0, 0, 0, 0, 0x8000 | 29, 0, 0, 0, 0], 0xFFFF)
     segment(1, [0x8000 | 29, 0x8000 | 29] + [0] * 8, 0xFFFF)
-    segment(2, [0] * 10, 0x0000)        # freed segment below LSP's neighbours
-    rop = 34 * S                        # one past object 33
-    lsp = KILOBOT.size - 3 * G          # lowest segment slot in use: 2
+    segment(2, [0] * 10, 0x0000)  # freed segment below LSP's neighbours
+    rop = 34 * S  # one past object 33
+    lsp = KILOBOT.size - 3 * G  # lowest segment slot in use: 2
     return heap, rop, lsp
 
 
@@ -56,18 +56,33 @@ def test_decode_objects_segments_and_gap() -> None:
     assert reader.named_entries(31) == [("b", "42")]
     kinds = [(b.start, b.kind, b.valid) for b in decoded.blocks]
     assert kinds[0] == (0, "actrec", True) and kinds[1] == (3, "actrec", False)
-    assert (99, "object", False) in kinds                  # freed slot below ROP
+    assert (99, "object", False) in kinds  # freed slot below ROP
     assert (102, "free", True) in kinds
     assert (1022, "segment", False) in kinds and (1066, "segment", True) in kinds
     covered = sum(b.size for b in decoded.blocks)
-    assert covered == KILOBOT.size                         # every byte drawn exactly once
+    assert covered == KILOBOT.size  # every byte drawn exactly once
 
 
 def test_heap_svg_marks_rop_and_lsp_to_scale() -> None:
     heap, rop, lsp = kilobot_heap()
     decoded = HeapReader(heap, KILOBOT, rop, lsp).decode()
-    view = RobotInspection(0, 0, 0, "running", 0, KILOBOT.size, rop, lsp, 84, decoded.blocks,
-                           decoded.used_bytes, decoded.free_bytes, None, None, 2048)
+    view = RobotInspection(
+        0,
+        0,
+        0,
+        "running",
+        0,
+        KILOBOT.size,
+        rop,
+        lsp,
+        84,
+        decoded.blocks,
+        decoded.used_bytes,
+        decoded.free_bytes,
+        None,
+        None,
+        2048,
+    )
     svg = render_heap_svg(view)
     assert "ROP 102" in svg and "LSP 1022" in svg
     # 64 bytes per row at 7 px per byte: the free gap's first piece (102..128) is 26 bytes wide.

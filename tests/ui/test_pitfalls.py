@@ -10,16 +10,23 @@ def flagged(text: str, floats: bool = True) -> list[tuple[int, int, str]]:
 
 
 def test_each_pitfall_at_its_position() -> None:
-    text = ("x = not y\n"
-            "if (v < 1.5) { }\n"
-            "m = a & b\n"
-            "s = a << 2\n"
-            "big = 40000\n"
-            "small = -32768\n"
-            "# not & 1.5 < in a comment\n"
-            "t = \"not & <<\"\n")
-    assert flagged(text) == [(1, 4, "BittyBuzz"), (2, 6, "comparing"), (3, 6, "`&`"),
-                             (4, 6, "`<<`"), (5, 6, "40000")]
+    text = (
+        "x = not y\n"
+        "if (v < 1.5) { }\n"
+        "m = a & b\n"
+        "s = a << 2\n"
+        "big = 40000\n"
+        "small = -32768\n"
+        "# not & 1.5 < in a comment\n"
+        't = "not & <<"\n'
+    )
+    assert flagged(text) == [
+        (1, 4, "BittyBuzz"),
+        (2, 6, "comparing"),
+        (3, 6, "`&`"),
+        (4, 6, "`<<`"),
+        (5, 6, "40000"),
+    ]
 
 
 def test_float_arithmetic_only_where_floats_are_missing() -> None:

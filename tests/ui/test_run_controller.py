@@ -25,7 +25,7 @@ def test_play_pause_step_reset() -> None:
         controller.single_step()
         wait_until(lambda: controller.status.step == 1, 5, message="one step")
         time.sleep(0.2)
-        assert controller.status.step == 1               # paused after a single step
+        assert controller.status.step == 1  # paused after a single step
         controller.play()
         wait_until(lambda: controller.status.step > 20, 5, message="running")
         controller.pause()
@@ -49,7 +49,7 @@ def test_new_program_keeps_or_resets_the_world() -> None:
         controller.load_program(FakeProgram("red", b"y"))
         wait_until(lambda: controller.status.program_generation == 2, 5, message="reload")
         assert len(backend.created) == 1 and backend.created[0].program.text == "red"
-        assert controller.status.step == 2               # world kept
+        assert controller.status.step == 2  # world kept
         controller.update_settings(keep_state_on_reload=False)
         controller.load_program(FakeProgram("blue", b"z"))
         wait_until(lambda: len(backend.created) == 2, 5, message="rebuild")
@@ -62,8 +62,11 @@ def test_settings_rebuild_with_new_robot_count() -> None:
     controller, backend = make_controller()
     try:
         controller.update_settings(robots=12)
-        wait_until(lambda: controller.last_frame is not None and controller.last_frame.count == 12, 5,
-                   message="12 robots")
+        wait_until(
+            lambda: controller.last_frame is not None and controller.last_frame.count == 12,
+            5,
+            message="12 robots",
+        )
     finally:
         controller.stop()
 
@@ -75,10 +78,12 @@ def test_a_stuck_step_leaves_commands_and_status_working() -> None:
         controller.play()
         wait_until(lambda: controller.status.step_started_at is not None, 5, message="step begins")
         started = time.monotonic()
-        controller.pause()                               # returns at once: only queued
+        controller.pause()  # returns at once: only queued
         controller.load_program(FakeProgram("step", b"ok"))
         assert time.monotonic() - started < 0.05
-        wait_until(lambda: controller.status.program_generation == 3, 5, message="reloaded after the step")
+        wait_until(
+            lambda: controller.status.program_generation == 3, 5, message="reloaded after the step"
+        )
         assert not controller.status.running
     finally:
         controller.stop()
