@@ -52,7 +52,7 @@ def render_heap_svg(inspection: RobotInspection) -> str:
         '<svg xmlns="http://www.w3.org/2000/svg" width="100%" '
         f'viewBox="-2 -12 {width:.0f} {height + 12}" '
         f'class="heap-map" data-rop="{inspection.rop}" data-lsp="{inspection.lsp}" '
-        'font-family="monospace" font-size="9">'
+        'font-family="monospace" font-size="10">'
     ]
     for row in range(rows):
         y = row * (ROW_PX + ROW_GAP_PX)
@@ -74,7 +74,7 @@ def render_heap_svg(inspection: RobotInspection) -> str:
         )
         text_y = y - 3 if name == "ROP" else y + ROW_PX + ROW_GAP_PX + 1
         parts.append(
-            f'<text x="{x + 2:.1f}" y="{text_y}" fill="{color}" font-weight="bold">'
+            f'<text x="{x + 2:.1f}" y="{text_y}" fill="{color}" font-weight="bold" font-size="13">'
             f"{name} {offset}</text>"
         )
     parts.append("</svg>")

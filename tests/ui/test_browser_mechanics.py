@@ -151,3 +151,29 @@ def test_infinite_loop_leaves_the_controls_responsive(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Play").click()
     step = ide.shown_step()
     wait_until(lambda: ide.shown_step() > step + 5, 15, message="running again")
+
+
+def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
+    app = ide.app
+    body = "".join(
+        f"function f{i}(a, b) {{\n  var s = a * {i} + b  # comment {i}\n  return s\n}}\n"
+        for i in range(75)
+    )
+    assert body.count("\n") == 300
+    write_atomically(app.session.path, body)
+    source = ide.editor.locator("#source")
+    wait_until(lambda: source.input_value() == body, 10, message="300 lines in the editor")
+    assert ide.editor.locator("#gutter div").count() == 301
+    frame = ide.page.frame(url=ide.app.editor_server.url())
+    assert frame is not None
+    render_ms = frame.evaluate(
+        "() => { const t = performance.now(); for (let i = 0; i < 20; i++) render();"
+        " return (performance.now() - t) / 20; }"
+    )
+    print(f"re-highlighting 300 lines: {render_ms:.2f} ms per keystroke")
+    assert render_ms < 50, "typing would lag"
+    source.click()
+    ide.page.keyboard.press("Control+End")
+    ide.page.keyboard.type("# end\n")
+    wait_until(lambda: app.session.text.endswith("# end\n"), 10, message="typed text saved")
+    ide.screenshot("mechanics_300_lines")
