@@ -151,6 +151,15 @@ class HeapReader:
             segment = following
         return entries
 
+    def named_refs(self, index: int) -> dict[str, int]:
+        """A table's entries as key text -> value object index (e.g. global name -> object)."""
+        if not (0 <= index < self.object_count()) or not self.is_valid(index):
+            return {}
+        return {
+            self.value_text(key).strip("'") if key is not None else str(position): value
+            for position, (key, value) in enumerate(self.table_entries(index))
+        }
+
     def named_entries(self, index: int) -> list[tuple[str, str]]:
         """A table's entries as (key text, value text), e.g. the globals table."""
         if not (0 <= index < self.object_count()) or not self.is_valid(index):

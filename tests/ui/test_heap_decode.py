@@ -54,6 +54,7 @@ def test_decode_objects_segments_and_gap() -> None:
     assert rows[28].permanent and not rows[29].permanent
     assert 33 not in rows
     assert reader.named_entries(31) == [("b", "42")]
+    assert reader.named_refs(31) == {"b": 29}
     kinds = [(b.start, b.kind, b.valid) for b in decoded.blocks]
     assert kinds[0] == (0, "actrec", True) and kinds[1] == (3, "actrec", False)
     assert (99, "object", False) in kinds  # freed slot below ROP
