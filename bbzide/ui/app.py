@@ -213,7 +213,17 @@ class IdeApp:
                 view = sim.inspect(index)
         except StepInProgress:
             return  # keep the last view; the status line says a step is running long
+        view.warnings = self._program_warnings() + view.warnings
         inspector.refresh(view)
+
+    def _program_warnings(self) -> list[str]:
+        """The running program's compiler warnings and pitfalls, as `line:col: message`."""
+        good = self.session.last_good
+        if good is None:
+            return []
+        return [
+            f"{d.line}:{d.col}: {d.message}" for d in good.diagnostics if d.severity == "warning"
+        ]
 
     # ---- ticker ----------------------------------------------------------------------------------
     def _tick_loop(self) -> None:

@@ -62,7 +62,7 @@ def run_ide(args: argparse.Namespace) -> int:
     from bbzide.ui.world_adapter import WorldsBackend
 
     if args.script is not None:
-        resolve_script(args.script, None)       # a bad path fails before any room is loaded
+        resolve_script(args.script, None)  # a bad path fails before any room is loaded
     backend = WorldsBackend()
     world = args.world or backend.default_world()
     if world not in backend.world_names():

@@ -247,7 +247,26 @@ class WorldsSimulation:
             ],
             last_error=error_text,
             last_error_line=error_line,
+            warnings=_runtime_warnings(vm, profile),
         )
+
+
+#: Wire payload of one message on every BittyBuzz robot (notes §F.4: Kilobot `data[9]`).
+DEFAULT_PAYLOAD_BYTES = 9
+
+
+def _runtime_warnings(vm: Any, profile: Any) -> list[str]:
+    """Pitfalls only a running VM can see: int16 wrap-around, messages filling the payload."""
+    warnings = []
+    overflows = _field(vm, ("int16_overflows", "overflow_count", "int_overflows"))
+    if overflows:
+        warnings.append(f"int16 overflow seen {overflows} time(s): values wrapped around")
+    payload = int(_field(profile, ("message_payload", "payload_bytes"), DEFAULT_PAYLOAD_BYTES))
+    for message in _field(vm, ("out_messages", "outmsgs"), []) or []:
+        if isinstance(message, bytes | bytearray) and len(message) >= payload - 1:
+            warnings.append(f"outgoing message of {len(message)} B is near the {payload} B payload")
+            break
+    return warnings
 
 
 def _table_rows(reader: HeapReader, index: int | None) -> list[tuple[str, str]]:

@@ -150,5 +150,6 @@ class FakeBackend:
 
     def create(self, world: str, program: FakeProgram, robots: int, seed: int) -> FakeSimulation:
         sim = FakeSimulation(program, robots, seed)
+        sim.world = world
         self.created.append(sim)
         return sim

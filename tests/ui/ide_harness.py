@@ -51,14 +51,15 @@ class IdeSession:
         The camera looks at a point `shift` metres right of the robot, so the robot appears at a
         known pixel offset left of the canvas centre (pinhole projection, vertical fov).
         """
-        frame = self.app.controller.last_frame
-        assert frame is not None
-        x, y = (float(v) for v in frame.positions[index])
+        self.app.controller.pause()
+        time.sleep(0.3)
+        with self.app.controller.locked() as sim:
+            assert sim is not None
+            x, y = (float(v) for v in sim.frame().positions[index])
         height, shift = 0.25, 0.06
         client.camera.up_direction = (0.0, 1.0, 0.0)  # type: ignore[attr-defined]
         client.camera.position = (x + shift, y, height)  # type: ignore[attr-defined]
         client.camera.look_at = (x + shift, y, 0.0)  # type: ignore[attr-defined]
-        self.app.controller.pause()
         time.sleep(0.5)
         box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
         fov = float(client.camera.fov)  # type: ignore[attr-defined]

@@ -92,6 +92,31 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     wait_until(lambda: ide.shown_step() > 0, 10, message="running")
 
 
+def choose_world(ide: IdeSession, current: str, wanted: str) -> None:
+    ide.page.locator(f"input[value='{current}']").first.click()  # Mantine's combobox
+    ide.page.get_by_role("option", name=wanted).click()
+
+
+def test_build_view_and_world_selector(ide: IdeSession) -> None:
+    app = ide.app
+    backend = app.backend
+    ide.page.get_by_role("tab", name="Build").click()
+    ide.page.get_by_text("Footprint on fakebot").wait_for(timeout=10_000)
+    good = app.session.last_good
+    assert good is not None
+    assert ide.page.get_by_text(f"{len(good.program.bbo)}").count() >= 1
+    listing = ide.page.locator("pre.asm-listing")
+    assert "function init() {" in listing.inner_text()  # source lines above their code
+    ide.screenshot("mechanics_build_view")
+    ide.page.get_by_role("tab", name="main.bzz").click()
+    created = len(backend.created)
+    choose_world(ide, "fake-table", "fake-lab")
+    wait_until(lambda: len(backend.created) > created, 10, message="new world")
+    assert backend.created[-1].world == "fake-lab"
+    choose_world(ide, "fake-lab", "fake-table")
+    wait_until(lambda: backend.created[-1].world == "fake-table", 10, message="back")
+
+
 def test_external_save_reloads_the_editor(ide: IdeSession) -> None:
     app = ide.app
     new_text = SCRIPT + "# saved by another editor\n"
