@@ -106,6 +106,7 @@ class SwarmScene:
         self._robot_count = -1
         self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
         self._selection: dict[int, int] = {}  # client id -> selected robot index
+        self._selection_marks: dict[int, tuple[viser.LineSegmentsHandle, viser.LabelHandle]] = {}
         self.last_frame: SwarmFrame | None = None
         server.scene.set_up_direction("+z")
         self._headings = server.scene.add_line_segments(
@@ -285,6 +286,7 @@ class SwarmScene:
 
     def forget_client(self, client_id: int) -> None:
         self._selection.pop(client_id, None)
+        self._selection_marks.pop(client_id, None)
 
     def _draw_selections(self, frame: SwarmFrame) -> None:
         clients = self.server.get_clients()
@@ -294,30 +296,34 @@ class SwarmScene:
                 self._draw_selection(client, frame)
 
     def _draw_selection(self, client: viser.ClientHandle, frame: SwarmFrame) -> None:
+        """Move this tab's ring and label onto its robot (created once, then only updated)."""
         index = self._selection.get(client.client_id)
         geometry = self.geometry
-        if index is None or geometry is None or index >= frame.count:
-            client.scene.add_line_segments(
-                "/selection/ring", _NO_SEGMENTS, SELECTION_COLOR, visible=False
+        marks = self._selection_marks.get(client.client_id)
+        if marks is None:
+            ring = client.scene.add_line_segments(
+                "/selection/ring",
+                _NO_SEGMENTS,
+                SELECTION_COLOR,
+                thickness=3.0,
+                thickness_units="screen",
+                visible=False,
             )
-            client.scene.add_label("/selection/label", "", visible=False)
+            label = client.scene.add_label("/selection/label", "", visible=False)
+            marks = self._selection_marks[client.client_id] = (ring, label)
+        ring, label = marks
+        if index is None or geometry is None or index >= frame.count:
+            ring.visible = label.visible = False
             return
         radius = geometry.robot_radius
         top = geometry.height + 0.6 * radius + 0.001
         centre = frame.positions[index : index + 1]
-        client.scene.add_line_segments(
-            "/selection/ring",
-            circle_segments(centre, radius * 1.7, top),
-            SELECTION_COLOR,
-            thickness=3.0,
-            thickness_units="screen",
-        )
         robot_id = frame.robot_ids[index] if index < len(frame.robot_ids) else index
-        client.scene.add_label(
-            "/selection/label",
-            f"robot {robot_id}",
-            position=(float(centre[0, 0]), float(centre[0, 1]) + 2.2 * radius, top),
-        )
+        with client.atomic():
+            ring.points = circle_segments(centre, radius * 1.7, top)
+            label.text = f"robot {robot_id}"
+            label.position = (float(centre[0, 0]), float(centre[0, 1]) + 2.2 * radius, top)
+            ring.visible = label.visible = True
 
 
 def led_colors_to_rgb(led_colors: np.ndarray) -> np.ndarray:
