@@ -178,6 +178,35 @@ def test_infinite_loop_leaves_the_controls_responsive(ide: IdeSession) -> None:
     wait_until(lambda: ide.shown_step() > step + 5, 15, message="running again")
 
 
+def test_tab_enter_and_shift_tab_indent_like_an_editor(ide: IdeSession) -> None:
+    app = ide.app
+    source = ide.editor.locator("#source")
+    source.fill("")
+    source.click()
+    keyboard = ide.page.keyboard
+    keyboard.type("function f() {")
+    keyboard.press("Enter")  # one level in after an opening brace
+    keyboard.type("x = 1")
+    keyboard.press("Enter")  # keeps the level
+    keyboard.type("y = 2")
+    keyboard.press("Shift+Tab")  # back to column 0
+    keyboard.press("Home")
+    keyboard.press("Tab")  # "  y = 2"
+    keyboard.press("Shift+Tab")  # "y = 2"
+    keyboard.press("End")
+    keyboard.press("Enter")
+    keyboard.type("}")
+    expected = "function f() {\n  x = 1\ny = 2\n}"
+    wait_until(
+        lambda: source.input_value() == expected,
+        5,
+        message=f"{expected!r}, not {source.input_value()!r}",
+    )
+    wait_until(lambda: app.session.text == expected, 5, message="saved")
+    source.fill(SCRIPT)
+    wait_until(lambda: app.session.text == SCRIPT, 5, message="script restored")
+
+
 def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     app = ide.app
     body = "".join(

@@ -248,11 +248,27 @@ function insertText(text) {
   }
 }
 
+// Shift-Tab: remove up to one indentation level from the start of the caret's line.
+function dedentCurrentLine() {
+  const text = source.value;
+  const lineStart = text.lastIndexOf("\n", source.selectionStart - 1) + 1;
+  const leading = text.slice(lineStart).match(/^ {1,2}|^\t/);
+  if (!leading) return;
+  const caret = source.selectionStart;
+  source.setSelectionRange(lineStart, lineStart + leading[0].length);
+  insertText("");
+  const back = Math.max(lineStart, caret - leading[0].length);
+  source.setSelectionRange(back, back);
+}
+
 source.addEventListener("input", () => { render(); scheduleUpload(); });
 source.addEventListener("keydown", (event) => {
   if ((event.ctrlKey || event.metaKey) && (event.key === "s" || event.key === "Enter")) {
     event.preventDefault();
     compileNow();
+  } else if (event.key === "Tab" && event.shiftKey) {
+    event.preventDefault();
+    dedentCurrentLine();
   } else if (event.key === "Tab" && !event.ctrlKey && !event.altKey) {
     event.preventDefault();
     insertText(INDENT);
