@@ -65,7 +65,12 @@ def listing_html(basm: str, source_text: str, source_path: Path) -> str:
             colour = "#5f3dc4" if instruction.startswith("@") else "#212529"
             out.append(f'<span style="color:{colour}">     │     {html.escape(instruction)}</span>')
     body = "\n".join(out)
-    return (
+    caption = (
+        '<div style="font-size:11px;color:#868e96;margin-bottom:4px">Each instruction sits under '
+        "the line of the token the compiler was looking at when it emitted it (as in Buzz's "
+        "debug info), so an instruction may appear one line late.</div>"
+    )
+    return caption + (
         '<pre style="font:11px/1.35 ui-monospace,monospace;max-height:60vh;overflow:auto;'
         f'margin:0;white-space:pre" class="asm-listing">{body}</pre>'
     )

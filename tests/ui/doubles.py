@@ -153,3 +153,17 @@ class FakeBackend:
         sim.world = world
         self.created.append(sim)
         return sim
+
+
+class FrontEndBackend(FakeBackend):
+    """The double world, but the text goes through the real Buzz compiler front end, so the
+    editor shows the real compiler's errors (until the full compiler and VM are merged)."""
+
+    def compile(self, text: str, path: Path, world: str) -> tuple[FakeCompiled, FakeProgram]:
+        from bbzide.compiler.frontend import compile_to_basm
+
+        result = compile_to_basm(path, source=text)
+        body = text.encode()
+        return FakeCompiled(bo=body, basm=result.basm, warnings=list(result.warnings)), FakeProgram(
+            text, bbo=body
+        )

@@ -117,7 +117,7 @@ function render() {
     const where = diagnosticOffset(d, starts, text);
     if (d.severity === "error") errorOffsets.set(where.offset, d.message);
     const list = markedLines.get(where.line) || [];
-    list.push(`${d.line}:${d.col}: ${d.message}`);
+    list.push(`${d.severity} ${d.line}:${d.col}: ${d.message}`);
     markedLines.set(where.line, list);
   }
   let html = "";
@@ -146,8 +146,9 @@ function render() {
   let gutterHtml = "";
   for (let line = 1; line <= starts.length; line++) {
     const marks = markedLines.get(line);
+    const kind = marks && marks.some((m) => m.startsWith("error")) ? "error-line" : "warning-line";
     gutterHtml += marks
-      ? `<div class="error-line" data-line="${line}" title="${escapeHtml(marks.join("\n"))}">${line}</div>`
+      ? `<div class="${kind}" data-line="${line}" title="${escapeHtml(marks.join("\n"))}">${line}</div>`
       : `<div>${line}</div>`;
   }
   gutter.innerHTML = gutterHtml;
