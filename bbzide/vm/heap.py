@@ -1,0 +1,262 @@
+"""The BittyBuzz heap: one fixed byte buffer shared by objects and table segments.
+
+Layout (spec §E.3)::
+
+    data[0 .. size-1]
+     [obj 0 .. obj R-1]   reserved lambda activation records
+     [obj R .. obj n-1]   objects, growing right  -> rtobj = n*S  (BittyBuzz "rtobj", ROP)
+     ...... free ......
+     [seg k-1] ... [seg 0] segments, growing left -> ltseg = size - k*G  ("ltseg", LSP)
+
+The model is byte-faithful: every write the firmware does is done here and no other, so
+stale bytes survive exactly as on the robot (spec §E.2, corpus README §4 "Stale bytes").
+Object byte 0 is the metadata (type bits 0-2, valid 3, permanent 4, GC mark 5, type flags
+6-7); the payload follows little-endian. A segment is E u16 keys, E u16 values, u16 mdata.
+"""
+
+from __future__ import annotations
+
+from bbzide.vm.profiles import Profile
+
+# Object types (bits 0-2 of the metadata byte).
+NIL, INT, FLOAT, STRING, TABLE, CLOSURE, USERDATA = range(7)
+TYPE_MASK = 0x07
+VALID = 0x08
+PERMANENT = 0x10
+GC_MARK = 0x20
+FLAG1 = 0x40   # table: darray; closure: native (bytecode) closure
+FLAG2 = 0x80   # darray: has-self activation record; closure: lambda
+
+# Segment words (spec §E.4).
+ELEM_VALID = 0x8000
+ELEM_INDEX = 0x7FFF
+SEG_VALID = 0x8000
+SEG_MARK = 0x4000
+SEG_NEXT = 0x3FFF      # also the "no next segment" value
+NO_ACTREC = 0xFF       # lambda byte 2: uses the default activation record
+
+
+class HeapFull(Exception):
+    """An allocation found no room (the VM turns it into BBZVM_ERROR_MEM)."""
+
+
+class Heap:
+    """The heap buffer and its two pointers (``rtobj``/``ltseg`` are byte offsets)."""
+
+    def __init__(self, profile: Profile) -> None:
+        self.profile = profile
+        self.size = profile.heap_size
+        self.obj_size = profile.obj_size
+        self.seg_size = profile.tseg_size
+        self.elems = profile.elems_per_tseg
+        self.reserved = profile.rsv_actrec
+        # The firmware's heap is a zero-initialised static array.
+        self.data = bytearray(self.size)
+        self.rtobj = self.reserved * self.obj_size
+        self.ltseg = self.size
+        self.peak_used = 0
+        self.gc_runs = 0
+
+    # ---- whole-heap operations -------------------------------------------------------
+    def clear(self) -> None:
+        """``bbzheap_clear``: reset both pointers, zero bytes 0..(R-1)*S inclusive only."""
+        self.rtobj = self.reserved * self.obj_size
+        self.ltseg = self.size
+        end = (self.reserved - 1) * self.obj_size + 1
+        self.data[0:end] = bytes(end)
+
+    @property
+    def object_count(self) -> int:
+        """Number of object slots below rtobj (reserved ones included)."""
+        return self.rtobj // self.obj_size
+
+    @property
+    def segment_count(self) -> int:
+        return (self.size - self.ltseg) // self.seg_size
+
+    def used_bytes(self) -> int:
+        return self.rtobj + (self.size - self.ltseg)
+
+    def _note_usage(self) -> None:
+        used = self.rtobj + (self.size - self.ltseg)
+        if used > self.peak_used:
+            self.peak_used = used
+
+    # ---- objects ----------------------------------------------------------------------
+    def mdata(self, i: int) -> int:
+        return self.data[i * self.obj_size]
+
+    def set_mdata(self, i: int, value: int) -> None:
+        self.data[i * self.obj_size] = value
+
+    def obj_type(self, i: int) -> int:
+        return self.data[i * self.obj_size] & TYPE_MASK
+
+    def is_valid(self, i: int) -> bool:
+        return bool(self.data[i * self.obj_size] & VALID)
+
+    def u16(self, i: int) -> int:
+        """Payload bytes 1-2 as an unsigned 16-bit value."""
+        o = i * self.obj_size
+        d = self.data
+        return d[o + 1] | (d[o + 2] << 8)
+
+    def set_u16(self, i: int, value: int) -> None:
+        o = i * self.obj_size
+        self.data[o + 1] = value & 0xFF
+        self.data[o + 2] = (value >> 8) & 0xFF
+
+    def int_value(self, i: int) -> int:
+        v = self.u16(i)
+        return v - 0x10000 if v & 0x8000 else v
+
+    def set_int(self, i: int, value: int) -> None:
+        self.set_u16(i, value & 0xFFFF)
+
+    def ptr_value(self, i: int) -> int:
+        o = i * self.obj_size + 1
+        return int.from_bytes(self.data[o:o + self.obj_size - 1], "little")
+
+    def set_ptr(self, i: int, value: int) -> None:
+        """Write a pointer-sized payload (C closure, native closure pc, userdata)."""
+        o = i * self.obj_size + 1
+        n = self.obj_size - 1
+        self.data[o:o + n] = (value & ((1 << (8 * n)) - 1)).to_bytes(n, "little")
+
+    def obj_alloc(self, typ: int, string_id: int = 0) -> int:
+        """``bbzheap_obj_alloc`` (spec §E.5): first free slot from R, string dedupe, grow.
+
+        Raises :class:`HeapFull`. A table whose first segment cannot be allocated is left
+        valid (garbage) and HeapFull is raised, as the firmware does.
+        """
+        d = self.data
+        s = self.obj_size
+        n = self.rtobj // s
+        found = -1
+        if typ == STRING:
+            lo = string_id & 0xFF
+            hi = (string_id >> 8) & 0xFF
+            for i in range(self.reserved, n):
+                o = i * s
+                m = d[o]
+                if not m & VALID:
+                    found = i
+                    break
+                if m & TYPE_MASK == STRING and d[o + 1] == lo and d[o + 2] == hi:
+                    return i
+        else:
+            for i in range(self.reserved, n):
+                if not d[i * s] & VALID:
+                    found = i
+                    break
+        if found < 0:
+            if self.rtobj + s > self.ltseg:
+                raise HeapFull
+            found = n
+            self.rtobj += s
+            self._note_usage()
+        o = found * s
+        d[o] = typ | VALID
+        if typ == TABLE:
+            seg = self.seg_alloc()
+            d[o + 1] = seg & 0xFF
+            d[o + 2] = seg >> 8
+        elif typ == CLOSURE:
+            d[o + 2] = NO_ACTREC
+        return found
+
+    def new_int(self, value: int) -> int:
+        i = self.obj_alloc(INT)
+        self.set_u16(i, value & 0xFFFF)
+        return i
+
+    def new_float(self, bits: int) -> int:
+        i = self.obj_alloc(FLOAT)
+        self.set_u16(i, bits)
+        return i
+
+    def new_string(self, string_id: int) -> int:
+        i = self.obj_alloc(STRING, string_id)
+        self.set_u16(i, string_id)
+        return i
+
+    def new_table(self) -> int:
+        return self.obj_alloc(TABLE)
+
+    def new_closure(self, value: int) -> int:
+        """``bbzclosure_new``: a C closure (or native, after the caller sets FLAG1)."""
+        i = self.obj_alloc(CLOSURE)
+        self.set_ptr(i, value)
+        return i
+
+    def new_userdata(self, value: int) -> int:
+        i = self.obj_alloc(USERDATA)
+        self.set_ptr(i, value)
+        return i
+
+    # ---- segments ---------------------------------------------------------------------
+    def seg_offset(self, j: int) -> int:
+        return self.size - (j + 1) * self.seg_size
+
+    def seg_mdata(self, j: int) -> int:
+        o = self.size - (j + 1) * self.seg_size + 4 * self.elems
+        return self.data[o] | (self.data[o + 1] << 8)
+
+    def set_seg_mdata(self, j: int, value: int) -> None:
+        o = self.size - (j + 1) * self.seg_size + 4 * self.elems
+        self.data[o] = value & 0xFF
+        self.data[o + 1] = (value >> 8) & 0xFF
+
+    def seg_next(self, j: int) -> int:
+        return self.seg_mdata(j) & SEG_NEXT
+
+    def set_seg_next(self, j: int, nxt: int) -> None:
+        self.set_seg_mdata(j, (self.seg_mdata(j) & ~SEG_NEXT) | (nxt & SEG_NEXT))
+
+    def word(self, j: int, k: int) -> int:
+        """Element word k (0..2E-1) of segment j: keys are 0..E-1, values E..2E-1."""
+        o = self.size - (j + 1) * self.seg_size + 2 * k
+        return self.data[o] | (self.data[o + 1] << 8)
+
+    def set_word(self, j: int, k: int, value: int) -> None:
+        o = self.size - (j + 1) * self.seg_size + 2 * k
+        self.data[o] = value & 0xFF
+        self.data[o + 1] = (value >> 8) & 0xFF
+
+    def seg_alloc(self) -> int:
+        """``bbzheap_tseg_alloc``: first invalid segment slot, else grow left."""
+        k = (self.size - self.ltseg) // self.seg_size
+        found = -1
+        for j in range(k):
+            if not self.seg_mdata(j) & SEG_VALID:
+                found = j
+                break
+        if found < 0:
+            if self.ltseg - self.seg_size < self.rtobj:
+                raise HeapFull
+            found = k
+            self.ltseg -= self.seg_size
+            self._note_usage()
+        o = self.seg_offset(found)
+        g = self.seg_size
+        self.data[o:o + g - 2] = bytes(g - 2)
+        self.data[o + g - 2] = 0xFF
+        self.data[o + g - 1] = 0xFF
+        return found
+
+    def segment_chain(self, first: int) -> list[int]:
+        """Segment indices of a table chain starting at ``first``."""
+        chain = [first]
+        nxt = self.seg_next(first)
+        while nxt != SEG_NEXT and len(chain) <= self.size // self.seg_size:
+            chain.append(nxt)
+            nxt = self.seg_next(nxt)
+        return chain
+
+    # ---- snapshots --------------------------------------------------------------------
+    def snapshot(self) -> tuple[bytes, int, int, int, int]:
+        return (bytes(self.data), self.rtobj, self.ltseg, self.peak_used, self.gc_runs)
+
+    def restore(self, snap: tuple[bytes, int, int, int, int]) -> None:
+        data, self.rtobj, self.ltseg, self.peak_used, self.gc_runs = snap
+        self.data[:] = data

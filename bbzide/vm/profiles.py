@@ -1,0 +1,103 @@
+"""Platform profiles: the compile-time configuration of one BittyBuzz build.
+
+BittyBuzz is configured by CMake (``BittyBuzzConfig.cmake`` and the per-robot ``*.cmake``
+files, spec §E.1 and §F.9). A :class:`Profile` records those values so the Python model
+reproduces the exact RAM layout of the firmware it stands for. The object size is not a
+free parameter: it is ``1 + max(2, pointer size)`` bytes (a packed union whose widest
+members are the C function pointer and ``uintptr_t`` userdata, spec §E.2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Profile:
+    """One build configuration (the ``config`` line of a ``#BBZDUMP 1`` file)."""
+
+    name: str
+    heap_size: int              # BBZHEAP_SIZE: bytes of vm->heap.data
+    ptr_size: int               # sizeof(void*) of the target: 2 AVR, 4 Cortex-M, 8 x86-64
+    elems_per_tseg: int = 5     # BBZHEAP_ELEMS_PER_TSEG (E): key/value pairs per table segment
+    rsv_actrec: int = 28        # BBZHEAP_RSV_ACTREC_MAX (R): slots for lambda records
+    gcmark_depth: int = 8       # BBZHEAP_GCMARK_DEPTH: GC recursion limit (roots sit at level 2)
+    stack_size: int = 96        # BBZSTACK_SIZE: stack entries (u16 heap indices)
+    vstig_cap: int = 4          # BBZVSTIG_CAP: stigmergy entries kept
+    neighbors_cap: int = 15     # BBZNEIGHBORS_CAP: neighbor ring-buffer slots (XTREME)
+    xtreme: bool = False        # BBZ_XTREME_MEMORY: neighbors in a ring buffer, not in tables
+    neighbors_floats: bool = True   # BBZ_NEIGHBORS_USE_FLOATS
+    float_ops: bool = True      # BBZ_ENABLE_FLOAT_OPERATIONS
+    bytewise_assignment: bool = False  # BBZ_BYTEWISE_ASSIGNMENT (Zooids): no semantic change here
+    in_queue_cap: int = 10      # BBZINMSG_QUEUE_CAP
+    out_queue_cap: int = 10     # BBZOUTMSG_QUEUE_CAP
+    msg_in_proc_max: int = 10   # BBZMSG_IN_PROC_MAX: in-messages processed per step
+    lamport_threshold: int = 50  # BBZLAMPORT_THRESHOLD
+    neighbors_clr_period: int = 10  # BBZNEIGHBORS_CLR_PERIOD
+    neighbors_mark_time: int = 4    # BBZNEIGHBORS_MARK_TIME
+
+    @property
+    def obj_size(self) -> int:
+        """S = 1 metadata byte + the widest payload (at least the 2 bytes of an int16)."""
+        return 1 + max(2, self.ptr_size)
+
+    @property
+    def tseg_size(self) -> int:
+        """G = 4E + 2: E u16 keys, E u16 values, one u16 mdata word."""
+        return 4 * self.elems_per_tseg + 2
+
+    def config_line(self) -> str:
+        """The ``config`` header line of a ``#BBZDUMP 1`` file for this profile."""
+        return (
+            f"config heap_size {self.heap_size} obj_size {self.obj_size} "
+            f"tseg_size {self.tseg_size} elems_per_tseg {self.elems_per_tseg} "
+            f"rsv_actrec {self.rsv_actrec} stack_size {self.stack_size} "
+            f"vstig_cap {self.vstig_cap} neighbors_cap {self.neighbors_cap} "
+            f"xtreme {int(self.xtreme)} neighbors_floats {int(self.neighbors_floats)} "
+            f"float_ops {int(self.float_ops)} ptr_size {self.ptr_size}"
+        )
+
+
+# The host (x86-64) build that produced the corpus `*.pc.dump` files.
+PC = Profile(name="pc", heap_size=3264, ptr_size=8)
+
+# Kilobot: ATmega328P, 2 KB SRAM; the corpus `*.avr.dump` configuration.
+KILOBOT = Profile(
+    name="kilobot", heap_size=1088, ptr_size=2, xtreme=True,
+    neighbors_floats=False, float_ops=False,
+)
+
+# Zooids and Crazyflie: Cortex-M (4-byte pointers), deeper GC marking and a larger stack.
+ZOOIDS = Profile(
+    name="zooids", heap_size=2048, ptr_size=4, gcmark_depth=16, stack_size=128,
+    neighbors_cap=10, bytewise_assignment=True,
+)
+CRAZYFLIE = Profile(
+    name="crazyflie", heap_size=3500, ptr_size=4, gcmark_depth=16, stack_size=128,
+    neighbors_cap=10,
+)
+
+# M300: a macro drone with an onboard computer (our own profile, not a BittyBuzz build).
+# * heap_size 60000: a 400-cell search-and-rescue belief map kept in the stigmergy needs,
+#   per cell, an int key... rather a string/int key object, a value object and 2/5 of a
+#   22-byte segment (≈ 3 objects × 9 B + 9 B ≈ 36 B) → ≈ 15 KB, plus a table per cell if
+#   the belief is structured (≈ 40 B more) → ≈ 30 KB; doubled for GC headroom. Object
+#   indices are 15-bit (element words keep bit 15 for "valid"), so 60000/9 ≈ 6667 slots
+#   stay far below the 32767 limit, and segment indices (14 bits) below 16383.
+# * vstig_cap 512: the 400 cells plus room for a few mission keys.
+# * neighbors_cap 64: a large swarm in radio range; the Lamport byte wraps at 256 anyway.
+# * gcmark_depth 16, stack_size 256: nested belief tables and deeper call chains.
+M300 = Profile(
+    name="m300", heap_size=60000, ptr_size=8, gcmark_depth=16, stack_size=256,
+    vstig_cap=512, neighbors_cap=64,
+)
+
+PROFILES: dict[str, Profile] = {p.name: p for p in (PC, KILOBOT, ZOOIDS, CRAZYFLIE, M300)}
+
+
+def get_profile(name: str) -> Profile:
+    """The profile called ``name`` (KeyError names the valid choices)."""
+    try:
+        return PROFILES[name]
+    except KeyError:
+        raise KeyError(f"unknown profile {name!r}; choose one of {sorted(PROFILES)}") from None

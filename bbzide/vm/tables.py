@@ -1,0 +1,304 @@
+"""Tables and darrays laid out in heap segments (spec §E.6, §E.7).
+
+A table object's payload is the index of its first segment; segments chain through the
+14-bit ``next`` field of their mdata word. A table segment holds E key words and E value
+words; a darray segment uses the same 2E words as values. Element words carry bit 15 =
+valid, bits 0-14 = heap index. Every function here mirrors one ``bbztable_*``/
+``bbzdarray_*`` routine, including its quirks (darray ``size`` unlinks trailing segments,
+``pop`` leaves an empty trailing segment until the next pop).
+"""
+
+from __future__ import annotations
+
+from bbzide.vm.heap import (
+    CLOSURE,
+    ELEM_INDEX,
+    ELEM_VALID,
+    FLAG1,
+    FLAG2,
+    FLOAT,
+    INT,
+    NIL,
+    SEG_NEXT,
+    SEG_VALID,
+    STRING,
+    TABLE,
+    TYPE_MASK,
+    USERDATA,
+    VALID,
+    Heap,
+    HeapFull,
+)
+
+
+def compare(heap: Heap, a: int, b: int) -> int:
+    """``bbztype_cmp``: -1/0/1; never an error (spec §D.6)."""
+    ta = heap.obj_type(a)
+    tb = heap.obj_type(b)
+    if ta == NIL or tb == NIL:
+        if ta == tb:
+            return 0
+        return -1 if ta == NIL else 1
+    if ta == INT and tb == INT:
+        x, y = heap.int_value(a), heap.int_value(b)
+    elif (ta == FLOAT and tb in (INT, FLOAT)) or (tb == FLOAT and ta == INT):
+        x, y = heap.u16(a), heap.u16(b)
+    elif ta == tb and ta in (STRING, TABLE):
+        x, y = heap.u16(a), heap.u16(b)
+    elif ta == tb == USERDATA:
+        x, y = heap.ptr_value(a), heap.ptr_value(b)
+    else:
+        return -1
+    return (x > y) - (x < y)
+
+
+# ---- tables ---------------------------------------------------------------------------
+def table_get(heap: Heap, t: int, k: int) -> int | None:
+    """The value index stored under key object ``k``, or None (absent or not a table)."""
+    if heap.obj_type(t) != TABLE:
+        return None
+    E = heap.elems
+    seg = heap.u16(t)
+    while True:
+        for s in range(E):
+            kw = heap.word(seg, s)
+            if kw & ELEM_VALID and compare(heap, kw & ELEM_INDEX, k) == 0:
+                return heap.word(seg, s + E) & ELEM_INDEX
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            return None
+        seg = nxt
+
+
+def table_set(heap: Heap, t: int, k: int, v: int) -> bool:
+    """``bbztable_set``; False when not a table. Raises HeapFull when a segment is needed."""
+    if heap.obj_type(t) != TABLE:
+        return False
+    E = heap.elems
+    v_is_nil = heap.obj_type(v) == NIL
+    first = heap.u16(t)
+    seg = first
+    prev = -1
+    free_seg = -1
+    free_slot = -1
+    while True:
+        match = -1
+        for s in range(E):
+            kw = heap.word(seg, s)
+            if kw & ELEM_VALID:
+                if match < 0 and compare(heap, kw & ELEM_INDEX, k) == 0:
+                    match = s
+            elif free_seg < 0:
+                free_seg, free_slot = seg, s
+        if match >= 0:
+            if not v_is_nil:
+                heap.set_word(seg, match + E, v | ELEM_VALID)
+                return True
+            heap.set_word(seg, match, 0)
+            heap.set_word(seg, match + E, 0)
+            if not any(heap.word(seg, s) & ELEM_VALID for s in range(E)):
+                nxt = heap.seg_next(seg)
+                if seg == first:
+                    if nxt != SEG_NEXT:
+                        heap.set_u16(t, nxt)
+                        heap.set_seg_mdata(seg, 0)
+                else:
+                    heap.set_seg_next(prev, nxt)
+                    heap.set_seg_mdata(seg, 0)
+            return True
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            break
+        prev, seg = seg, nxt
+    if v_is_nil:
+        return True
+    if free_seg < 0:
+        new = heap.seg_alloc()
+        heap.set_seg_next(seg, new)
+        free_seg, free_slot = new, 0
+    heap.set_word(free_seg, free_slot, k | ELEM_VALID)
+    heap.set_word(free_seg, free_slot + E, v | ELEM_VALID)
+    return True
+
+
+def table_items(heap: Heap, t: int) -> list[tuple[int, int]]:
+    """(key, value) indices in ``foreach`` order: chain order, slot order."""
+    E = heap.elems
+    out: list[tuple[int, int]] = []
+    for seg in heap.segment_chain(heap.u16(t)):
+        for s in range(E):
+            kw = heap.word(seg, s)
+            if kw & ELEM_VALID:
+                out.append((kw & ELEM_INDEX, heap.word(seg, s + E) & ELEM_INDEX))
+    return out
+
+
+def table_size(heap: Heap, t: int) -> int:
+    return len(table_items(heap, t))
+
+
+# ---- darrays --------------------------------------------------------------------------
+def is_darray(heap: Heap, d: int) -> bool:
+    m = heap.mdata(d)
+    return m & TYPE_MASK == TABLE and bool(m & FLAG1)
+
+
+def darray_new(heap: Heap) -> int:
+    d = heap.obj_alloc(TABLE)
+    heap.set_mdata(d, (heap.mdata(d) | FLAG1) & ~FLAG2)
+    return d
+
+
+def _last_segment(heap: Heap, d: int) -> int:
+    seg = heap.u16(d)
+    while True:
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            return seg
+        seg = nxt
+
+
+def darray_push(heap: Heap, d: int, v: int) -> None:
+    n = 2 * heap.elems
+    seg = _last_segment(heap, d)
+    p = 0
+    while p < n and heap.word(seg, p) & ELEM_VALID:
+        p += 1
+    if p == n:
+        new = heap.seg_alloc()
+        heap.set_seg_next(seg, new)
+        seg, p = new, 0
+    heap.set_word(seg, p, v | ELEM_VALID)
+
+
+def darray_pop(heap: Heap, d: int) -> bool:
+    n = 2 * heap.elems
+    first = heap.u16(d)
+    if heap.seg_next(first) == SEG_NEXT and not heap.word(first, 0) & ELEM_VALID:
+        return False
+    prev = -1
+    seg = first
+    while heap.seg_next(seg) != SEG_NEXT:
+        prev, seg = seg, heap.seg_next(seg)
+    p = 0
+    while p < n and heap.word(seg, p) & ELEM_VALID:
+        p += 1
+    if p > 0:
+        heap.set_word(seg, p - 1, heap.word(seg, p - 1) & ~ELEM_VALID)
+    else:
+        heap.set_word(prev, n - 1, heap.word(prev, n - 1) & ~ELEM_VALID)
+        heap.set_seg_mdata(seg, heap.seg_mdata(seg) & ~SEG_VALID)
+        heap.set_seg_next(prev, SEG_NEXT)
+    return True
+
+
+def darray_get(heap: Heap, d: int, i: int) -> int | None:
+    if not is_darray(heap, d) or i < 0:
+        return None
+    n = 2 * heap.elems
+    seg = heap.u16(d)
+    for _ in range(i // n):
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            return None
+        seg = nxt
+    w = heap.word(seg, i % n)
+    return w & ELEM_INDEX if w & ELEM_VALID else None
+
+
+def darray_set(heap: Heap, d: int, i: int, v: int) -> bool:
+    if not is_darray(heap, d) or i < 0:
+        return False
+    n = 2 * heap.elems
+    seg = heap.u16(d)
+    for _ in range(i // n):
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            return False
+        seg = nxt
+    if not heap.word(seg, i % n) & ELEM_VALID:
+        return False
+    heap.set_word(seg, i % n, v | ELEM_VALID)
+    return True
+
+
+def darray_size(heap: Heap, d: int) -> int:
+    """Count valid elements up to the first invalid one; unlinks what follows (quirk)."""
+    n = 2 * heap.elems
+    seg = heap.u16(d)
+    count = 0
+    while True:
+        for p in range(n):
+            if not heap.word(seg, p) & ELEM_VALID:
+                heap.set_seg_next(seg, SEG_NEXT)
+                return count
+            count += 1
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            return count
+        seg = nxt
+
+
+def darray_elements(heap: Heap, d: int) -> list[int]:
+    """Element indices walking while valid (no side effect)."""
+    n = 2 * heap.elems
+    out: list[int] = []
+    seg = heap.u16(d)
+    while True:
+        for p in range(n):
+            w = heap.word(seg, p)
+            if not w & ELEM_VALID:
+                return out
+            out.append(w & ELEM_INDEX)
+        nxt = heap.seg_next(seg)
+        if nxt == SEG_NEXT:
+            return out
+        seg = nxt
+
+
+def darray_clone(heap: Heap, d: int) -> int:
+    c = darray_new(heap)
+    for e in darray_elements(heap, d):
+        darray_push(heap, c, e)
+    return c
+
+
+def darray_find(heap: Heap, d: int, x: int) -> int:
+    elems = darray_elements(heap, d)
+    for pos, e in enumerate(elems):
+        if heap.is_valid(e) and compare(heap, e, x) == 0:
+            return pos
+    return len(elems)
+
+
+def darray_destroy(heap: Heap, d: int) -> None:
+    for seg in heap.segment_chain(heap.u16(d)):
+        heap.set_seg_mdata(seg, heap.seg_mdata(seg) & ~SEG_VALID)
+    heap.set_mdata(d, heap.mdata(d) & ~VALID)
+
+
+def lambda_alloc(heap: Heap, src: int) -> int:
+    """``bbzdarray_lambda_alloc``: a reserved-slot darray holding a copy of ``src``.
+
+    Raises HeapFull when no reserved slot is free (or no segment is left).
+    """
+    for i in range(heap.reserved):
+        m = heap.mdata(i)
+        if not m & VALID:
+            heap.set_mdata(i, ((m | VALID) & ~TYPE_MASK & ~FLAG2) | TABLE | FLAG1)
+            seg = heap.seg_alloc()
+            heap.set_u16(i, seg)
+            n = darray_size(heap, src)
+            for k in range(n):
+                e = darray_get(heap, src, k)
+                darray_push(heap, i, e if e is not None else 0)
+            return i
+    raise HeapFull
+
+
+__all__ = [
+    "CLOSURE", "compare", "table_get", "table_set", "table_items", "table_size",
+    "is_darray", "darray_new", "darray_push", "darray_pop", "darray_get", "darray_set",
+    "darray_size", "darray_elements", "darray_clone", "darray_find", "darray_destroy",
+    "lambda_alloc", "HeapFull",
+]
