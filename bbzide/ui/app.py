@@ -132,7 +132,7 @@ class IdeApp:
 
     def _pitfalls(self, text: str) -> list[Diagnostic]:
         platform = self.backend.platform(self.controller.settings.world)
-        return find_pitfalls(text, floats_supported=bool(getattr(platform, "floats", True)))
+        return find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
 
     def _reload_from_disk(self) -> None:
         self.session.reload_from_disk()

@@ -189,18 +189,16 @@ class WorldsSimulation:
         profile = self.profile
         geometry = HeapGeometry(
             size=int(_field(profile, ("heap_size",))),
-            object_size=int(_field(profile, ("object_size",))),
-            reserved=int(_field(profile, ("reserved_actrecs", "rsv_actrec_max", "reserved"))),
+            object_size=int(_field(profile, ("obj_size", "object_size"))),
+            reserved=int(_field(profile, ("rsv_actrec", "reserved_actrecs", "reserved"))),
             elems_per_segment=int(
                 _field(profile, ("elems_per_segment", "elems_per_tseg"), DEFAULT_ELEMS_PER_SEGMENT)
             ),
         )
-        heap_bytes = bytes(_field(vm, ("heap_bytes", "heap", "data")))
-        if not isinstance(heap_bytes, bytes | bytearray):
-            heap_bytes = bytes(_field(heap_bytes, ("data",)))
-        heap_obj = _field(vm, ("heap",), vm)
-        rop = int(_field(heap_obj, ("rightmost_object_ptr", "rtobj", "rop")))
-        lsp = int(_field(heap_obj, ("leftmost_segment_ptr", "ltseg", "lsp")))
+        heap_obj = _field(vm, ("heap",), vm)  # bbzide.vm.heap.Heap: data, rtobj, ltseg
+        heap_bytes = bytes(_field(heap_obj, ("data",)))
+        rop = int(_field(heap_obj, ("rtobj", "rightmost_object_ptr")))
+        lsp = int(_field(heap_obj, ("ltseg", "leftmost_segment_ptr")))
         strings = list(getattr(self.program, "strings", []))
         reader = HeapReader(heap_bytes, geometry, rop, lsp, strings)
         decoded = reader.decode()
@@ -232,8 +230,8 @@ class WorldsSimulation:
             blocks=decoded.blocks,
             used_bytes=decoded.used_bytes,
             free_bytes=decoded.free_bytes,
-            peak_bytes=_field(vm, ("peak_heap_bytes", "heap_peak", "peak_bytes")),
-            gc_runs=_field(vm, ("gc_runs", "gc_count")),
+            peak_bytes=_field(heap_obj, ("peak_used", "peak_bytes")),
+            gc_runs=_field(heap_obj, ("gc_runs",)),
             ram_bytes=_field(profile, ("ram_size", "ram_bytes")),
             objects=decoded.objects,
             frames=[str(f) for f in (_field(vm, ("frames", "call_frames"), []) or [])],
