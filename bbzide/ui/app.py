@@ -165,9 +165,9 @@ class IdeApp:
             return
         world = self.controller.settings.world
         platform = self.backend.platform(world)
-        budget = getattr(platform, "flash_budget", None) or getattr(
-            platform, "bytecode_budget", None
-        )
+        budget = getattr(platform, "flash_budget", None)
+        if budget is None and hasattr(self.backend, "flash_budget"):
+            budget = self.backend.flash_budget(world)
         name = getattr(platform, "name", world)
         self.footprint.content = (
             footprint_markdown(good.compiled, good.program, name, budget) + note

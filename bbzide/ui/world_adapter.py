@@ -37,6 +37,11 @@ DEFAULT_ELEMS_PER_SEGMENT = 5
 KILOBOT_RADIUS = 0.0165
 
 
+#: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
+#: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash).
+PLATFORM_MEMORY = {"kilobot": (2048, 32768)}
+
+
 class MissingRoomError(UserError):
     """A room the IDE needs (compiler, VM, worlds) is not in this build."""
 
@@ -97,6 +102,10 @@ class WorldsBackend:
         if isinstance(profile, str):
             profile = _import("bbzide.vm.profiles").PROFILES[profile]
         return profile
+
+    def flash_budget(self, world: str) -> int | None:
+        name = str(_field(self.platform(world), ("name",), ""))
+        return PLATFORM_MEMORY.get(name, (None, None))[1]
 
     def host_names(self, world: str) -> list[str]:
         spec = self._worlds[world]
@@ -232,7 +241,8 @@ class WorldsSimulation:
             free_bytes=decoded.free_bytes,
             peak_bytes=_field(heap_obj, ("peak_used", "peak_bytes")),
             gc_runs=_field(heap_obj, ("gc_runs",)),
-            ram_bytes=_field(profile, ("ram_size", "ram_bytes")),
+            ram_bytes=_field(profile, ("ram_size", "ram_bytes"))
+            or PLATFORM_MEMORY.get(str(_field(profile, ("name",), "")), (None, None))[0],
             objects=decoded.objects,
             frames=[str(f) for f in (_field(vm, ("frames", "call_frames"), []) or [])],
             globals=globals_,
