@@ -60,14 +60,22 @@ class IdeSession:
         client.camera.up_direction = (0.0, 1.0, 0.0)  # type: ignore[attr-defined]
         client.camera.position = (x + shift, y, height)  # type: ignore[attr-defined]
         client.camera.look_at = (x + shift, y, 0.0)  # type: ignore[attr-defined]
-        time.sleep(0.5)
-        box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
-        fov = float(client.camera.fov)  # type: ignore[attr-defined]
-        pixels_per_metre = box["height"] / (2 * height * math.tan(fov / 2))
-        page.mouse.click(
-            box["x"] + box["width"] / 2 - shift * pixels_per_metre,  # type: ignore[attr-defined]
-            box["y"] + box["height"] / 2,
-        )
+        inspector = self.app._inspectors[client.client_id]  # type: ignore[attr-defined]
+        for _attempt in range(4):  # a loaded machine may not have drawn the new view yet
+            time.sleep(1.0)
+            box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
+            fov = float(client.camera.fov)  # type: ignore[attr-defined]
+            pixels_per_metre = box["height"] / (2 * height * math.tan(fov / 2))
+            page.mouse.click(  # type: ignore[attr-defined]
+                box["x"] + box["width"] / 2 - shift * pixels_per_metre,
+                box["y"] + box["height"] / 2,
+            )
+            deadline = time.monotonic() + 3.0
+            while time.monotonic() < deadline and inspector.selected != index:
+                time.sleep(0.05)
+            if inspector.selected == index:
+                return
+        raise AssertionError(f"clicking robot {index} did not select it")
 
     def open_tab(self) -> tuple[object, object]:
         """A second browser tab on the same run: (page, its viser client)."""

@@ -148,10 +148,12 @@ def test_two_tabs_keep_their_own_selection(ide: IdeSession) -> None:
         app.controller.play()
     finally:
         page2.close()
+        app.controller.play()
 
 
 def test_infinite_loop_leaves_the_controls_responsive(ide: IdeSession) -> None:
     app = ide.app
+    app.controller.play()
     source = ide.editor.locator("#source")
     source.fill(SCRIPT + "while(1) {}\n")
     wait_until(
