@@ -60,6 +60,7 @@ class IdeSession:
         client.camera.up_direction = (0.0, 1.0, 0.0)  # type: ignore[attr-defined]
         client.camera.position = (x + shift, y, height)  # type: ignore[attr-defined]
         client.camera.look_at = (x + shift, y, 0.0)  # type: ignore[attr-defined]
+        page.bring_to_front()  # type: ignore[attr-defined]  # background tabs stop drawing
         inspector = self.app._inspectors[client.client_id]  # type: ignore[attr-defined]
         for _attempt in range(4):  # a loaded machine may not have drawn the new view yet
             time.sleep(1.0)
