@@ -189,6 +189,8 @@ async function postJson(path, body) {
 
 async function loadSource() {
   const data = await getJson("api/source");
+  // The user typed while the request was out: their text wins, it is being uploaded.
+  if (editTimer !== null || uploading || data.revision < localRevision) return;
   const {selectionStart, selectionEnd} = source;
   source.value = data.text;
   localRevision = data.revision;
@@ -223,7 +225,8 @@ async function poll() {
   try {
     const state = await getJson("api/state");
     const typing = editTimer !== null || uploading;
-    if (state.revision !== localRevision && !typing) {
+    // Revisions only grow: an answer older than our last upload is stale, not an external edit.
+    if (state.revision > localRevision && !typing) {
       lastState = state;
       await loadSource();          // an external save (or another tab) changed the text
     } else {
@@ -296,6 +299,7 @@ window.addEventListener("resize", render);
 
 (async () => {
   lastState = await getJson("api/state");
+  localRevision = -1;
   await loadSource();
   setInterval(poll, POLL_MS);
 })();
