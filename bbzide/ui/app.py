@@ -1,0 +1,250 @@
+"""The IDE, wired together: one viser server, one editor, one program, one running swarm.
+
+    browser tab ──(viser websocket)──▶ RunControls, SwarmScene clicks, InspectorPanel (per tab)
+         └──<iframe>──(HTTP, EditorServer)──▶ ProgramSession ──compile──▶ RunController.load_program
+    FileWatcher (external saves) ──────────▶ ProgramSession.reload_from_disk
+    RunController thread ──frames (≤30 Hz)──▶ SwarmScene.draw
+    ticker thread (4 Hz) ──▶ status line, build view, each tab's inspector (under the run lock)
+
+`IdeApp` only connects the parts; each part lives in its own module.
+"""
+
+from __future__ import annotations
+
+import html
+import threading
+import time
+from pathlib import Path
+
+import viser
+
+from bbzide.ui.build_panel import footprint_markdown, listing_html
+from bbzide.ui.controls import RunControls
+from bbzide.ui.editor_server import EditorServer
+from bbzide.ui.file_watcher import FileWatcher
+from bbzide.ui.inspector_panel import InspectorPanel
+from bbzide.ui.pitfalls import find_pitfalls
+from bbzide.ui.program_session import CompileOutcome, Diagnostic, ProgramSession
+from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
+from bbzide.ui.scene import SwarmScene
+from bbzide.ui.world_backend import SwarmFrame, WorldBackend
+
+#: How often the status line and inspectors refresh: 4 Hz reads as "live" and costs little.
+TICK_SECONDS = 0.25
+#: Width of the editor panel: ~70 columns of 13 px monospace plus the line-number gutter.
+EDITOR_PANEL_WIDTH = 600
+#: How long an inspector refresh may wait for the current step to end before skipping a tick.
+INSPECT_LOCK_TIMEOUT = 0.2
+
+
+class IdeApp:
+    def __init__(
+        self,
+        source_path: Path,
+        backend: WorldBackend,
+        settings: RunSettings,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+    ) -> None:
+        self.backend = backend
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server.gui.configure_theme(
+            control_width="large", show_share_button=False, dark_mode=False
+        )
+        self.controller = RunController(backend, settings)
+        self.session = ProgramSession(
+            source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls
+        )
+        self.editor_server = EditorServer(self.session, host=host)
+        self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
+        self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
+        self.controls.world.on_update(lambda _: self._change_world(str(self.controls.world.value)))
+        self._inspectors: dict[int, InspectorPanel] = {}
+        self._world_generation = -1
+        self._build_dirty = True
+        self._stop = threading.Event()
+        self._ticker = threading.Thread(
+            target=self._tick_loop, name="bbzide-ui-ticker", daemon=True
+        )
+        self.watcher = FileWatcher(source_path, self._reload_from_disk)
+        self._build_gui(host)
+        self.controller.add_frame_listener(self._on_frame)
+        self.session.add_listener(self._on_compiled)
+        self.server.on_client_connect(self._on_client_connect)
+        self.server.on_client_disconnect(self._on_client_disconnect)
+
+    # ---- lifetime ------------------------------------------------------------------------------
+    @property
+    def url(self) -> str:
+        host = self.server.get_host()
+        return (
+            f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}/"
+        )
+
+    def start(self, run: bool = True) -> IdeApp:
+        self.editor_server.start()
+        self.controller.start()
+        self.watcher.start()
+        self.session.compile_now()  # first program -> controller builds the world
+        if run:
+            self.controller.play()
+        self._ticker.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self.watcher.stop()
+        self.controller.stop()
+        self.editor_server.stop()
+        if self._ticker.is_alive():
+            self._ticker.join(timeout=5)
+        self.server.stop()
+
+    # ---- layout --------------------------------------------------------------------------------
+    def _build_gui(self, host: str) -> None:
+        gui = self.server.gui
+        browser_host = "127.0.0.1" if host in ("0.0.0.0", "") else host
+        panel = gui.add_panel()
+        with panel.add_tab(self.session.path.name, icon=viser.Icon.CODE):
+            gui.add_html(
+                f'<iframe src="{self.editor_server.url(browser_host)}" title="Buzz editor" '
+                'class="bbzide-editor" style="width:100%;height:calc(100vh - 140px);border:0;'
+                'display:block"></iframe>'
+            )
+        with panel.add_tab("Build", icon=viser.Icon.FILE_CODE):
+            self.footprint = gui.add_markdown("*not compiled yet*")
+            self.listing = gui.add_html("")
+        panel.dock_left()
+        panel.set_width(EDITOR_PANEL_WIDTH)
+
+    def _on_client_connect(self, client: viser.ClientHandle) -> None:
+        self._inspectors[client.client_id] = inspector = InspectorPanel(client)
+        inspector.deselect.on_click(lambda _: self._select(client, None))
+        self.scene.aim_camera(client)
+
+    def _on_client_disconnect(self, client: viser.ClientHandle) -> None:
+        self._inspectors.pop(client.client_id, None)
+        self.scene.forget_client(client.client_id)
+
+    # ---- program -------------------------------------------------------------------------------
+    def _compile(self, text: str, path: Path) -> tuple[object, object]:
+        return self.backend.compile(text, path, self.controller.settings.world)
+
+    def _pitfalls(self, text: str) -> list[Diagnostic]:
+        platform = self.backend.platform(self.controller.settings.world)
+        return find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+
+    def _reload_from_disk(self) -> None:
+        self.session.reload_from_disk()
+
+    def _on_compiled(self, outcome: CompileOutcome) -> None:
+        self._build_dirty = True
+
+    def _change_world(self, world: str) -> None:
+        if world == self.controller.settings.world:
+            return
+        self.controller.update_settings(world=world, robots=self.backend.default_robots(world))
+        self.controls.robots.value = self.backend.default_robots(world)
+        self.session.compile_now()  # host functions differ per platform
+
+    def _refresh_build_view(self) -> None:
+        self._build_dirty = False
+        good = self.session.last_good
+        outcome = self.session.outcome
+        note = ""
+        if outcome is not None and not outcome.ok:
+            first = outcome.diagnostics[0] if outcome.diagnostics else None
+            where = f"line {first.line}:{first.col}: {html.escape(first.message)}" if first else ""
+            note = (
+                f"\n\n⚠ **the current text does not compile** ({where}); "
+                "the robots run the last good program."
+            )
+        if good is None:
+            self.footprint.content = "*no successful compile yet*" + note
+            self.listing.content = ""
+            return
+        world = self.controller.settings.world
+        platform = self.backend.platform(world)
+        budget = getattr(platform, "flash_budget", None)
+        if budget is None and hasattr(self.backend, "flash_budget"):
+            budget = self.backend.flash_budget(world)
+        name = getattr(platform, "name", world)
+        self.footprint.content = (
+            footprint_markdown(good.compiled, good.program, name, budget) + note
+        )
+        self.listing.content = listing_html(
+            good.compiled.basm, self.session.text, self.session.path
+        )
+
+    # ---- frames and selection -------------------------------------------------------------------
+    def _on_frame(self, frame: SwarmFrame) -> None:
+        """From the simulation thread: redraw the world after a rebuild, then the robots."""
+        with self.controller.locked() as sim:
+            generation = id(sim)
+            if sim is not None and generation != self._world_generation:
+                self._world_generation = generation
+                self.scene.set_world(sim.geometry())
+        self.scene.draw(frame)
+
+    def _on_robot_click(self, client: viser.ClientHandle, index: int) -> None:
+        self._select(client, index)
+
+    def _select(self, client: viser.ClientHandle, index: int | None) -> None:
+        inspector = self._inspectors.get(client.client_id)
+        if inspector is None:
+            return
+        inspector.selected = index
+        self.scene.select(client, index)
+        self._refresh_inspector(inspector)
+
+    def _refresh_inspector(self, inspector: InspectorPanel) -> None:
+        index = inspector.selected
+        if index is None:
+            inspector.show_nothing("*Click a robot to inspect its memory.*")
+            return
+        try:
+            with self.controller.locked(timeout=INSPECT_LOCK_TIMEOUT) as sim:
+                if sim is None:
+                    inspector.show_nothing("*no running world*")
+                    return
+                if index >= sim.frame().count:
+                    inspector.show_nothing(f"*robot #{index} is gone (fewer robots now)*")
+                    return
+                view = sim.inspect(index)
+        except StepInProgress:
+            return  # keep the last view; the status line says a step is running long
+        view.warnings = self._program_warnings() + view.warnings
+        inspector.refresh(view)
+
+    def _program_warnings(self) -> list[str]:
+        """The running program's compiler warnings and pitfalls, as `line:col: message`."""
+        good = self.session.last_good
+        if good is None:
+            return []
+        return [
+            f"{d.line}:{d.col}: {d.message}" for d in good.diagnostics if d.severity == "warning"
+        ]
+
+    # ---- ticker ----------------------------------------------------------------------------------
+    def _tick_loop(self) -> None:
+        while not self._stop.wait(TICK_SECONDS):
+            try:
+                self._tick()
+            except Exception as error:  # noqa: BLE001 - the ticker must survive a bad frame
+                self.controller.status.error = f"display: {type(error).__name__}: {error}"
+
+    def _tick(self) -> None:
+        outcome = self.session.outcome
+        note = ""
+        if outcome is not None and not outcome.ok and self.controller.has_program:
+            note = "⚠ editor text has errors: robots keep running the last good program"
+        self.controls.refresh_status(note)
+        if self._build_dirty:
+            self._refresh_build_view()
+        busy_since = self.controller.status.step_started_at
+        step_is_long = (
+            busy_since is not None and time.monotonic() - busy_since > INSPECT_LOCK_TIMEOUT
+        )
+        for inspector in list(self._inspectors.values()):
+            if inspector.selected is not None and not step_is_long:
+                self._refresh_inspector(inspector)

@@ -1,0 +1,248 @@
+"""Reads a BittyBuzz heap buffer the way the VM lays it out (notes §E.2-§E.4), for display.
+
+Given the raw bytes and the platform's geometry, `decode_heap` lists every object slot and every
+segment with its type, validity and payload, and the free gap between ROP and LSP. The VM room
+owns the heap itself; this module only *reads* bytes, so the inspector shows exactly what a
+firmware memory dump would show, including freed slots and stale bytes.
+
+Layout reminder: object i lives at byte i*S (S = object size); slots 0..R-1 are reserved for
+lambda activation records; segment j lives at byte SIZE-(j+1)*G (G = 4E+2: E keys, E values,
+one metadata word, each u16 little-endian). Element words: bit 15 valid, bits 0-14 object index.
+Segment metadata: bit 15 valid, bit 14 GC mark, bits 0-13 next segment (0x3FFF = none).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from bbzide.compiler.bbzfloat import to_float
+from bbzide.ui.inspection import TYPE_NAMES, HeapBlock, HeapObjectRow
+
+TYPE_TABLE = 4
+TYPE_CLOSURE = 5
+VALID_BIT = 0x08
+PERMANENT_BIT = 0x10
+DARRAY_OR_NATIVE_BIT = 0x40
+LAMBDA_BIT = 0x80
+ELEMENT_VALID = 0x8000
+NO_NEXT_SEGMENT = 0x3FFF
+#: Deepest table nesting the object list expands (the GC marks only 7 levels anyway, §E.9).
+MAX_EXPAND_DEPTH = 2
+#: Entries shown per table in the object list (a long darray is summarised after this many).
+MAX_ENTRIES_SHOWN = 40
+
+
+@dataclass(frozen=True)
+class HeapGeometry:
+    size: int  # heap bytes
+    object_size: int  # S
+    reserved: int  # R, reserved activation-record slots
+    elems_per_segment: int  # E
+
+    @property
+    def segment_size(self) -> int:
+        return 4 * self.elems_per_segment + 2
+
+
+@dataclass
+class DecodedHeap:
+    blocks: list[HeapBlock]
+    objects: list[HeapObjectRow]
+    used_bytes: int
+    free_bytes: int
+    valid_objects: int
+    valid_segments: int
+
+
+class HeapReader:
+    def __init__(
+        self, heap: bytes, geometry: HeapGeometry, rop: int, lsp: int, strings: Sequence[str] = ()
+    ) -> None:
+        self.heap = bytes(heap)
+        self.g = geometry
+        self.rop = rop
+        self.lsp = lsp
+        self.strings = strings
+
+    # ---- raw access -----------------------------------------------------------------------
+    def object_count(self) -> int:
+        return self.rop // self.g.object_size
+
+    def segment_count(self) -> int:
+        return (self.g.size - self.lsp) // self.g.segment_size
+
+    def meta(self, index: int) -> int:
+        return self.heap[index * self.g.object_size]
+
+    def payload_u16(self, index: int) -> int:
+        offset = index * self.g.object_size + 1
+        return struct.unpack_from("<H", self.heap, offset)[0]
+
+    def segment_offset(self, segment: int) -> int:
+        return self.g.size - (segment + 1) * self.g.segment_size
+
+    def segment_words(self, segment: int) -> list[int]:
+        count = 2 * self.g.elems_per_segment + 1
+        return list(struct.unpack_from(f"<{count}H", self.heap, self.segment_offset(segment)))
+
+    # ---- meaning ----------------------------------------------------------------------------
+    def type_name(self, index: int) -> str:
+        meta = self.meta(index)
+        kind = meta & 0x07
+        if kind == TYPE_TABLE and meta & DARRAY_OR_NATIVE_BIT:
+            return "darray"
+        if kind == TYPE_CLOSURE:
+            return "lambda" if meta & LAMBDA_BIT else "closure"
+        return TYPE_NAMES[kind]
+
+    def is_valid(self, index: int) -> bool:
+        return bool(self.meta(index) & VALID_BIT)
+
+    def value_text(self, index: int, depth: int = 0) -> str:
+        if not 0 <= index < self.object_count():
+            return f"<bad ref {index}>"
+        meta = self.meta(index)
+        kind = meta & 0x07
+        if not meta & VALID_BIT:
+            return f"<freed #{index}>"
+        if kind == 0:
+            return "nil"
+        if kind == 1:
+            return str(struct.unpack_from("<h", self.heap, index * self.g.object_size + 1)[0])
+        if kind == 2:
+            return f"{to_float(self.payload_u16(index)):.4g}"
+        if kind == 3:
+            string_id = self.payload_u16(index)
+            if 0 <= string_id < len(self.strings):
+                return repr(self.strings[string_id])
+            return f"string#{string_id}"
+        if kind == TYPE_TABLE:
+            entries = self.table_entries(index)
+            label = "darray" if meta & DARRAY_OR_NATIVE_BIT else "table"
+            return f"{label}({len(entries)})"
+        if kind == TYPE_CLOSURE:
+            return "lambda" if meta & LAMBDA_BIT else "closure"
+        return "userdata"
+
+    def table_entries(self, index: int) -> list[tuple[int | None, int]]:
+        """(key object, value object) pairs in chain order; darrays give (None, value)."""
+        darray = bool(self.meta(index) & DARRAY_OR_NATIVE_BIT)
+        segment = self.payload_u16(index)
+        elems = self.g.elems_per_segment
+        entries: list[tuple[int | None, int]] = []
+        seen: set[int] = set()
+        while 0 <= segment < self.segment_count() and segment not in seen:
+            seen.add(segment)
+            words = self.segment_words(segment)
+            if darray:
+                for word in words[: 2 * elems]:
+                    if not word & ELEMENT_VALID:
+                        return entries
+                    entries.append((None, word & 0x7FFF))
+            else:
+                for key, value in zip(words[:elems], words[elems : 2 * elems], strict=True):
+                    if key & ELEMENT_VALID:
+                        entries.append((key & 0x7FFF, value & 0x7FFF))
+            following = words[-1] & NO_NEXT_SEGMENT
+            if following == NO_NEXT_SEGMENT:
+                break
+            segment = following
+        return entries
+
+    def named_refs(self, index: int) -> dict[str, int]:
+        """A table's entries as key text -> value object index (e.g. global name -> object)."""
+        if not (0 <= index < self.object_count()) or not self.is_valid(index):
+            return {}
+        return {
+            self.value_text(key).strip("'") if key is not None else str(position): value
+            for position, (key, value) in enumerate(self.table_entries(index))
+        }
+
+    def named_entries(self, index: int) -> list[tuple[str, str]]:
+        """A table's entries as (key text, value text), e.g. the globals table."""
+        if not (0 <= index < self.object_count()) or not self.is_valid(index):
+            return []
+        rows = []
+        for key, value in self.table_entries(index):
+            key_text = str(len(rows)) if key is None else self.value_text(key).strip("'")
+            rows.append((key_text, self.value_text(value)))
+        return rows
+
+    def decode(self) -> DecodedHeap:
+        g = self.g
+        blocks: list[HeapBlock] = []
+        objects: list[HeapObjectRow] = []
+        valid_objects = 0
+        for index in range(self.object_count()):
+            start = index * g.object_size
+            valid = self.is_valid(index)
+            type_name = self.type_name(index) if valid else ""
+            reserved = index < g.reserved
+            label = f"#{index} @{start}: " + (self.value_text(index) if valid else "free slot")
+            blocks.append(
+                HeapBlock(
+                    start,
+                    g.object_size,
+                    "actrec" if reserved else "object",
+                    type_name,
+                    index,
+                    valid,
+                    label,
+                )
+            )
+            if valid:
+                valid_objects += 1
+                objects.append(self._object_row(index))
+        blocks.append(
+            HeapBlock(
+                self.rop,
+                max(0, self.lsp - self.rop),
+                "free",
+                label=f"free gap {self.lsp - self.rop} B ({self.rop}..{self.lsp})",
+            )
+        )
+        valid_segments = 0
+        for segment in range(self.segment_count()):
+            offset = self.segment_offset(segment)
+            valid = bool(self.segment_words(segment)[-1] & 0x8000)
+            valid_segments += valid
+            blocks.append(
+                HeapBlock(
+                    offset,
+                    g.segment_size,
+                    "segment",
+                    "segment",
+                    segment,
+                    valid,
+                    f"segment {segment} @{offset}" + ("" if valid else " (free)"),
+                )
+            )
+        free = max(0, self.lsp - self.rop)
+        return DecodedHeap(
+            sorted(blocks, key=lambda b: b.start),
+            objects,
+            g.size - free,
+            free,
+            valid_objects,
+            valid_segments,
+        )
+
+    def _object_row(self, index: int) -> HeapObjectRow:
+        meta = self.meta(index)
+        children: list[tuple[str, str]] = []
+        if meta & 0x07 == TYPE_TABLE:
+            for position, (key, value) in enumerate(self.table_entries(index)):
+                if position == MAX_ENTRIES_SHOWN:
+                    children.append(("…", "more entries"))
+                    break
+                key_text = str(position) if key is None else self.value_text(key)
+                children.append((key_text, f"{self.value_text(value)} (#{value})"))
+        return HeapObjectRow(
+            index,
+            self.type_name(index),
+            self.value_text(index),
+            children,
+            permanent=bool(meta & PERMANENT_BIT),
+        )

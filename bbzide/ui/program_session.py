@@ -1,0 +1,223 @@
+"""The program being edited: one `.bzz` file, its text, its last compile and its last good program.
+
+`ProgramSession` is the single owner of the source text. Three things change it, and each ends in
+the same place (`_accept_text` → compile):
+
+* the browser editor (`edit_from_browser`): the text is saved to disk atomically (temp file in the
+  same directory, fsync, `os.replace`) so an editor or a crash never sees half a file;
+* the file on disk (`reload_from_disk`, called by the file watcher): external editors' saves;
+* the user asking for a compile (`compile_now`).
+
+Every text change bumps `revision`; the diagnostics carry the revision they belong to, so the
+browser never paints stale markers on new text. A successful compile hands the new program to
+`on_program` (the run controller reloads every robot); a failed one keeps the old program running
+and records the error with its `SourceLocation`.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from bbzide.diagnostics import UserError
+
+#: `compile_fn(text, path) -> (compiled_program, bittybuzz_program)`; raises `UserError` on bad
+#: input.
+CompileFunction = Callable[[str, Path], tuple[Any, Any]]
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One marker for the editor: 1-based line, 0-based column (the SourceLocation convention)."""
+
+    line: int
+    col: int
+    message: str
+    severity: str = "error"  # "error" | "warning"
+
+    def as_json(self) -> dict[str, Any]:
+        return {
+            "line": self.line,
+            "col": self.col,
+            "message": self.message,
+            "severity": self.severity,
+        }
+
+
+@dataclass
+class CompileOutcome:
+    """The result of compiling one revision of the text."""
+
+    revision: int
+    ok: bool
+    diagnostics: list[Diagnostic]
+    compiled: Any = None  # CompiledProgram (bo, bdb, basm, ...) when ok
+    program: Any = None  # BittyBuzzProgram (bbo, debug_map, ...) when ok
+    seconds: float = 0.0
+    finished_at: float = field(default_factory=time.monotonic)
+
+
+def diagnostics_from_error(error: UserError, path: Path) -> list[Diagnostic]:
+    """A user error as editor markers; errors located in another (included) file go to line 1."""
+    location = error.location
+    if location is None:
+        return [Diagnostic(1, 0, error.message)]
+    if location.file and Path(location.file).name != path.name:
+        return [Diagnostic(1, 0, f"{location}: {error.message}")]
+    return [Diagnostic(location.line, location.col, error.message)]
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Replace `path` with `text` in one step: readers see the old file or the new, never half."""
+    descriptor, temp_name = tempfile.mkstemp(
+        prefix=f".{path.name}.", suffix=".tmp", dir=path.parent
+    )
+    try:
+        with os.fdopen(descriptor, "w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temp_name, path)
+    except BaseException:
+        Path(temp_name).unlink(missing_ok=True)
+        raise
+
+
+class ProgramSession:
+    """Source text, revisions, compile results and the last good program of one `.bzz` file."""
+
+    def __init__(
+        self,
+        path: Path,
+        compile_fn: CompileFunction,
+        on_program: Callable[[Any], None] | None = None,
+        lint_fn: Callable[[str], list[Diagnostic]] | None = None,
+    ) -> None:
+        self.path = path.resolve()
+        self._compile_fn = compile_fn
+        self._lint_fn = lint_fn
+        self._on_program = on_program
+        self._listeners: list[Callable[[CompileOutcome], None]] = []
+        self._lock = threading.RLock()  # text, revision and outcome change together
+        self._compile_lock = threading.Lock()  # one compile at a time
+        self.text = self.path.read_text(encoding="utf-8")
+        self._disk_text = self.text
+        self.revision = 0
+        self.outcome: CompileOutcome | None = None
+        self.last_good: CompileOutcome | None = None
+        self.compiling = False
+
+    # ---- observers -------------------------------------------------------------------------
+    def add_listener(self, listener: Callable[[CompileOutcome], None]) -> None:
+        """Call `listener(outcome)` after every compile (from the compiling thread)."""
+        self._listeners.append(listener)
+
+    def set_program_consumer(self, on_program: Callable[[Any], None]) -> None:
+        self._on_program = on_program
+
+    # ---- the three ways the text changes ---------------------------------------------------
+    def edit_from_browser(self, text: str) -> CompileOutcome:
+        """The editor's new text: save it atomically, then compile it."""
+        with self._lock:
+            if text == self.text and self.outcome is not None:
+                return self.outcome
+            write_atomically(self.path, text)
+            self._disk_text = text
+            revision = self._accept_text(text)
+        return self._compile(revision)
+
+    def reload_from_disk(self) -> CompileOutcome | None:
+        """Re-read the file after an external save; None if its text did not change."""
+        try:
+            text = self.path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            return None  # mid-rename or unreadable: the next event will bring it
+        with self._lock:
+            if text == self._disk_text:
+                return None
+            self._disk_text = text
+            if text == self.text:
+                return None
+            revision = self._accept_text(text)
+        return self._compile(revision)
+
+    def compile_now(self) -> CompileOutcome:
+        with self._lock:
+            revision = self.revision
+        return self._compile(revision)
+
+    def _accept_text(self, text: str) -> int:
+        self.text = text
+        self.revision += 1
+        return self.revision
+
+    # ---- compiling -------------------------------------------------------------------------
+    def _compile(self, revision: int) -> CompileOutcome:
+        with self._compile_lock:
+            with self._lock:
+                if revision != self.revision:  # a newer text arrived meanwhile
+                    revision, text = self.revision, self.text
+                else:
+                    text = self.text
+                self.compiling = True
+            started = time.perf_counter()
+            try:
+                compiled, program = self._compile_fn(text, self.path)
+                warnings = _warnings_of(compiled, program)
+                if self._lint_fn is not None:
+                    warnings += self._lint_fn(text)
+                outcome = CompileOutcome(revision, True, warnings, compiled, program)
+            except UserError as error:
+                outcome = CompileOutcome(revision, False, diagnostics_from_error(error, self.path))
+            except Exception as error:  # noqa: BLE001 - a compiler bug must not kill the IDE
+                message = f"internal compiler error: {type(error).__name__}: {error}"
+                outcome = CompileOutcome(revision, False, [Diagnostic(1, 0, message)])
+            outcome.seconds = time.perf_counter() - started
+            with self._lock:
+                self.compiling = False
+                if self.outcome is None or outcome.revision >= self.outcome.revision:
+                    self.outcome = outcome
+                    if outcome.ok:
+                        self.last_good = outcome
+        if outcome.ok and self._on_program is not None:
+            self._on_program(outcome.program)
+        for listener in self._listeners:
+            listener(outcome)
+        return outcome
+
+    # ---- what the editor polls ---------------------------------------------------------------
+    def state(self) -> dict[str, Any]:
+        with self._lock:
+            outcome = self.outcome
+            status = "busy" if self.compiling else "idle"
+            summary = ""
+            if outcome is not None and not self.compiling:
+                status = "ok" if outcome.ok else "error"
+                if outcome.ok and outcome.program is not None:
+                    summary = f"compiled: {len(outcome.program.bbo)} B .bbo"
+            return {
+                "revision": self.revision,
+                "filename": self.path.name,
+                "status": status,
+                "summary": summary,
+                "diagnostics_revision": outcome.revision if outcome else -1,
+                "diagnostics": [d.as_json() for d in outcome.diagnostics] if outcome else [],
+            }
+
+    def source(self) -> dict[str, Any]:
+        with self._lock:
+            return {"revision": self.revision, "text": self.text}
+
+
+def _warnings_of(compiled: Any, program: Any) -> list[Diagnostic]:
+    """Compiler and bo2bbo warnings as line-1 markers (they carry no location in the contract)."""
+    messages = list(getattr(compiled, "warnings", []) or []) + list(
+        getattr(program, "warnings", []) or []
+    )
+    return [Diagnostic(1, 0, str(message), "warning") for message in messages]

@@ -1,0 +1,252 @@
+"""Runs the simulation on its own thread, so the browser controls never wait for a robot.
+
+The controller owns the `SimulationHandle`. Everything the UI asks for (play, pause, one step,
+reset, new settings, a freshly compiled program) becomes a command in a queue that the
+simulation thread applies *between* steps; the UI thread never steps the world itself. A slow or
+looping Buzz script therefore slows only this thread: viser's callbacks keep answering, and the
+status line shows how long the current step has been running.
+
+Readers that need a consistent view (the inspector) take `locked()`, which waits for the end of
+the current step; while the swarm runs that gives a live view, while paused an exact one.
+Frames go to `on_frame` at most `MAX_FRAME_HZ` times a second (and after every single step).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+from typing import Any
+
+from bbzide.ui.world_backend import SimulationHandle, SwarmFrame, WorldBackend
+
+#: The scene needs no more than a screen's worth of updates; 30 Hz is smooth and cheap (~1 ms).
+MAX_FRAME_HZ = 30.0
+#: Steps/s is averaged over this window so the figure is readable, not jittery.
+RATE_WINDOW_SECONDS = 1.0
+
+
+class StepInProgress(Exception):
+    """The simulation is inside a step that did not end within the caller's patience."""
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    world: str
+    robots: int
+    seed: int
+    steps_per_second: float = 0.0  # 0 = as fast as the machine goes
+    keep_state_on_reload: bool = True  # a new program keeps poses (True) or resets the world
+
+
+@dataclass
+class RunStatus:
+    """What the status line shows; written by the simulation thread, read by anyone."""
+
+    step: int = 0
+    running: bool = False
+    steps_per_second: float = 0.0
+    robots: int = 0
+    robots_in_error: int = 0
+    step_started_at: float | None = None  # monotonic time the current step began (None = idle)
+    error: str | None = None  # a world/engine failure (not a robot's VM error)
+    program_generation: int = 0  # bumps when a new program is loaded
+
+
+class RunController:
+    def __init__(
+        self,
+        backend: WorldBackend,
+        settings: RunSettings,
+        on_frame: Callable[[SwarmFrame], None] | None = None,
+    ) -> None:
+        self.backend = backend
+        self.settings = settings
+        self.status = RunStatus(robots=settings.robots)
+        self._on_frame: list[Callable[[SwarmFrame], None]] = [on_frame] if on_frame else []
+        self._commands: queue.Queue[tuple[str, Any]] = queue.Queue()
+        self._wake = threading.Event()
+        self._stop = threading.Event()
+        self._sim_lock = threading.RLock()
+        self._sim: SimulationHandle | None = None
+        self._program: Any = None
+        self._running = False
+        self._pending_steps = 0
+        self._rate_marks: list[tuple[float, int]] = []
+        self._last_frame_time = 0.0
+        self.last_frame: SwarmFrame | None = None
+        self._thread = threading.Thread(target=self._loop, name="bbzide-simulation", daemon=True)
+
+    # ---- UI side: every call only queues a command --------------------------------------------
+    def start(self) -> RunController:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
+        self._thread.join(timeout=10)
+
+    def add_frame_listener(self, listener: Callable[[SwarmFrame], None]) -> None:
+        self._on_frame.append(listener)
+
+    def play(self) -> None:
+        self._send("play")
+
+    def pause(self) -> None:
+        self._send("pause")
+
+    def single_step(self) -> None:
+        self._send("step")
+
+    def reset(self) -> None:
+        self._send("reset")
+
+    def load_program(self, program: Any) -> None:
+        """A new compiled program for every robot (world kept or reset per the settings)."""
+        self._send("program", program)
+
+    def update_settings(self, **changes: Any) -> None:
+        """Change world/robots/seed (rebuilds the world) or speed/keep_state (takes effect now)."""
+        self._send("settings", changes)
+
+    @contextlib.contextmanager
+    def locked(self, timeout: float | None = None) -> Iterator[SimulationHandle | None]:
+        """The simulation between two steps (None before the first program arrives).
+
+        With `timeout`, raise `StepInProgress` instead of waiting longer for a step to end.
+        """
+        if not self._sim_lock.acquire(timeout=-1 if timeout is None else timeout):
+            raise StepInProgress
+        try:
+            yield self._sim
+        finally:
+            self._sim_lock.release()
+
+    @property
+    def has_program(self) -> bool:
+        return self._program is not None
+
+    def _send(self, command: str, argument: Any = None) -> None:
+        self._commands.put((command, argument))
+        self._wake.set()
+
+    # ---- simulation thread --------------------------------------------------------------------
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            self._apply_commands()
+            if self._sim is not None and (self._running or self._pending_steps > 0):
+                self._step_once()
+                self._pace()
+            else:
+                self._wake.wait(0.1)
+                self._wake.clear()
+
+    def _apply_commands(self) -> None:
+        while True:
+            try:
+                command, argument = self._commands.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                self._apply(command, argument)
+            except Exception as error:  # noqa: BLE001 - a world failure is shown, not fatal
+                self.status.error = f"{type(error).__name__}: {error}"
+                self._running = False
+                self.status.running = False
+
+    def _apply(self, command: str, argument: Any) -> None:
+        if command == "play":
+            self._running = True
+        elif command == "pause":
+            self._running = False
+            self._pending_steps = 0
+        elif command == "step":
+            self._running = False
+            self._pending_steps += 1
+        elif command == "reset":
+            self._rebuild()
+        elif command == "program":
+            self._program = argument
+            self.status.program_generation += 1
+            if self._sim is None or not self.settings.keep_state_on_reload:
+                self._rebuild()
+            else:
+                with self._sim_lock:
+                    self._sim.load_program(argument, keep_state=True)
+                self._publish(force=True)
+        elif command == "settings":
+            old = self.settings
+            self.settings = replace(old, **argument)
+            rebuild_keys = ("world", "robots", "seed")
+            if any(getattr(old, k) != getattr(self.settings, k) for k in rebuild_keys):
+                self._rebuild()
+        self.status.running = self._running
+
+    def _rebuild(self) -> None:
+        """A fresh world from the settings and the current program (step 0)."""
+        if self._program is None:
+            return
+        settings = self.settings
+        sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed)
+        with self._sim_lock:
+            self._sim = sim
+        self.status.error = None
+        self.status.robots = settings.robots
+        self._rate_marks.clear()
+        self._publish(force=True)
+
+    def _step_once(self) -> None:
+        assert self._sim is not None
+        self.status.step_started_at = time.monotonic()
+        try:
+            with self._sim_lock:
+                self._sim.step()
+        except Exception as error:  # noqa: BLE001 - shown in the status line; the UI lives on
+            self.status.error = f"{type(error).__name__}: {error}"
+            self._running = False
+            self.status.running = False
+        finally:
+            self.status.step_started_at = None
+        forced = self._pending_steps > 0
+        self._pending_steps = max(0, self._pending_steps - 1)
+        self._publish(force=forced or not self._running)
+
+    def _pace(self) -> None:
+        target = self.settings.steps_per_second
+        if target and target > 0:
+            self._wake.wait(1.0 / target)
+            self._wake.clear()
+        else:
+            time.sleep(0)  # let viser's threads in even at full speed
+
+    def _publish(self, force: bool) -> None:
+        if self._sim is None:
+            return
+        now = time.monotonic()
+        step = self._sim.step_count
+        self.status.step = step
+        self._rate_marks.append((now, step))
+        while self._rate_marks and now - self._rate_marks[0][0] > RATE_WINDOW_SECONDS:
+            self._rate_marks.pop(0)
+        if len(self._rate_marks) >= 2:
+            (t0, s0), (t1, s1) = self._rate_marks[0], self._rate_marks[-1]
+            self.status.steps_per_second = (s1 - s0) / (t1 - t0) if t1 > t0 else 0.0
+        if not self._running:
+            self.status.steps_per_second = 0.0
+        if not force and now - self._last_frame_time < 1.0 / MAX_FRAME_HZ:
+            return
+        self._last_frame_time = now
+        with self._sim_lock:
+            frame = self._sim.frame()
+        self.last_frame = frame
+        self.status.robots = frame.count
+        self.status.robots_in_error = int(frame.failed.sum())
+        for listener in self._on_frame:
+            try:
+                listener(frame)
+            except Exception as error:  # noqa: BLE001 - a drawing bug must not stop the swarm
+                self.status.error = f"display: {type(error).__name__}: {error}"

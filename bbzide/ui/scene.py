@@ -1,0 +1,334 @@
+"""The 3D view of the swarm: robots, headings, LEDs, radio links, ranges, trails, world overlay.
+
+All robots are ONE batched mesh (one instanced draw call; one array assignment per frame:
+`ui-stack-notes` §2 measured N separate nodes at 43-53 ms per frame for 1000 robots, batched at
+0.4 ms). The robot body is a low-poly cylinder (8 sides: 24-sided bodies dropped software-GL
+browsers to 1-4 fps at 1000 robots) coloured by its LED. Headings, links, range circles and
+failure rings are line segments; trails are a point cloud. Everything shared is in
+`server.scene` and updated in one `server.atomic()` block per frame; the selection ring and label
+live in each client's own scene, so every tab has its own selection (and camera).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from collections.abc import Callable
+
+import numpy as np
+import viser
+
+from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
+
+#: Sides of the robot cylinder (see the module docstring for why so few).
+BODY_SIDES = 8
+#: Segments approximating a range circle: round enough at table scale, 16 lines per robot.
+CIRCLE_SEGMENTS = 16
+#: Frames of trail kept per robot (at 30 Hz: about 1.5 s of history).
+TRAIL_LENGTH = 45
+#: Robots in error get a red ring; links and ranges are drawn in these colours (RGB 0..255).
+FAILED_COLOR = (224, 49, 49)
+LINK_COLOR = (60, 140, 230)
+RANGE_COLOR = (150, 170, 200)
+HEADING_COLOR = (30, 30, 30)
+SELECTION_COLOR = (255, 170, 0)
+#: A robot whose LED is off is drawn in this grey (black bodies vanish on a dark table).
+LED_OFF_COLOR = np.array([0.55, 0.55, 0.58])
+
+
+def cylinder_mesh(
+    radius: float, height: float, sides: int = BODY_SIDES
+) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a closed cylinder standing on z = 0 (caps and walls)."""
+    angles = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
+    ring = np.stack([radius * np.cos(angles), radius * np.sin(angles)], axis=1)
+    bottom = np.column_stack([ring, np.zeros(sides)])
+    top = np.column_stack([ring, np.full(sides, height)])
+    centres = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, height]])
+    vertices = np.vstack([bottom, top, centres]).astype(np.float32)
+    bottom_centre, top_centre = 2 * sides, 2 * sides + 1
+    faces = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        faces += [(i, j, sides + j), (i, sides + j, sides + i)]  # wall
+        faces += [(bottom_centre, j, i), (top_centre, sides + i, sides + j)]  # caps
+    return vertices, np.array(faces, dtype=np.uint32)
+
+
+def heading_quaternions(headings: np.ndarray) -> np.ndarray:
+    """(N, 4) wxyz rotations about +z."""
+    half = 0.5 * headings.astype(np.float32)
+    wxyz = np.zeros((headings.shape[0], 4), dtype=np.float32)
+    wxyz[:, 0] = np.cos(half)
+    wxyz[:, 3] = np.sin(half)
+    return wxyz
+
+
+def circle_segments(centres: np.ndarray, radius: float, z: float) -> np.ndarray:
+    """(N * CIRCLE_SEGMENTS, 2, 3) segments of a circle of `radius` around each centre."""
+    angles = np.linspace(0.0, 2.0 * math.pi, CIRCLE_SEGMENTS + 1)
+    unit = np.stack([np.cos(angles), np.sin(angles)], axis=1) * radius  # (S+1, 2)
+    points = centres[:, None, :] + unit[None, :, :]  # (N, S+1, 2)
+    starts, ends = points[:, :-1, :], points[:, 1:, :]
+    segments = np.stack([starts, ends], axis=2).reshape(-1, 2, 2)
+    return np.concatenate([segments, np.full(segments.shape[:2] + (1,), z)], axis=2).astype(
+        np.float32
+    )
+
+
+def _lift(points_2d: np.ndarray, z: float) -> np.ndarray:
+    return np.concatenate([points_2d, np.full(points_2d.shape[:-1] + (1,), z)], axis=-1).astype(
+        np.float32
+    )
+
+
+#: Line segment nodes cannot be empty in viser: an invisible zero-length segment stands in.
+_NO_SEGMENTS = np.zeros((1, 2, 3), dtype=np.float32)
+
+
+class SwarmScene:
+    """Draws `SwarmFrame`s into a viser server; reports robot clicks as (client, robot index)."""
+
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        on_robot_click: Callable[[viser.ClientHandle, int], None] | None = None,
+    ) -> None:
+        self.server = server
+        self._on_robot_click = on_robot_click
+        self._lock = threading.Lock()
+        self.geometry: WorldGeometry | None = None
+        self.show_links = True
+        self.show_ranges = False
+        self.show_trails = False
+        self._robots: viser.BatchedMeshHandle | None = None
+        self._robot_count = -1
+        self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
+        self._selection: dict[int, int] = {}  # client id -> selected robot index
+        self._selection_marks: dict[int, tuple[viser.LineSegmentsHandle, viser.LabelHandle]] = {}
+        self.last_frame: SwarmFrame | None = None
+        server.scene.set_up_direction("+z")
+        self._headings = server.scene.add_line_segments(
+            "/swarm/headings", _NO_SEGMENTS, HEADING_COLOR, thickness=2.0, thickness_units="screen"
+        )
+        self._failures = server.scene.add_line_segments(
+            "/swarm/failures", _NO_SEGMENTS, FAILED_COLOR, thickness=3.0, thickness_units="screen"
+        )
+        self._links = server.scene.add_line_segments(
+            "/swarm/links", _NO_SEGMENTS, LINK_COLOR, thickness=1.5, thickness_units="screen"
+        )
+        self._ranges = server.scene.add_line_segments(
+            "/swarm/ranges",
+            _NO_SEGMENTS,
+            RANGE_COLOR,
+            thickness=1.0,
+            thickness_units="screen",
+            visible=False,
+        )
+        self._trails = server.scene.add_point_cloud(
+            "/swarm/trails",
+            np.zeros((1, 3), dtype=np.float32),
+            (120, 120, 140),
+            point_size=0.004,
+            point_shape="circle",
+            visible=False,
+        )
+
+    # ---- world -------------------------------------------------------------------------------
+    def set_world(self, geometry: WorldGeometry) -> None:
+        """Draw the floor, grid and overlay of a world and aim the default camera at it."""
+        with self._lock:
+            self.geometry = geometry
+            self._robot_count = -1  # rebuild the robot mesh at the new size
+            self._trail.clear()
+        xmin, ymin, xmax, ymax = geometry.bounds
+        width, depth = xmax - xmin, ymax - ymin
+        centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
+        scene = self.server.scene
+        scene.add_grid(
+            "/world/grid",
+            width=width,
+            height=depth,
+            plane="xy",
+            cell_size=max(width, depth) / 20,
+            section_size=max(width, depth) / 4,
+            position=(centre[0], centre[1], -0.0005),
+        )
+        if geometry.overlay_segments.size:
+            scene.add_line_segments(
+                "/world/overlay",
+                _lift(geometry.overlay_segments, 0.001),
+                (90, 90, 110),
+                thickness=3.0,
+                thickness_units="screen",
+            )
+        else:
+            scene.add_line_segments("/world/overlay", _NO_SEGMENTS, (90, 90, 110), visible=False)
+        distance = 1.1 * max(width, depth)
+        self.server.initial_camera.position = (centre[0], centre[1] - 0.35 * distance, distance)
+        self.server.initial_camera.look_at = (centre[0], centre[1], 0.0)
+        self.server.initial_camera.up = (0.0, 0.0, 1.0)
+
+    def aim_camera(self, client: viser.ClientHandle) -> None:
+        if self.geometry is None:
+            return
+        xmin, ymin, xmax, ymax = self.geometry.bounds
+        distance = 1.1 * max(xmax - xmin, ymax - ymin)
+        centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
+        client.camera.up_direction = (0.0, 0.0, 1.0)
+        client.camera.position = (centre[0], centre[1] - 0.35 * distance, distance)
+        client.camera.look_at = (centre[0], centre[1], 0.0)
+
+    # ---- toggles -------------------------------------------------------------------------------
+    def set_toggles(
+        self, links: bool | None = None, ranges: bool | None = None, trails: bool | None = None
+    ) -> None:
+        if links is not None:
+            self.show_links = links
+            self._links.visible = links
+        if ranges is not None:
+            self.show_ranges = ranges
+            self._ranges.visible = ranges
+        if trails is not None:
+            self.show_trails = trails
+            self._trails.visible = trails
+        if self.last_frame is not None:
+            self.draw(self.last_frame)
+
+    # ---- per frame -------------------------------------------------------------------------------
+    def draw(self, frame: SwarmFrame) -> None:
+        """Push one frame to every browser (one atomic batch of array updates)."""
+        geometry = self.geometry
+        if geometry is None:
+            return
+        with self._lock:
+            self.last_frame = frame
+            radius, z = geometry.robot_radius, geometry.height
+            top = z + 0.6 * radius + 0.0005
+            positions = _lift(frame.positions, z)
+            wxyzs = heading_quaternions(frame.headings)
+            colors = led_colors_to_rgb(frame.led_colors)
+            with self.server.atomic():
+                if self._robots is None or self._robot_count != frame.count:
+                    self._build_robot_mesh(frame.count, radius, wxyzs, positions, colors)
+                else:
+                    self._robots.batched_positions = positions
+                    self._robots.batched_wxyzs = wxyzs
+                    self._robots.batched_colors = colors
+                self._headings.points = self._heading_segments(frame, radius, top)
+                self._failures.points = (
+                    circle_segments(frame.positions[frame.failed], radius * 1.35, top)
+                    if frame.failed.any()
+                    else _NO_SEGMENTS
+                )
+                if self.show_links:
+                    self._links.points = (
+                        _lift(frame.positions[frame.links], top)
+                        if frame.links.shape[0]
+                        else _NO_SEGMENTS
+                    )
+                if self.show_ranges:
+                    self._ranges.points = circle_segments(
+                        frame.positions, geometry.comm_range, z + 0.0003
+                    )
+                self._trail.append(frame.positions.astype(np.float32).copy())
+                if self.show_trails and len(self._trail) > 1:
+                    same = [p for p in self._trail if p.shape == frame.positions.shape]
+                    self._trails.points = _lift(np.concatenate(same, axis=0), z + 0.0002)
+            self._draw_selections(frame)
+
+    def _heading_segments(self, frame: SwarmFrame, radius: float, top: float) -> np.ndarray:
+        tips = frame.positions + 1.1 * radius * np.stack(
+            [np.cos(frame.headings), np.sin(frame.headings)], axis=1
+        )
+        return _lift(np.stack([frame.positions, tips], axis=1), top)
+
+    def _build_robot_mesh(
+        self,
+        count: int,
+        radius: float,
+        wxyzs: np.ndarray,
+        positions: np.ndarray,
+        colors: np.ndarray,
+    ) -> None:
+        if self._robots is not None:
+            self._robots.remove()
+        vertices, faces = cylinder_mesh(radius, 0.6 * radius)
+        self._robots = self.server.scene.add_batched_meshes_simple(
+            "/swarm/robots",
+            vertices,
+            faces,
+            batched_wxyzs=wxyzs,
+            batched_positions=positions,
+            batched_colors=colors,
+            lod="off",
+            cast_shadow=False,
+            receive_shadow=False,
+        )
+        self._robot_count = count
+        self._trail.clear()
+
+        @self._robots.on_click
+        def _(event: viser.SceneNodePointerEvent) -> None:
+            index = event.instance_index
+            if index is not None and self._on_robot_click is not None:
+                self._on_robot_click(event.client, int(index))
+
+    # ---- per-client selection ----------------------------------------------------------------
+    def select(self, client: viser.ClientHandle, index: int | None) -> None:
+        if index is None:
+            self._selection.pop(client.client_id, None)
+        else:
+            self._selection[client.client_id] = index
+        if self.last_frame is not None:
+            self._draw_selection(client, self.last_frame)
+
+    def forget_client(self, client_id: int) -> None:
+        self._selection.pop(client_id, None)
+        self._selection_marks.pop(client_id, None)
+
+    def _draw_selections(self, frame: SwarmFrame) -> None:
+        clients = self.server.get_clients()
+        for client_id in list(self._selection):
+            client = clients.get(client_id)
+            if client is not None:
+                self._draw_selection(client, frame)
+
+    def _draw_selection(self, client: viser.ClientHandle, frame: SwarmFrame) -> None:
+        """Move this tab's ring and label onto its robot (created once, then only updated)."""
+        index = self._selection.get(client.client_id)
+        geometry = self.geometry
+        marks = self._selection_marks.get(client.client_id)
+        if marks is None:
+            ring = client.scene.add_line_segments(
+                "/selection/ring",
+                _NO_SEGMENTS,
+                SELECTION_COLOR,
+                thickness=3.0,
+                thickness_units="screen",
+                visible=False,
+            )
+            label = client.scene.add_label("/selection/label", "", visible=False)
+            marks = self._selection_marks[client.client_id] = (ring, label)
+        ring, label = marks
+        if index is None or geometry is None or index >= frame.count:
+            ring.visible = label.visible = False
+            return
+        radius = geometry.robot_radius
+        top = geometry.height + 0.6 * radius + 0.001
+        centre = frame.positions[index : index + 1]
+        robot_id = frame.robot_ids[index] if index < len(frame.robot_ids) else index
+        with client.atomic():
+            ring.points = circle_segments(centre, radius * 1.7, top)
+            label.text = f"robot {robot_id}"
+            label.position = (float(centre[0, 0]), float(centre[0, 1]) + 2.2 * radius, top)
+            ring.visible = label.visible = True
+
+
+def led_colors_to_rgb(led_colors: np.ndarray) -> np.ndarray:
+    """LED colours (0..1) as uint8 body colours; an LED that is off shows as light grey."""
+    colors = np.asarray(led_colors, dtype=np.float32).copy()
+    off = colors.max(axis=1) < 0.02
+    colors[off] = LED_OFF_COLOR
+    return (np.clip(colors, 0.0, 1.0) * 255).astype(np.uint8)

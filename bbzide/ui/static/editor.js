@@ -1,0 +1,305 @@
+// bbzide's Buzz editor (our own code; no third-party editor).
+//
+// Design: a transparent <textarea> (which keeps native typing, selection, undo, IME and clipboard)
+// lies exactly over a <pre> that shows the same text highlighted; a gutter on the left numbers
+// the lines and carries the error markers. Both layers share one font and line height, and the
+// textarea is sized to its content so that a single outer box scrolls both together.
+//
+// The text lives on the server (bbzide/ui/editor_server.py), which owns the .bzz file:
+//   GET  api/state   -> {revision, filename, status, diagnostics_revision, diagnostics: [...]}
+//   GET  api/source  -> {revision, text}
+//   POST api/source  {text, base_revision} -> state      (save atomically + compile; debounced here)
+//   POST api/compile {} -> state                          (compile now)
+// A poll of api/state brings in external edits (the file watcher bumps the revision) and the
+// diagnostics of the latest compile.
+
+"use strict";
+
+const KEYWORDS = new Set(["var", "if", "else", "function", "return", "for", "while",
+                          "and", "or", "not", "nil", "include"]);
+// Globals every BittyBuzz robot has, plus the platform functions of the shipped worlds.
+const BUILTINS = new Set(["id", "self", "stigmergy", "swarm", "neighbors", "foreach", "map",
+  "filter", "reduce", "size", "log", "led", "set_led", "set_motors", "set_motor", "delay",
+  "math", "string", "create", "broadcast", "listen", "ignore", "get", "put", "count",
+  "kin", "nonkin", "join", "leave", "in", "select", "exec", "others", "onconflict",
+  "onconflictlost", "init", "step", "destroy", "rand", "random", "goto", "pose", "position"]);
+
+const EDIT_DEBOUNCE_MS = 400;   // "compile as you type": wait for a pause in typing
+const POLL_MS = 250;            // external saves must show within ~0.5 s
+const INDENT = "  ";
+
+const source = document.getElementById("source");
+const highlight = document.getElementById("highlight-code");
+const highlightPre = document.getElementById("highlight");
+const gutter = document.getElementById("gutter");
+const diagnosticsBox = document.getElementById("diagnostics");
+const statusBox = document.getElementById("status");
+const filenameBox = document.getElementById("filename");
+
+let localRevision = -1;     // revision of the text the textarea shows (server numbering)
+let editTimer = null;       // pending debounced upload
+let uploading = false;
+let lastState = null;
+
+// ---- tokenizer --------------------------------------------------------------------------
+// Follows the Buzz lexer closely enough for colouring: '#' comments to end of line, strings in
+// either quote with backslash escapes (raw newlines allowed), numbers = digit then digits/dots.
+function tokenize(text) {
+  const tokens = [];
+  let i = 0;
+  const n = text.length;
+  const push = (kind, start) => tokens.push({kind, start, end: i});
+  while (i < n) {
+    const start = i;
+    const c = text[i];
+    if (c === "#") {
+      while (i < n && text[i] !== "\n") i++;
+      push("comment", start);
+    } else if (c === '"' || c === "'") {
+      i++;
+      while (i < n && text[i] !== c) { if (text[i] === "\\") i++; i++; }
+      i = Math.min(n, i + 1);
+      push("string", start);
+    } else if (c >= "0" && c <= "9") {
+      while (i < n && /[0-9.]/.test(text[i])) i++;
+      push("number", start);
+    } else if (/[A-Za-z]/.test(c)) {
+      while (i < n && /[A-Za-z0-9_]/.test(text[i])) i++;
+      const word = text.slice(start, i);
+      push(KEYWORDS.has(word) ? "keyword" : BUILTINS.has(word) ? "builtin" : "name", start);
+    } else if (c === "\n") {
+      i++;
+      push("newline", start);
+    } else if (/[ \t\r]/.test(c)) {
+      while (i < n && /[ \t\r]/.test(text[i])) i++;
+      push("space", start);
+    } else {
+      i++;
+      push(/[-+*/%^<>=!&|]/.test(c) ? "operator" : "punct", start);
+    }
+  }
+  return tokens;
+}
+
+function escapeHtml(s) {
+  return s.replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/>/g, "&gt;");
+}
+
+// Offsets of the first character of every line (line 1 at index 0).
+function lineStarts(text) {
+  const starts = [0];
+  for (let i = 0; i < text.length; i++) if (text[i] === "\n") starts.push(i + 1);
+  return starts;
+}
+
+// Where a diagnostic points: clamp unknown lines (e.g. the end-of-file token's line 0) to the last.
+function diagnosticOffset(diag, starts, text) {
+  let line = diag.line;
+  if (!(line >= 1 && line <= starts.length)) line = starts.length;
+  const lineStart = starts[line - 1];
+  const lineEnd = line < starts.length ? starts[line] - 1 : text.length;
+  return {line, offset: Math.min(lineStart + Math.max(0, diag.col || 0), lineEnd)};
+}
+
+function currentDiagnostics() {
+  if (!lastState || lastState.diagnostics_revision !== localRevision) return [];
+  return lastState.diagnostics || [];
+}
+
+// ---- rendering -----------------------------------------------------------------------------
+function render() {
+  const text = source.value;
+  const starts = lineStarts(text);
+  const diags = currentDiagnostics();
+  const errorOffsets = new Map();     // offset -> message (errors underline the token there)
+  const markedLines = new Map();      // line -> messages
+  for (const d of diags) {
+    const where = diagnosticOffset(d, starts, text);
+    if (d.severity === "error") errorOffsets.set(where.offset, d.message);
+    const list = markedLines.get(where.line) || [];
+    list.push(`${d.severity} ${d.line}:${d.col}: ${d.message}`);
+    markedLines.set(where.line, list);
+  }
+  let html = "";
+  const tokens = tokenize(text);
+  const pending = new Set(errorOffsets.keys());
+  for (const t of tokens) {
+    let piece = escapeHtml(text.slice(t.start, t.end));
+    let hit = null;
+    for (const off of pending) if (off >= t.start && off < t.end) { hit = off; break; }
+    if (hit !== null && t.kind !== "newline") {
+      pending.delete(hit);
+      html += `<span class="tok-${t.kind} error-span" title="${escapeHtml(errorOffsets.get(hit))}">${piece}</span>`;
+      continue;
+    }
+    if (hit !== null) {  // error at end of line: show a visible marker before the newline
+      pending.delete(hit);
+      html += `<span class="error-span" title="${escapeHtml(errorOffsets.get(hit))}"> </span>`;
+    }
+    html += t.kind === "space" || t.kind === "newline" || t.kind === "name" || t.kind === "punct"
+      ? piece : `<span class="tok-${t.kind}">${piece}</span>`;
+  }
+  for (const _ of pending) html += '<span class="error-span"> </span>';  // error at end of text
+  if (text.endsWith("\n") || text === "") html += " ";
+  highlight.innerHTML = html;
+
+  let gutterHtml = "";
+  for (let line = 1; line <= starts.length; line++) {
+    const marks = markedLines.get(line);
+    const kind = marks && marks.some((m) => m.startsWith("error")) ? "error-line" : "warning-line";
+    gutterHtml += marks
+      ? `<div class="${kind}" data-line="${line}" title="${escapeHtml(marks.join("\n"))}">${line}</div>`
+      : `<div>${line}</div>`;
+  }
+  gutter.innerHTML = gutterHtml;
+
+  diagnosticsBox.innerHTML = diags.map((d) =>
+    `<div class="diag-${d.severity}" data-line="${d.line}" data-col="${d.col}">` +
+    `${escapeHtml(d.severity)} ${d.line}:${d.col}: ${escapeHtml(d.message)}</div>`).join("");
+  // Size the textarea to its content so the outer box scrolls both layers together.
+  source.style.height = highlightPre.offsetHeight + "px";
+  source.style.width = Math.max(highlightPre.offsetWidth, source.parentElement.clientWidth) + "px";
+  renderStatus();
+}
+
+function renderStatus() {
+  if (!lastState) return;
+  filenameBox.textContent = lastState.filename;
+  let kind = lastState.status;
+  let label = {ok: "compiled", error: "error", busy: "compiling…", idle: "…"}[kind] || kind;
+  if (editTimer !== null || uploading || lastState.diagnostics_revision !== localRevision) {
+    kind = "busy"; label = "compiling…";
+  }
+  statusBox.className = "status-" + kind;
+  statusBox.textContent = label;
+  if (kind === "ok" && lastState.summary) statusBox.textContent = lastState.summary;
+}
+
+// ---- talking to the server ---------------------------------------------------------------
+async function getJson(path) {
+  const response = await fetch(path, {cache: "no-store"});
+  return response.json();
+}
+
+async function postJson(path, body) {
+  const response = await fetch(path, {method: "POST", headers: {"Content-Type": "application/json"},
+                                      body: JSON.stringify(body)});
+  return response.json();
+}
+
+async function loadSource() {
+  const data = await getJson("api/source");
+  // The user typed while the request was out: their text wins, it is being uploaded.
+  if (editTimer !== null || uploading || data.revision < localRevision) return;
+  const {selectionStart, selectionEnd} = source;
+  source.value = data.text;
+  localRevision = data.revision;
+  source.selectionStart = Math.min(selectionStart, data.text.length);
+  source.selectionEnd = Math.min(selectionEnd, data.text.length);
+  render();
+}
+
+async function uploadNow() {
+  if (editTimer !== null) { clearTimeout(editTimer); editTimer = null; }
+  uploading = true;
+  try {
+    const state = await postJson("api/source", {text: source.value, base_revision: localRevision});
+    localRevision = state.revision;
+    applyState(state);
+  } finally {
+    uploading = false;
+  }
+}
+
+async function compileNow() {
+  if (editTimer !== null || uploading) { await uploadNow(); return; }
+  applyState(await postJson("api/compile", {}));
+}
+
+function applyState(state) {
+  lastState = state;
+  render();
+}
+
+async function poll() {
+  try {
+    const state = await getJson("api/state");
+    const typing = editTimer !== null || uploading;
+    // Revisions only grow: an answer older than our last upload is stale, not an external edit.
+    if (state.revision > localRevision && !typing) {
+      lastState = state;
+      await loadSource();          // an external save (or another tab) changed the text
+    } else {
+      applyState(state);
+    }
+  } catch (error) {
+    statusBox.className = "status-error";
+    statusBox.textContent = "server gone";
+  }
+}
+
+// ---- editing -------------------------------------------------------------------------------
+function scheduleUpload() {
+  if (editTimer !== null) clearTimeout(editTimer);
+  editTimer = setTimeout(() => { editTimer = null; uploadNow(); }, EDIT_DEBOUNCE_MS);
+}
+
+function insertText(text) {
+  // execCommand keeps the browser's undo history; fall back to setRangeText where it is missing.
+  if (!document.execCommand("insertText", false, text)) {
+    source.setRangeText(text, source.selectionStart, source.selectionEnd, "end");
+    source.dispatchEvent(new Event("input"));
+  }
+}
+
+// Shift-Tab: remove up to one indentation level from the start of the caret's line.
+function dedentCurrentLine() {
+  const text = source.value;
+  const lineStart = text.lastIndexOf("\n", source.selectionStart - 1) + 1;
+  const leading = text.slice(lineStart).match(/^ {1,2}|^\t/);
+  if (!leading) return;
+  const caret = source.selectionStart;
+  source.setSelectionRange(lineStart, lineStart + leading[0].length);
+  insertText("");
+  const back = Math.max(lineStart, caret - leading[0].length);
+  source.setSelectionRange(back, back);
+}
+
+source.addEventListener("input", () => { render(); scheduleUpload(); });
+source.addEventListener("keydown", (event) => {
+  if ((event.ctrlKey || event.metaKey) && (event.key === "s" || event.key === "Enter")) {
+    event.preventDefault();
+    compileNow();
+  } else if (event.key === "Tab" && event.shiftKey) {
+    event.preventDefault();
+    dedentCurrentLine();
+  } else if (event.key === "Tab" && !event.ctrlKey && !event.altKey) {
+    event.preventDefault();
+    insertText(INDENT);
+  } else if (event.key === "Enter" && !event.shiftKey && !event.ctrlKey) {
+    // Keep the indentation of the current line, one level more after an opening brace.
+    const before = source.value.slice(0, source.selectionStart);
+    const line = before.slice(before.lastIndexOf("\n") + 1);
+    let indent = line.match(/^[ \t]*/)[0];
+    if (/[{(\[]\s*$/.test(line)) indent += INDENT;
+    event.preventDefault();
+    insertText("\n" + indent);
+  }
+});
+diagnosticsBox.addEventListener("click", (event) => {
+  const row = event.target.closest("[data-line]");
+  if (!row) return;
+  const starts = lineStarts(source.value);
+  const where = diagnosticOffset({line: +row.dataset.line, col: +row.dataset.col}, starts, source.value);
+  source.focus();
+  source.setSelectionRange(where.offset, where.offset);
+});
+document.getElementById("compile").addEventListener("click", compileNow);
+window.addEventListener("resize", render);
+
+(async () => {
+  lastState = await getJson("api/state");
+  localRevision = -1;
+  await loadSource();
+  setInterval(poll, POLL_MS);
+})();

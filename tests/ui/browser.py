@@ -1,0 +1,79 @@
+"""Headless Chromium for the browser tests (recipe: ui-stack-notes §3).
+
+Debian's /usr/bin/chromium through Playwright's Python package; a fresh profile per browser;
+every request the pages make is recorded in `context.foreign_requests` when it goes anywhere but
+127.0.0.1 (tests assert that list stays empty). Requests are only observed, never routed: a
+Playwright route handler runs only while the test thread is inside a Playwright call, so routing
+would stall the editor's fetches whenever a test sleeps or polls the server.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import tempfile
+import time
+from collections.abc import Callable, Iterator
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+#: First frame in software WebGL takes 3-13 s on 2 shared cores (ui-stack-notes §3).
+FIRST_RENDER_TIMEOUT_MS = 60_000
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+def wait_until(
+    predicate: Callable[[], object],
+    timeout: float = 30.0,
+    interval: float = 0.05,
+    message: str = "condition",
+) -> object:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(interval)
+    raise AssertionError(f"timed out after {timeout} s waiting for {message}")
+
+
+@contextlib.contextmanager
+def chromium_context(width: int = 1400, height: int = 900) -> Iterator[object]:
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as playwright, tempfile.TemporaryDirectory() as profile:
+        context = playwright.chromium.launch_persistent_context(
+            profile,
+            executable_path=CHROMIUM,
+            headless=True,
+            args=CHROMIUM_ARGS,
+            viewport={"width": width, "height": height},
+        )
+
+        foreign: list[str] = []
+
+        def record(request: object) -> None:
+            url = request.url  # type: ignore[attr-defined]
+            if not url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
+                foreign.append(url)
+
+        context.on("request", record)
+        context.foreign_requests = foreign  # type: ignore[attr-defined]
+        try:
+            yield context
+        finally:
+            context.close()

@@ -1,0 +1,6 @@
+"""tests/ui: make the helpers beside the tests importable (`doubles`, `browser`)."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -1,0 +1,79 @@
+"""Typing real Buzz in the browser editor: the real front end's errors become markers.
+
+The world is the in-test double; the compiler front end is the real one, so the marker's line,
+column and message are the Buzz compiler's. The listing in the Build tab is the real `.basm`
+regrouped under its source lines.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from browser import wait_until
+from doubles import FrontEndBackend
+from ide_harness import IdeSession, running_ide
+
+SCRIPT = (
+    "# a counter every robot keeps\n"
+    "var count = 0\n"
+    "\n"
+    "function init() {\n"
+    "  count = 0\n"
+    "}\n"
+    "\n"
+    "function step() {\n"
+    "  count = count + 1\n"
+    "}\n"
+)
+
+
+@pytest.fixture(scope="module")
+def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
+    script = tmp_path_factory.mktemp("buzz") / "counter.bzz"
+    script.write_text(SCRIPT)
+    with running_ide(script, FrontEndBackend(), "fake-table", 10) as session:
+        yield session
+
+
+def test_real_syntax_error_marker_and_fix(ide: IdeSession) -> None:
+    app = ide.app
+    assert app.session.outcome is not None and app.session.outcome.ok
+    generation = app.controller.status.program_generation
+    source = ide.editor.locator("#source")
+    source.click()
+    ide.page.keyboard.press("Control+End")
+    ide.page.keyboard.type("if count > 10 {\n")  # Buzz needs parentheses: error at line 11
+    marker = ide.editor.locator("#gutter div.error-line")
+    marker.wait_for(timeout=10_000)
+    first = app.session.outcome.diagnostics[0]
+    assert (first.line, first.col) == (11, 3) and "expected (" in first.message
+    assert marker.get_attribute("data-line") == "11"
+    assert ide.editor.locator(".error-span").first.inner_text() == "count"
+    assert "11:3: Syntax error: expected (" in ide.editor.locator("#diagnostics").inner_text()
+    ide.screenshot("buzz_syntax_error")
+    assert app.controller.status.program_generation == generation  # old program keeps running
+    source.fill(SCRIPT + "if (count > 10) {\n  count = 0\n}\n")
+    marker.wait_for(state="detached", timeout=10_000)
+    wait_until(
+        lambda: app.controller.status.program_generation == generation + 1,
+        10,
+        message="robots reloaded",
+    )
+    ide.page.get_by_role("tab", name="Build").click()
+    listing = ide.page.locator("pre.asm-listing")
+    listing.wait_for(timeout=10_000)
+    assert "count = count + 1" in listing.inner_text() and "add" in listing.inner_text()
+    ide.screenshot("buzz_build_view")
+    ide.page.get_by_role("tab", name="counter.bzz").click()
+
+
+def test_pitfall_warning_shows_in_the_editor(ide: IdeSession) -> None:
+    source = ide.editor.locator("#source")
+    source.fill(SCRIPT + "if (not count) {\n  count = 1\n}\n")
+    warning = ide.editor.locator("#diagnostics .diag-warning")
+    warning.wait_for(timeout=10_000)
+    assert "11:4:" in warning.first.inner_text() and "truth value" in warning.first.inner_text()
+    assert ide.editor.locator('#gutter div.warning-line[data-line="11"]').count() == 1
+    assert ide.editor.locator("#gutter div.error-line").count() == 0
+    ide.screenshot("buzz_pitfall_warning")

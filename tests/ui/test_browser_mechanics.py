@@ -1,0 +1,235 @@
+"""The IDE in a real (headless) Chromium, on the in-test world double: UI mechanics only.
+
+What a user does: the page loads and draws the swarm, Play advances the step counter, typing a
+syntax error puts a marker on that line while the robots keep running, fixing it reloads them,
+an external save reloads the editor, a script stuck in a loop leaves the controls answering, and
+two tabs keep their own selections. The same flows on the real compiler/VM/worlds are in
+test_browser_real.py.
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+from browser import wait_until
+from doubles import FakeBackend
+from ide_harness import IdeSession, running_ide
+from PIL import Image
+
+from bbzide.ui.program_session import write_atomically
+
+SCRIPT = "# demo\nfunction init() {\n  x = 1\n}\n\nfunction step() {\n  x = x + 1\n}\n"
+
+
+@pytest.fixture(scope="module")
+def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
+    script = tmp_path_factory.mktemp("ide") / "main.bzz"
+    script.write_text(SCRIPT)
+    with running_ide(script, FakeBackend(), "fake-table", 25) as session:
+        yield session
+
+
+def test_page_loads_and_scene_renders(ide: IdeSession) -> None:
+    shot = ide.screenshot("mechanics_loaded")
+    pixels = np.asarray(Image.open(io.BytesIO(shot.read_bytes())).convert("RGB"), dtype=np.float32)
+    canvas = ide.page.locator("canvas").first.bounding_box()
+    x0, y0 = int(canvas["x"]), int(canvas["y"])
+    scene = pixels[y0 : y0 + int(canvas["height"]), x0 : x0 + int(canvas["width"])]
+    assert scene.std() > 10, "the 3D view is blank"
+    editor_lines = ide.editor.locator("#gutter div")
+    assert editor_lines.count() == SCRIPT.count("\n") + 1
+    assert ide.editor.locator(".tok-keyword").first.inner_text() == "function"
+    assert ide.context.foreign_requests == []  # nothing leaves the machine
+
+
+def test_play_advances_the_step_counter(ide: IdeSession) -> None:
+    ide.page.get_by_role("button", name="Pause").click()
+    wait_until(lambda: "paused" in ide.status_text(), 10, message="paused")
+    before = ide.shown_step()
+    ide.page.get_by_role("button", name="Play").click()
+    wait_until(lambda: ide.shown_step() > before + 5, 10, message="step counter to advance")
+    ide.page.get_by_role("button", name="Pause").click()
+    wait_until(lambda: "paused" in ide.status_text(), 10, message="paused")
+    paused = ide.shown_step()
+    ide.page.get_by_role("button", name="Step").click()
+    wait_until(lambda: ide.shown_step() == paused + 1, 10, message="one step")
+    ide.page.get_by_role("button", name="Play").click()
+
+
+def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSession) -> None:
+    app = ide.app
+    generation = app.controller.status.program_generation
+    source = ide.editor.locator("#source")
+    source.click()
+    ide.page.keyboard.press("Control+End")
+    ide.page.keyboard.type("\nred = @@ 2")  # line 10, column 6
+    marker = ide.editor.locator("#gutter div.error-line")
+    marker.wait_for(timeout=10_000)
+    assert marker.get_attribute("data-line") == "10"
+    assert ide.editor.locator(".error-span").first.inner_text().startswith("@")
+    assert "10:6" in ide.editor.locator("#diagnostics").inner_text()
+    ide.screenshot("mechanics_syntax_error")
+    step = ide.shown_step()
+    wait_until(lambda: ide.shown_step() > step + 3, 10, message="robots keep running the old code")
+    assert app.controller.status.program_generation == generation
+    assert "@@" in Path(app.session.path).read_text()  # the edit is saved, broken or not
+    for _ in range(4):
+        ide.page.keyboard.press("Backspace")  # "red = @@ 2" -> "red = "
+    ide.page.keyboard.type("2")
+    ide.editor.locator("#gutter div.error-line").wait_for(state="detached", timeout=10_000)
+    wait_until(
+        lambda: app.controller.status.program_generation == generation + 1,
+        10,
+        message="robots reloaded",
+    )
+    sim = app.backend.created[-1]  # type: ignore[attr-defined]
+    assert sim.program.text.endswith("\nred = 2")
+    wait_until(lambda: ide.shown_step() > 0, 10, message="running")
+
+
+def choose_world(ide: IdeSession, current: str, wanted: str) -> None:
+    ide.page.locator(f"input[value='{current}']").first.click()  # Mantine's combobox
+    ide.page.get_by_role("option", name=wanted).click()
+
+
+def test_build_view_and_world_selector(ide: IdeSession) -> None:
+    app = ide.app
+    backend = app.backend
+    ide.page.get_by_role("tab", name="Build").click()
+    ide.page.get_by_text("Footprint on fakebot").wait_for(timeout=10_000)
+    good = app.session.last_good
+    assert good is not None
+    assert ide.page.get_by_text(f"{len(good.program.bbo)}").count() >= 1
+    listing = ide.page.locator("pre.asm-listing")
+    assert "function init() {" in listing.inner_text()  # source lines above their code
+    ide.screenshot("mechanics_build_view")
+    ide.page.get_by_role("tab", name="main.bzz").click()
+    created = len(backend.created)
+    choose_world(ide, "fake-table", "fake-lab")
+    wait_until(lambda: len(backend.created) > created, 10, message="new world")
+    assert backend.created[-1].world == "fake-lab"
+    choose_world(ide, "fake-lab", "fake-table")
+    wait_until(lambda: backend.created[-1].world == "fake-table", 10, message="back")
+
+
+def test_external_save_reloads_the_editor(ide: IdeSession) -> None:
+    app = ide.app
+    new_text = SCRIPT + "# saved by another editor\n"
+    saved_at = time.monotonic()
+    write_atomically(app.session.path, new_text)
+    wait_until(lambda: app.session.text == new_text, 5, interval=0.01, message="server reload")
+    print(f"disk save -> recompiled in {time.monotonic() - saved_at:.2f} s")
+    assert time.monotonic() - saved_at < 1.0
+    source = ide.editor.locator("#source")
+    wait_until(lambda: source.input_value() == new_text, 5, message="editor shows the new text")
+
+
+def test_two_tabs_keep_their_own_selection(ide: IdeSession) -> None:
+    app = ide.app
+    page2, client2 = ide.open_tab()
+    try:
+        clients = app.server.get_clients()
+        first = next(c for c in clients.values() if c.client_id != client2.client_id)
+        page2.wait_for_selector("canvas")
+        client2.get_render(height=200, width=300)
+        ide.click_robot(ide.page, first, 3)
+        ide.page.get_by_text("Robot 3").first.wait_for(timeout=30_000)
+        ide.click_robot(page2, client2, 7)
+        page2.get_by_text("Robot 7").first.wait_for(timeout=30_000)
+        assert app._inspectors[first.client_id].selected == 3
+        assert app._inspectors[client2.client_id].selected == 7
+        assert ide.page.get_by_text("Robot 7").count() == 0  # tab 1 still shows its own robot
+        ide.screenshot("mechanics_selected_robot3")
+        app.controller.play()
+    finally:
+        page2.close()
+        app.controller.play()
+
+
+def test_infinite_loop_leaves_the_controls_responsive(ide: IdeSession) -> None:
+    app = ide.app
+    app.controller.play()
+    source = ide.editor.locator("#source")
+    source.fill(SCRIPT + "while(1) {}\n")
+    wait_until(
+        lambda: (
+            app.controller.status.step_started_at is not None
+            and time.monotonic() - app.controller.status.step_started_at > 1.0
+        ),
+        15,
+        message="a long step",
+    )
+    wait_until(lambda: "one step has run for" in ide.status_text(), 10, message="long-step warning")
+    ide.screenshot("mechanics_stuck_step")
+    clicked_at = time.monotonic()
+    ide.page.get_by_role("button", name="Pause").click()
+    wait_until(
+        lambda: app.controls.status_line.content and "paused" in ide.status_text(),
+        10,
+        message="pause to take effect",
+    )
+    print(f"pause honoured after {time.monotonic() - clicked_at:.2f} s (one stuck step is 1.5 s)")
+    source.fill(SCRIPT)
+    ide.page.get_by_role("button", name="Play").click()
+    step = ide.shown_step()
+    wait_until(lambda: ide.shown_step() > step + 5, 15, message="running again")
+
+
+def test_tab_enter_and_shift_tab_indent_like_an_editor(ide: IdeSession) -> None:
+    app = ide.app
+    source = ide.editor.locator("#source")
+    source.fill("")
+    source.click()
+    keyboard = ide.page.keyboard
+    keyboard.type("function f() {")
+    keyboard.press("Enter")  # one level in after an opening brace
+    keyboard.type("x = 1")
+    keyboard.press("Enter")  # keeps the level
+    keyboard.type("y = 2")
+    keyboard.press("Shift+Tab")  # back to column 0
+    keyboard.press("Home")
+    keyboard.press("Tab")  # "  y = 2"
+    keyboard.press("Shift+Tab")  # "y = 2"
+    keyboard.press("End")
+    keyboard.press("Enter")
+    keyboard.type("}")
+    expected = "function f() {\n  x = 1\ny = 2\n}"
+    wait_until(
+        lambda: source.input_value() == expected,
+        5,
+        message=f"{expected!r}, not {source.input_value()!r}",
+    )
+    wait_until(lambda: app.session.text == expected, 5, message="saved")
+    source.fill(SCRIPT)
+    wait_until(lambda: app.session.text == SCRIPT, 5, message="script restored")
+
+
+def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
+    app = ide.app
+    body = "".join(
+        f"function f{i}(a, b) {{\n  var s = a * {i} + b  # comment {i}\n  return s\n}}\n"
+        for i in range(75)
+    )
+    assert body.count("\n") == 300
+    write_atomically(app.session.path, body)
+    source = ide.editor.locator("#source")
+    wait_until(lambda: source.input_value() == body, 10, message="300 lines in the editor")
+    assert ide.editor.locator("#gutter div").count() == 301
+    frame = ide.page.frame(url=ide.app.editor_server.url())
+    assert frame is not None
+    render_ms = frame.evaluate(
+        "() => { const t = performance.now(); for (let i = 0; i < 20; i++) render();"
+        " return (performance.now() - t) / 20; }"
+    )
+    print(f"re-highlighting 300 lines: {render_ms:.2f} ms per keystroke")
+    assert render_ms < 50, "typing would lag"
+    source.click()
+    ide.page.keyboard.press("Control+End")
+    ide.page.keyboard.type("# end\n")
+    wait_until(lambda: app.session.text.endswith("# end\n"), 10, message="typed text saved")
+    ide.screenshot("mechanics_300_lines")

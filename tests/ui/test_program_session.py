@@ -1,0 +1,70 @@
+"""ProgramSession: atomic saves, failed compiles keep the old program, disk reloads."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from doubles import FakeBackend
+
+from bbzide.ui.program_session import ProgramSession, write_atomically
+
+GOOD = "function step() {\n  x = 1\n}\n"
+BAD = "function step() {\n  x = @@ 1\n}\n"
+
+
+def make_session(tmp_path: Path) -> tuple[ProgramSession, list[object], Path]:
+    path = tmp_path / "main.bzz"
+    path.write_text(GOOD)
+    backend = FakeBackend()
+    loaded: list[object] = []
+    session = ProgramSession(
+        path, lambda text, p: backend.compile(text, p, "fake-table"), loaded.append
+    )
+    return session, loaded, path
+
+
+def test_browser_edit_is_saved_atomically_and_compiled(tmp_path: Path) -> None:
+    session, loaded, path = make_session(tmp_path)
+    session.compile_now()
+    outcome = session.edit_from_browser(GOOD + "# more\n")
+    assert outcome.ok
+    assert path.read_text() == GOOD + "# more\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["main.bzz"]  # no temp file left
+    assert [p.text for p in loaded] == [GOOD, GOOD + "# more\n"]
+    assert session.revision == 1
+
+
+def test_failed_compile_keeps_last_good_program_and_reports_line_and_column(tmp_path: Path) -> None:
+    session, loaded, path = make_session(tmp_path)
+    session.compile_now()
+    outcome = session.edit_from_browser(BAD)
+    assert not outcome.ok
+    assert [(d.line, d.col) for d in outcome.diagnostics] == [(2, 6)]
+    assert session.last_good is not None and session.last_good.program.text == GOOD
+    assert len(loaded) == 1  # the robots were not reloaded
+    assert path.read_text() == BAD  # the user's text is never lost
+    state = session.state()
+    assert state["status"] == "error" and state["diagnostics_revision"] == state["revision"]
+
+
+def test_own_saves_are_not_reloaded_but_external_ones_are(tmp_path: Path) -> None:
+    session, loaded, path = make_session(tmp_path)
+    session.compile_now()
+    session.edit_from_browser(GOOD + "# a\n")
+    assert session.reload_from_disk() is None  # the watcher sees our own save: ignored
+    write_atomically(path, GOOD + "# b\n")
+    outcome = session.reload_from_disk()
+    assert outcome is not None and outcome.ok
+    assert session.text == GOOD + "# b\n" and session.revision == 2
+    assert session.reload_from_disk() is None  # same bytes again: nothing to do
+
+
+def test_atomic_write_failure_leaves_the_old_file(tmp_path: Path) -> None:
+    path = tmp_path / "main.bzz"
+    path.write_text(GOOD)
+    try:
+        write_atomically(path, "\udcff")  # not encodable as UTF-8
+    except UnicodeEncodeError:
+        pass
+    assert path.read_text() == GOOD
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["main.bzz"]

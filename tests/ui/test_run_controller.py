@@ -1,0 +1,89 @@
+"""RunController: commands applied between steps on its own thread; a stuck step blocks nobody."""
+
+from __future__ import annotations
+
+import time
+
+from browser import wait_until
+from doubles import FakeBackend, FakeProgram
+
+from bbzide.ui.run_controller import RunController, RunSettings
+
+
+def make_controller(speed: float = 0.0) -> tuple[RunController, FakeBackend]:
+    backend = FakeBackend()
+    controller = RunController(backend, RunSettings("fake-table", 5, 3, speed)).start()
+    controller.load_program(FakeProgram("step", b"x"))
+    wait_until(lambda: controller.last_frame is not None, 5, message="first frame")
+    return controller, backend
+
+
+def test_play_pause_step_reset() -> None:
+    controller, backend = make_controller()
+    try:
+        assert controller.status.step == 0
+        controller.single_step()
+        wait_until(lambda: controller.status.step == 1, 5, message="one step")
+        time.sleep(0.2)
+        assert controller.status.step == 1  # paused after a single step
+        controller.play()
+        wait_until(lambda: controller.status.step > 20, 5, message="running")
+        controller.pause()
+        time.sleep(0.2)
+        paused_at = controller.status.step
+        time.sleep(0.3)
+        assert controller.status.step == paused_at
+        controller.reset()
+        wait_until(lambda: controller.status.step == 0, 5, message="reset")
+        assert len(backend.created) == 2
+    finally:
+        controller.stop()
+
+
+def test_new_program_keeps_or_resets_the_world() -> None:
+    controller, backend = make_controller()
+    try:
+        controller.single_step()
+        controller.single_step()
+        wait_until(lambda: controller.status.step == 2, 5, message="two steps")
+        controller.load_program(FakeProgram("red", b"y"))
+        wait_until(lambda: controller.status.program_generation == 2, 5, message="reload")
+        assert len(backend.created) == 1 and backend.created[0].program.text == "red"
+        assert controller.status.step == 2  # world kept
+        controller.update_settings(keep_state_on_reload=False)
+        controller.load_program(FakeProgram("blue", b"z"))
+        wait_until(lambda: len(backend.created) == 2, 5, message="rebuild")
+        wait_until(lambda: controller.status.step == 0, 5, message="step 0")
+    finally:
+        controller.stop()
+
+
+def test_settings_rebuild_with_new_robot_count() -> None:
+    controller, backend = make_controller()
+    try:
+        controller.update_settings(robots=12)
+        wait_until(
+            lambda: controller.last_frame is not None and controller.last_frame.count == 12,
+            5,
+            message="12 robots",
+        )
+    finally:
+        controller.stop()
+
+
+def test_a_stuck_step_leaves_commands_and_status_working() -> None:
+    controller, backend = make_controller()
+    try:
+        controller.load_program(FakeProgram("while(1){}", b"loop"))
+        controller.play()
+        wait_until(lambda: controller.status.step_started_at is not None, 5, message="step begins")
+        started = time.monotonic()
+        controller.pause()  # returns at once: only queued
+        controller.load_program(FakeProgram("step", b"ok"))
+        assert time.monotonic() - started < 0.05
+        wait_until(
+            lambda: controller.status.program_generation == 3, 5, message="reloaded after the step"
+        )
+        assert not controller.status.running
+    finally:
+        controller.stop()
