@@ -25,7 +25,7 @@ run: setup
 	$(VENV)/bin/bbzide $(ARGS)
 
 lint: setup
-	$(VENV)/bin/ruff check bbzide tests benchmarks experiments
+	$(VENV)/bin/ruff check bbzide tests benchmarks
 
 test: setup browser lint
 	$(PY) -m pytest $(PYTEST_ARGS)
