@@ -163,12 +163,23 @@ def injection_payload(inj: Injection, program: BittyBuzzProgram) -> bytes | None
     return head + bytes([inj.lamport or 0])
 
 
+def neighbor_entry(profile: Profile, rid: int, distance: float, azimuth: float,
+                   elevation: float) -> neighbors.NeighborEntry:
+    """The harness's element: bbzfloat on float builds, else the C cast to uint8 (wraps)."""
+    def conv(x: float) -> int:
+        return bbzfloat.from_float(x) if profile.neighbors_floats else int(x) & 0xFF
+
+    return neighbors.NeighborEntry(rid & 0xFFFF, conv(distance), conv(azimuth),
+                                   conv(elevation))
+
+
 def apply_injection(robot: Robot, inj: Injection) -> None:
     vm = robot.vm
     payload = injection_payload(inj, robot.program)
     if inj.position is not None:
         p = inj.position
-        neighbors.add(vm, robot.neighbor_entry(inj.robot, p.distance, p.azimuth, p.elevation))
+        neighbors.add(vm, neighbor_entry(robot.profile, inj.robot, p.distance, p.azimuth,
+                                         p.elevation))
     if payload is not None:
         messages.inmsg_append(vm.queues, payload)
 

@@ -53,6 +53,7 @@ from bbzide.vm.tables import (
     compare as type_compare,
 )
 from bbzide.vm.tables import (
+    CloneFailed,
     darray_clone,
     darray_destroy,
     darray_find,
@@ -789,6 +790,8 @@ class VM:
         if not self.assert_type(t, TABLE):
             return
         self.stackptr -= 3
+        if self.state == State.ERROR:  # bbzvm_assert_state() after the pops
+            return
         m = h.mdata(v)
         if (m & TYPE_MASK == CLOSURE and m & FLAG2 and h.data[v * h.obj_size + 2] != NO_ACTREC
                 and not h.mdata(h.data[v * h.obj_size + 2]) & FLAG2):
@@ -888,6 +891,10 @@ class VM:
         src = self.dflt_actrec if (not is_lambda or actrec == NO_ACTREC) else actrec
         try:
             self.lsyms = darray_clone(h, src)
+        except CloneFailed as failed:  # the C has already stored the new index in lsyms
+            self.lsyms = failed.index
+            self.seterror(Error.MEM)
+            return
         except HeapFull:
             self.seterror(Error.MEM)
             return
