@@ -50,9 +50,6 @@ from bbzide.vm.neighbors import NeighborsState
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (
-    compare as type_compare,
-)
-from bbzide.vm.tables import (
     CloneFailed,
     darray_clone,
     darray_destroy,
@@ -66,6 +63,9 @@ from bbzide.vm.tables import (
     lambda_alloc,
     table_get,
     table_set,
+)
+from bbzide.vm.tables import (
+    compare as type_compare,
 )
 from bbzide.vm.vstig import VstigStore
 
@@ -563,13 +563,14 @@ class VM:
             if tl == FLOAT or tr == FLOAT:
                 self.seterror(Error.TYPE)
                 return
-            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)))
+            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)), float_ops=False)
             return
         if tl == INT and tr == INT:
             self._int_arith(kind, h.int_value(lhs), h.int_value(rhs))
             return
         if tl not in (INT, FLOAT) or tr not in (INT, FLOAT):
             self.seterror(Error.MATH)
+            self.push(self.nil)  # the C pushes the operator's nil result anyway
             return
         a = float(h.int_value(lhs)) if tl == INT else bbzfloat.to_float(h.u16(lhs))
         b = float(h.int_value(rhs)) if tr == INT else bbzfloat.to_float(h.u16(rhs))
@@ -590,12 +591,13 @@ class VM:
                 r = a - float(_s16(int(q))) * b if math.isfinite(q) else math.nan
             else:
                 self.seterror(Error.MATH)
+                self.push(self.nil)  # float '^': MATH, then push(nil) as the C does
                 return
         except OverflowError:
             r = math.inf
         self.push_float(bbzfloat.from_float(r))
 
-    def _int_arith(self, kind: int, a: int, b: int) -> None:
+    def _int_arith(self, kind: int, a: int, b: int, float_ops: bool = True) -> None:
         if kind == 0:
             r = a + b
         elif kind == 1:
@@ -621,6 +623,9 @@ class VM:
                 r = -1
             else:
                 self.seterror(Error.MATH)
+                if float_ops:  # the float build returns nil and pushes it; the int build 0
+                    self.push(self.nil)
+                    return
                 r = 0
         self.push_int(r)
 
