@@ -1,0 +1,52 @@
+"""``bbzide run X.bzz|X.bbo`` (one robot, headless): the log, ``--dump`` equal to the
+reference for a corpus command compiled from source, VM errors at source positions."""
+
+from __future__ import annotations
+
+import shutil
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from corpus import BBZ_DIR  # noqa: E402
+from test_conformance import _bbzconf, _compare  # noqa: E402
+
+from bbzide.cli import main  # noqa: E402
+
+
+def test_run_prints_what_the_script_logs(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    script = tmp_path / "count.bzz"
+    script.write_text("n = 0\nfunction step() {\n  n = n + 2\n  log(\"n\", n)\n}\n")
+    assert main(["run", str(script), "--platform", "kilobot", "--steps", "3"]) == 0
+    assert capsys.readouterr().out.splitlines() == ['"n" 2', '"n" 4', '"n" 6']
+
+
+def test_run_dump_of_a_compiled_corpus_script_equals_the_reference(
+        tmp_path: Path, monkeypatch, capsys) -> None:  # noqa: ANN001
+    """gradient.bzz compiled from source with the harness's --reg names (the corpus .bst)."""
+    for name in ("gradient.bzz", "gradient.inj"):
+        shutil.copy(Path(BBZ_DIR) / name, tmp_path / name)
+    monkeypatch.chdir(tmp_path)
+    status = main(["run", "gradient.bzz", "--platform", "kilobot", "--robot", "3",
+                   "--steps", "30", "--reg", "log=print", "--reg", "led=ret0/1",
+                   "--reg", "math.min=min", "--inject", "gradient.inj", "--dump"])
+    assert status == 0
+    mine = tmp_path / "mine.dump"
+    mine.write_text(capsys.readouterr().out)
+    differences, report = _compare(_bbzconf(), Path(BBZ_DIR) / "gradient.r3.avr.dump", mine,
+                                   semantic=False)
+    assert differences == 0, report
+
+
+def test_run_error_names_the_source_position(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    script = tmp_path / "bad.bzz"
+    script.write_text("function step() {\n  s = swarm.create(9) x = 1\n}\n")
+    assert main(["run", str(script), "--platform", "pc", "--steps", "2"]) == 1
+    err = capsys.readouterr().err
+    assert "bad.bzz:2:" in err and "SWARM" in err
+
+
+def test_run_missing_file_is_a_user_error(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    assert main(["run", str(tmp_path / "nope.bzz")]) == 1
+    assert "no such file" in capsys.readouterr().err
