@@ -5,15 +5,29 @@ grid whose cell side is the communication range, so each robot is compared only 
 of its own and the 26 (3D) adjacent cells instead of all n (the Kilobot table must scale to
 1,000 robots). Loss is one Bernoulli draw per candidate link from the radio's own
 `numpy.random.Generator`, seeded from the run seed, so a run is reproducible.
+
+`Radio` routes the messages of a whole swarm for the engine: each sender has a send queue
+(capacity `send_queue_cap`, overflow dropped and counted) drained by at most
+`messages_per_step` transmissions per control step (bandwidth); every transmission reaches each
+robot in range independently unless lost (a fixed probability, or one that grows with the
+sender's broadcast rate over the last second, the Crazyflie's BLE); the situated data (distance,
+azimuth, elevation, with Gaussian noise) are fixed at transmission time from the geometry and the
+message arrives `latency_steps` later. Deliveries are ordered by receiver, then sender, then
+message, so the order a VM sees is reproducible.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from bbzide.diagnostics import UserError
+
+if TYPE_CHECKING:
+    from bbzide.worlds.world import RadioSettings
 
 
 class WorldConfigError(UserError):
@@ -70,3 +84,185 @@ def drop_lost(links: RadioLinks, loss_probability: float, rng: np.random.Generat
         raise WorldConfigError(f"loss probability must be in [0, 1], got {loss_probability}")
     kept = rng.random(len(links.senders)) >= loss_probability
     return RadioLinks(links.senders[kept], links.receivers[kept], links.distances[kept])
+
+
+@dataclass(frozen=True, slots=True)
+class Delivery:
+    """One message arriving at one robot, with what the receiver senses of the sender."""
+
+    sender: int       # robot index
+    message: bytes
+    distance: float   # in the world's distance unit (Kilobot: mm)
+    azimuth: float    # radians, counter-clockwise from the receiver's heading, in (-pi, pi]
+    elevation: float  # radians above the receiver's horizontal plane
+
+
+@dataclass
+class TrafficCounters:
+    """Per-robot message counts of one step (the engine turns them into `StepStats`)."""
+
+    sent: np.ndarray            # transmissions
+    received: np.ndarray        # deliveries handed to the VM
+    dropped: np.ndarray         # lost in the air (counted at the receiver) or queue overflow
+    bytes_sent: np.ndarray
+    bytes_received: np.ndarray
+
+    @classmethod
+    def zeros(cls, count: int) -> TrafficCounters:
+        return cls(*(np.zeros(count, dtype=np.int64) for _ in range(5)))
+
+
+def interpolate_loss(table: tuple[tuple[float, float], ...], rates: np.ndarray) -> np.ndarray:
+    """Loss probability at each rate, piecewise-linear through `table` (flat beyond its ends)."""
+    xs = np.array([rate for rate, _ in table], dtype=np.float64)
+    ys = np.array([loss for _, loss in table], dtype=np.float64)
+    return np.interp(rates, xs, ys)
+
+
+@dataclass
+class Radio:
+    """The swarm's radio: send queues, bandwidth, range, loss, noise and latency."""
+
+    settings: RadioSettings
+    count: int
+    step_seconds: float
+    loss_rng: np.random.Generator
+    noise_rng: np.random.Generator
+    send_queues: list[deque[bytes]] = field(init=False)
+    in_flight: dict[int, list[list[Delivery]]] = field(init=False)
+    history: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        settings = self.settings
+        if settings.comm_range < 0:
+            raise WorldConfigError(f"communication range must be >= 0, got {settings.comm_range}")
+        if not 0.0 <= settings.loss_probability <= 1.0:
+            raise WorldConfigError(
+                f"loss probability must be in [0, 1], got {settings.loss_probability}")
+        if settings.messages_per_step < 1:
+            raise WorldConfigError("the radio must send at least 1 message per step")
+        if settings.latency_steps < 1:
+            raise WorldConfigError("latency must be at least 1 step (sent after the VMs ran)")
+        self.send_queues = [deque() for _ in range(self.count)]
+        self.in_flight = {}
+        # Transmissions per sender over the last second (ring of steps), for the rate-dependent
+        # loss: one second because the paper states its rates per second (2, 10, 20 Hz).
+        window = max(1, round(1.0 / self.step_seconds))
+        self.history = np.zeros((window, self.count), dtype=np.int64)
+
+    def enqueue(self, sender: int, messages: list[bytes], counters: TrafficCounters) -> None:
+        """Queue a robot's outgoing messages; what does not fit is dropped and counted."""
+        queue = self.send_queues[sender]
+        for message in messages:
+            if len(queue) >= self.settings.send_queue_cap:
+                counters.dropped[sender] += 1
+            else:
+                queue.append(message)
+
+    def rates(self) -> np.ndarray:
+        """Each sender's transmissions per second over the last second."""
+        return self.history.sum(axis=0) / (len(self.history) * self.step_seconds)
+
+    def due(self, step: int) -> list[list[Delivery]]:
+        """Deliveries arriving at the start of `step`, per receiver (removed from the air)."""
+        batches = [self.in_flight.pop(s) for s in sorted(self.in_flight) if s <= step]
+        if len(batches) == 1:
+            return batches[0]
+        merged: list[list[Delivery]] = [[] for _ in range(self.count)]
+        for batch in batches:
+            for receiver, items in enumerate(batch):
+                merged[receiver].extend(items)
+        return merged
+
+    def transmit(
+        self,
+        step: int,
+        positions: np.ndarray,
+        headings: np.ndarray,
+        listening: np.ndarray,
+        counters: TrafficCounters,
+    ) -> list[tuple[int, int]]:
+        """Send what the queues allow this step; returns the (sender, receiver) links used."""
+        settings = self.settings
+        per_step = settings.messages_per_step
+        outgoing: list[list[bytes]] = []
+        senders: list[int] = []
+        for sender, queue in enumerate(self.send_queues):
+            if queue:
+                batch = [queue.popleft() for _ in range(min(per_step, len(queue)))]
+                senders.append(sender)
+                outgoing.append(batch)
+        sent_now = np.zeros(self.count, dtype=np.int64)
+        for sender, batch in zip(senders, outgoing, strict=True):
+            sent_now[sender] = len(batch)
+            counters.sent[sender] += len(batch)
+            counters.bytes_sent[sender] += sum(len(m) for m in batch)
+        self.history[step % len(self.history)] = sent_now
+        if not senders:
+            return []
+        links = pairs_within_range(positions, settings.comm_range)
+        is_sender = sent_now > 0
+        keep = is_sender[links.senders] & listening[links.receivers]
+        s_idx, r_idx = links.senders[keep], links.receivers[keep]
+        order = np.lexsort((s_idx, r_idx))
+        s_idx, r_idx = s_idx[order], r_idx[order]
+        if len(s_idx) == 0:
+            return []
+        distance, azimuth, elevation = self._situation(positions, headings, s_idx, r_idx)
+        # One loss draw per (link, message), in a fixed order: link-major, message-minor.
+        per_link = sent_now[s_idx]
+        total = int(per_link.sum())
+        if settings.loss_by_rate:
+            link_loss = interpolate_loss(settings.loss_by_rate, self.rates()[s_idx])
+        else:
+            link_loss = np.full(len(s_idx), settings.loss_probability)
+        lost = self.loss_rng.random(total) < np.repeat(link_loss, per_link)
+        arriving: list[list[Delivery]] = [[] for _ in range(self.count)]
+        batches = dict(zip(senders, outgoing, strict=True))
+        cap = settings.receive_cap_per_step
+        used: set[tuple[int, int]] = set()
+        k = 0
+        unit = settings.distance_unit
+        for link in range(len(s_idx)):
+            sender, receiver = int(s_idx[link]), int(r_idx[link])
+            inbox = arriving[receiver]
+            for message in batches[sender]:
+                if lost[k] or (cap is not None and len(inbox) >= cap):
+                    counters.dropped[receiver] += 1
+                else:
+                    inbox.append(Delivery(sender, message, float(distance[link]) * unit,
+                                          float(azimuth[link]), float(elevation[link])))
+                    used.add((sender, receiver))
+                k += 1
+        due_step = step + settings.latency_steps
+        pending = self.in_flight.get(due_step)
+        if pending is None:
+            self.in_flight[due_step] = arriving
+        else:
+            for receiver, items in enumerate(arriving):
+                pending[receiver].extend(items)
+        return sorted(used)
+
+    def _situation(
+        self, positions: np.ndarray, headings: np.ndarray, s_idx: np.ndarray, r_idx: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distance, azimuth (receiver frame) and elevation of each sender, with noise."""
+        settings = self.settings
+        offset = positions[s_idx] - positions[r_idx]
+        horizontal = np.hypot(offset[:, 0], offset[:, 1])
+        distance = np.sqrt(horizontal**2 + offset[:, 2] ** 2)
+        if settings.distance_noise > 0:
+            distance = distance * (1 + self.noise_rng.normal(0, settings.distance_noise,
+                                                             len(distance)))
+            distance = np.maximum(distance, 0.0)
+        if not settings.has_bearing:
+            zeros = np.zeros(len(distance))
+            return distance, zeros, zeros
+        azimuth = np.arctan2(offset[:, 1], offset[:, 0]) - headings[r_idx]
+        elevation = np.arctan2(offset[:, 2], horizontal)
+        if settings.bearing_noise > 0:
+            azimuth = azimuth + self.noise_rng.normal(0, settings.bearing_noise, len(azimuth))
+            elevation = elevation + self.noise_rng.normal(0, settings.bearing_noise,
+                                                          len(elevation))
+        azimuth = np.pi - np.mod(np.pi - azimuth, 2 * np.pi)   # wrap to (-pi, pi]
+        return distance, azimuth, elevation
