@@ -152,7 +152,7 @@ class CrazyflieLab(World):
         self.ranges = np.full((count, 5), RANGER_MAX)
         self.bumps = np.zeros(count, dtype=np.int64)
         for state in sim.robots:
-            state.labels["flying"] = False
+            state.set_label("flying", False)
 
     def host_functions(self, sim: Simulation, index: int) -> Mapping[str, HostFunction]:
         rng = sim.robot_rngs[index]
@@ -253,8 +253,8 @@ class CrazyflieLab(World):
         self.mode[landed_now] = LANDED
         for state in sim.robots:
             i = state.index
-            state.labels["flying"] = bool(self.mode[i] == FLYING)
-            state.labels["bumps"] = int(self.bumps[i])
+            state.set_label("flying", bool(self.mode[i] == FLYING))
+            state.set_label("bumps", int(self.bumps[i]))
 
     def _collide(self, moved: np.ndarray) -> np.ndarray:
         """Push drones out of walls, ceiling and obstacles; zero the velocity into them."""

@@ -102,7 +102,7 @@ class StepStats:
 class RobotState:
     """One robot as the UI sees it: a view on the engine's arrays plus its firmware loop."""
 
-    __slots__ = ("_sim", "index", "robot_id", "robot", "program", "profile", "labels",
+    __slots__ = ("_sim", "index", "robot_id", "robot", "program", "profile", "_labels",
                  "failure", "failure_step", "group")
 
     def __init__(self, sim: Simulation, index: int, robot_id: int, group: RobotGroup,
@@ -114,7 +114,7 @@ class RobotState:
         self.program = group.program
         self.profile = profile
         self.robot: FirmwareLoop | None = None
-        self.labels: dict[str, Any] = dict(group.labels)
+        self._labels: dict[str, Any] = dict(group.labels)
         self.failure: Any = None
         self.failure_step: int | None = None
 
@@ -135,6 +135,30 @@ class RobotState:
     @property
     def alive(self) -> bool:
         return self.robot is not None and self.failure is None
+
+    @property
+    def labels(self) -> dict[str, Any]:
+        """Group and world labels, plus the watched script globals (read now, from the heap)."""
+        labels = dict(self._labels)
+        for name in self._sim.watch:
+            if self.robot is not None:
+                value = self.global_value(name)
+                if value is not None:
+                    labels[name] = value
+        return labels
+
+    def set_label(self, name: str, value: Any) -> None:
+        """A label set by the world (e.g. "flying") or the engine."""
+        self._labels[name] = value
+
+    def global_value(self, name: str) -> Any:
+        """The script global `name` decoded (int, float, string, None; tables/closures by
+        kind), read from the VM heap; None when the robot has no VM or no such global."""
+        robot = self.robot
+        vm = getattr(robot, "vm", None)
+        if vm is None:
+            return None
+        return read_global(vm, _bbo_program(self.program).strings, name)
 
     def __repr__(self) -> str:
         return f"RobotState(id={self.robot_id}, pose={self.pose}, failure={self.failure})"
@@ -177,6 +201,7 @@ class Simulation:
         robot_factory: RobotFactory | None = None,
         instruction_budget: int | None = None,
         loop: str = "pop",
+        watch: Sequence[str] = ("role",),
     ) -> None:
         self.world: World = (create_world(world, **dict(world_options or {}))
                              if isinstance(world, str) else world)
@@ -191,6 +216,8 @@ class Simulation:
         self.count = sum(g.count for g in self.groups)
         self._check_count()
         self.seed = seed
+        #: Script globals shown as labels (read only when `labels` is read).
+        self.watch = tuple(watch)
         self._initial_positions = None if positions is None else np.asarray(positions, float)
         self._initial_headings = None if headings is None else np.asarray(headings, float)
         self._factory = robot_factory or _default_robot_factory(instruction_budget, loop)
@@ -352,6 +379,31 @@ class Simulation:
             if state.robot_id == robot_id:
                 return state
         raise KeyError(robot_id)
+
+
+def read_global(vm: Any, strings: list[str], name: str) -> Any:
+    """A global of a VM, decoded from its heap (see `RobotState.global_value`)."""
+    from bbzide.compiler import bbzfloat
+    from bbzide.vm import heap
+    from bbzide.vm.inspector import globals_by_name
+
+    index = globals_by_name(vm, strings).get(name)
+    if index is None:
+        return None
+    h = vm.heap
+    kind = h.obj_type(index)
+    if kind == heap.INT:
+        return h.int_value(index)
+    if kind == heap.FLOAT:
+        return bbzfloat.to_float(h.u16(index))
+    if kind == heap.STRING:
+        sid = h.u16(index)
+        return strings[sid] if sid < len(strings) else sid
+    if kind == heap.TABLE:
+        return "table"
+    if kind == heap.CLOSURE:
+        return "closure"
+    return None
 
 
 def _profile(profile: Any) -> Any:

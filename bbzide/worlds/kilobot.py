@@ -100,6 +100,7 @@ class KilobotTable(World):
         distance_noise: float = 0.03,
         motion_noise: float = MOTION_NOISE,
         spacing: float = LATTICE_SPACING,
+        layout: str = "lattice",
     ) -> None:
         if width <= 2 * KILOBOT_RADIUS or height <= 2 * KILOBOT_RADIUS:
             raise WorldConfigError(f"a {width} m x {height} m table cannot hold a Kilobot")
@@ -118,10 +119,16 @@ class KilobotTable(World):
         self.light = light_field(light, bounds)
         self.motion_noise = motion_noise
         self.spacing = spacing
+        if layout not in ("lattice", "random"):
+            raise WorldConfigError(f"unknown layout {layout!r}: lattice or random")
+        self.layout = layout
 
     # ---- geometry and placement ---------------------------------------------------------------
     def place(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-        """A square lattice around the centre (spacing shrunk if needed), jittered, shuffled."""
+        """A square lattice around the centre (spacing shrunk if needed), jittered, shuffled;
+        or ("random" layout) scattered uniformly over the table without overlaps."""
+        if self.layout == "random":
+            return self._scatter(count, rng)
         width, height = self.size
         margin = 2 * KILOBOT_RADIUS
         side = math.ceil(math.sqrt(count))
@@ -141,6 +148,28 @@ class KilobotTable(World):
         positions = np.column_stack([xy, np.zeros(count)])
         headings = rng.uniform(-math.pi, math.pi, count)
         return positions, headings
+
+    def _scatter(self, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        x0, y0, x1, y1 = self.bounds
+        margin = KILOBOT_RADIUS * 1.1
+        placed = np.empty((0, 2))
+        # Rejection sampling in batches; 200 rounds is far more than a table at half the
+        # packing density needs (denser requests fall back to the lattice).
+        for _ in range(200):
+            if len(placed) >= count:
+                break
+            batch = rng.uniform([x0 + margin, y0 + margin], [x1 - margin, y1 - margin],
+                                (count, 2))
+            for point in batch:
+                if len(placed) >= count:
+                    break
+                if len(placed) == 0 or np.min(np.hypot(*(placed - point).T)) > 2.1 * KILOBOT_RADIUS:
+                    placed = np.vstack([placed, point])
+        if len(placed) < count:
+            raise WorldConfigError(f"{count} Kilobots are too many to scatter on this table; "
+                                   "use the lattice layout")
+        positions = np.column_stack([placed, np.zeros(count)])
+        return positions, rng.uniform(-math.pi, math.pi, count)
 
     def max_robots(self) -> int:
         # Square packing with 5 % slack between discs (the physics needs a little room).

@@ -96,3 +96,10 @@ def test_thousand_robots_fit_on_a_two_metre_table():
     positions, _ = table.place(1000, np.random.default_rng(0))
     gaps = np.linalg.norm(positions[:, None, :2] - positions[None, :, :2], axis=2)
     assert (gaps + np.eye(1000)).min() > 2 * 0.0165
+
+
+def test_random_layout_scatters_without_overlap():
+    positions, _ = KilobotTable(layout="random").place(40, np.random.default_rng(2))
+    gaps = np.linalg.norm(positions[:, None, :2] - positions[None, :, :2], axis=2)
+    assert (gaps + np.eye(40)).min() > 2 * 0.0165
+    assert np.abs(positions[:, :2]).max() < 0.5 and positions[:, 0].std() > 0.2
