@@ -248,7 +248,10 @@ class Heap:
         """Segment indices of a table chain starting at ``first``."""
         chain = [first]
         nxt = self.seg_next(first)
-        while nxt != SEG_NEXT and len(chain) <= self.size // self.seg_size:
+        limit = self.size // self.seg_size
+        # a next index whose bytes lie outside the heap ends the chain (see gc.py)
+        while nxt != SEG_NEXT and (nxt + 1) * self.seg_size <= self.size \
+                and len(chain) <= limit:
             chain.append(nxt)
             nxt = self.seg_next(nxt)
         return chain
