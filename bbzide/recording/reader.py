@@ -283,7 +283,7 @@ def _assemble(path: Path, read: tuple[Columns, dict[str, Any]]) -> Recording:
     except (KeyError, TypeError, ValueError) as error:
         raise RecordingError(f"{path} is a corrupt recording: {error}") from None
     links = _per_step(link_steps, link_rows, first, last,
-                      lambda v: np.array(v.as_py() or [], dtype=np.int32).reshape(-1, 2))  # flat pairs
+                      lambda v: np.array(v.as_py() or [], dtype=np.int32).reshape(-1, 2))
     inputs = _per_step(input_steps, input_rows, first, last, lambda v: (v.as_py() or [b""])[0])
     recording = Recording(
         path, meta, np.arange(first, last + 1, dtype=np.int64), positions, headings, leds,
