@@ -78,7 +78,7 @@ class ToyRobot:
         light = self._call("light")
         self.checksum = zlib.crc32(struct.pack("<qq", int(draw), int(light)), self.checksum)
         self._call("led", self.checksum % 8)
-        self._call("set_motor", draw % 2 * 255, (draw + 1) % 2 * 255)
+        self._call("set_motor", 0 if draw % 3 == 1 else 255, 0 if draw % 3 == 2 else 255)
         if draw % 5 == 0:
             self._call("abs", 1, 2)  # wrong arity: expect_args fails
         offset = self.heap.rtobj % self.heap.size
