@@ -59,6 +59,7 @@ class IdeApp:
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
         self.controls.world.on_update(lambda _: self._change_world(str(self.controls.world.value)))
+        self.controls.record.on_update(lambda _: self._toggle_recording(self.controls.record.value))
         self._inspectors: dict[int, InspectorPanel] = {}
         self._world_generation = -1
         self._build_dirty = True
@@ -133,6 +134,12 @@ class IdeApp:
     def _pitfalls(self, text: str) -> list[Diagnostic]:
         platform = self.backend.platform(self.controller.settings.world)
         return find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+
+    def _toggle_recording(self, on: bool) -> None:
+        if not on:
+            self.controller.set_recording(None)
+            return
+        self.controller.set_recording(new_recording_path(self.session.path), self.session.text)
 
     def _reload_from_disk(self) -> None:
         self.session.reload_from_disk()
@@ -248,3 +255,16 @@ class IdeApp:
         for inspector in list(self._inspectors.values()):
             if inspector.selected is not None and not step_is_long:
                 self._refresh_inspector(inspector)
+
+
+def new_recording_path(script: Path) -> Path:
+    """`<script folder>/recordings/<script>-<date>-<time>.rrd`, never an existing file."""
+    folder = script.parent / "recordings"
+    folder.mkdir(exist_ok=True)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    path = folder / f"{script.stem}-{stamp}.rrd"
+    suffix = 1
+    while path.exists():
+        suffix += 1
+        path = folder / f"{script.stem}-{stamp}-{suffix}.rrd"
+    return path
