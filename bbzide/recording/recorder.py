@@ -452,13 +452,10 @@ class MissionRecorder:
             origins=positions, vectors=(vectors * reach).astype(np.float32)).partition(per_robot))
         links = b["links"]
         link_counts = [len(x) for x in links]
-        strips = []
-        for step_links, step_positions in zip(links, b["positions"], strict=True):
-            for a, c in step_links:
-                strips.append(np.stack([step_positions[a], step_positions[c]]))
         if sum(link_counts):
-            send(layout.LINKS, indexes=indexes, columns=rr.LineStrips3D.columns(
-                strips=strips).partition(link_counts))
+            ends = np.concatenate([p[k] for p, k in zip(b["positions"], links, strict=True)])
+            send(layout.LINKS, indexes=indexes, columns=rr.Arrows3D.columns(
+                origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0]).partition(link_counts))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
                       else np.zeros(0, np.int32)).astype(np.int32)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
