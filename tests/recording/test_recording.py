@@ -187,3 +187,20 @@ def test_killed_writer_leaves_a_readable_file(tmp_path: Path) -> None:
     assert recording.truncated
     assert recording.last_step >= 30
     RobotRebuilder(recording, build=ToyRobot).robot_at(2, recording.last_step)
+
+
+def test_crafted_keyframe_is_refused_not_unpickled() -> None:
+    import pickle
+
+    from bbzide.recording.rebuild import check_snapshot
+    from bbzide.vm.profiles import PROFILES
+    from bbzide.vm.vm import VM
+
+    class Payload:
+        def __reduce__(self) -> tuple:
+            return (os.system, ("echo crafted",))
+
+    check_snapshot(VM(PROFILES["kilobot"], 3).snapshot(), "a real VM snapshot")  # accepted
+    for crafted in (pickle.dumps(Payload()), pickle.dumps((1, [pickle.dumps(Payload())]))):
+        with pytest.raises(RecordingError, match="not a VM snapshot"):
+            check_snapshot(crafted, "keyframe")
