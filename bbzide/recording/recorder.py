@@ -119,6 +119,11 @@ def program_record(program: Any, program_id: int, source: str | None) -> dict[st
             "strings": list(program.strings), "debug_map": debug, "source": source}
 
 
+def jsonable(value: Any) -> Any:
+    """Overlay data (numpy arrays, tuples) as JSON-ready lists and numbers."""
+    return _jsonable(value)
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return np.round(value, 6).tolist() if value.dtype.kind == "f" else value.tolist()
