@@ -24,6 +24,7 @@ TIME_SECONDS = "time"
 
 MISSION = "/mission"                       # static: meta (JSON)
 PROGRAMS = "/mission/programs"             # at first use: program (JSON: id, bbo, strings, ...)
+WALLS = "/world/walls"                     # static LineStrips3D: walls and obstacles
 ROBOTS = "/world/robots"                   # Points3D (positions, colors = LED, radii, labels)
 #                                            + AnyValues heading, failed, label:<name>
 HEADINGS = "/world/robots/headings"        # Arrows3D from each robot along its heading

@@ -264,6 +264,17 @@ class MissionRecorder:
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         }
         self.rec.log(layout.MISSION, self.rr.AnyValues(meta=json.dumps(meta)), static=True)
+        # For the Rerun viewer: the table's walls (so the 3D view frames the whole world) and
+        # series names for the plots.
+        rr = self.rr
+        walls = [[(a[0], a[1], 0.0), (b[0], b[1], 0.0)] for a, b in world.walls]
+        if walls:
+            self.rec.log(layout.WALLS, rr.LineStrips3D(walls, colors=(90, 90, 110)), static=True)
+        names = [f"robot {s.robot_id}" for s in states]
+        for figure in layout.HEAP_FIGURES:
+            self.rec.log(f"{layout.HEAP}/{figure}", rr.SeriesLines(names=names), static=True)
+        self.rec.log(layout.MESSAGE_TOTALS, rr.SeriesLines(
+            names=["sent", "received", "dropped", "bytes"]), static=True)
 
     def _program_id(self, program: Any, step: int) -> int:
         key = id(program)
