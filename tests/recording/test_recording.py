@@ -100,6 +100,11 @@ def test_keyframes_cover_start_period_and_reboot(recorded: dict) -> None:
     assert keyframes[0] == 4 and 14 in keyframes and 54 in keyframes   # reboot at step 54
     kinds = [e.kind for e in recorded["recording"].events]
     assert kinds.count("program") == 2  # recording start and the reload
+    errors = [e for e in recorded["recording"].events if e.kind == "error"]
+    assert len(errors) == 1 and errors[0].robot == 7 and "MEM" in errors[0].text
+    row = recorded["recording"].row(errors[0].step)
+    assert recorded["recording"].failed[row].tolist() == [i == 7 for i in range(ROBOTS)]
+    assert not recorded["recording"].failed[row - 1].any()
 
 
 def test_existing_file_needs_force(recorded: dict, tmp_path: Path) -> None:
