@@ -29,5 +29,5 @@ def mission_blueprint() -> Any:
             ),
             column_shares=[3, 2],
         ),
-        collapse_panels=False,
+        rrb.SelectionPanel(state="collapsed"),
     )

@@ -24,10 +24,11 @@ TIME_SECONDS = "time"
 
 MISSION = "/mission"                       # static: meta (JSON)
 PROGRAMS = "/mission/programs"             # at first use: program (JSON: id, bbo, strings, ...)
+WALLS = "/world/walls"                     # static LineStrips3D: walls and obstacles
 ROBOTS = "/world/robots"                   # Points3D (positions, colors = LED, radii, labels)
 #                                            + AnyValues heading, failed, label:<name>
 HEADINGS = "/world/robots/headings"        # Arrows3D from each robot along its heading
-LINKS = "/world/links"                     # LineStrips3D (one per radio link) + AnyValues pairs
+LINKS = "/world/links"                     # Arrows3D sender -> receiver + AnyValues pairs
 OVERLAYS = "/world/overlays"               # AnyValues overlays (JSON) when they change
 TARGETS = "/world/targets"                 # Points3D of overlay targets (when a world has some)
 MESSAGES = "/robots/messages"              # AnyValues sent, received, bytes_sent per robot

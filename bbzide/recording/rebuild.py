@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import base64
 import bisect
+import io
+import pickle
 import zlib
 from collections.abc import Callable
 from typing import Any
@@ -41,6 +43,45 @@ def program_from_record(record: dict[str, Any]) -> Any:
     debug = {int(pc): SourceLocation(loc[0], int(loc[1]), int(loc[2]))
              for pc, loc in record.get("debug_map", {}).items()}
     return BittyBuzzProgram(base64.b64decode(record["bbo"]), list(record["strings"]), debug)
+
+
+#: What a VM snapshot pickle may name besides the VM room's own classes (`bbzide.vm.*`).
+_SAFE_GLOBALS = {("builtins", "set"), ("builtins", "frozenset"), ("builtins", "bytearray"),
+                 ("builtins", "complex"), ("collections", "deque"),
+                 ("collections", "OrderedDict"), ("copyreg", "_reconstructor"),
+                 ("builtins", "object")}
+#: Nested pickles are checked too, down to this depth (a snapshot of a snapshot at most).
+_NESTED_PICKLES = 4
+
+
+class _SnapshotUnpickler(pickle.Unpickler):
+    def find_class(self, module: str, name: str) -> Any:
+        if module.startswith("bbzide.vm.") or (module, name) in _SAFE_GLOBALS:
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"it names {module}.{name}")
+
+
+def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
+    """Refuse a pickled snapshot that names anything but VM-room classes and plain containers.
+
+    `Robot.restore` unpickles; a recording is a file from anywhere, and unpickling can run any
+    code a crafted file names. This loads it with an allow-list first (nested pickles too).
+    """
+    if not snapshot.startswith(b"\x80") or depth > _NESTED_PICKLES:
+        return
+    try:
+        loaded = _SnapshotUnpickler(io.BytesIO(snapshot)).load()
+    except Exception as error:  # noqa: BLE001 - any failure means "not a VM snapshot"
+        raise RecordingError(f"the {what} is not a VM snapshot ({error})") from None
+    stack = [loaded]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, bytes | bytearray) and bytes(item[:1]) == b"\x80":
+            check_snapshot(bytes(item), what, depth + 1)
+        elif isinstance(item, list | tuple | set | frozenset):
+            stack.extend(item)
+        elif isinstance(item, dict):
+            stack.extend(item.values())
 
 
 class RobotRebuilder:
@@ -116,10 +157,12 @@ class RobotRebuilder:
                             int(meta["robot_ids"][index]), host.functions())
         robot.boot()
         try:
-            robot.restore(zlib.decompress(keyframe.snapshot))
+            snapshot = zlib.decompress(keyframe.snapshot)
         except zlib.error as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None
+        check_snapshot(snapshot, f"keyframe of robot #{index} at step {keyframe.step}")
+        robot.restore(snapshot)
         return robot, host
 
     def _inputs(self, step: int) -> dict[int, Any]:

@@ -15,9 +15,10 @@ handful of `send_columns` calls (one chunk per entity and flush, not one `log` p
 step: 50-100x cheaper, ui-stack-notes §4) and the stream is flushed to disk, so a process
 killed mid-run leaves a file readable up to its last flush.
 
-Exact VM state at any step = the nearest earlier keyframe (every robot's `Robot.snapshot()`,
-zlib-compressed, taken every `keyframe_every` steps, when recording starts and whenever a robot
-boots, e.g. on a program reload) plus the recorded inputs re-executed (`rebuild.py`). Rare
+Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
+zlib-compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
+then after `keyframe_every` steps or `KEYFRAME_BUDGET_SECONDS` of its control steps, whichever
+comes first) plus the recorded inputs re-executed (`rebuild.py`). Rare
 things (keyframes, programs, events, overlays when they change) are logged as single rows.
 """
 
@@ -38,10 +39,13 @@ from bbzide.diagnostics import UserError
 from bbzide.recording import layout
 from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
-#: A keyframe every 25 steps: rebuilding a robot then re-executes at most 24 control steps
-#: (benchmarks/record_bench.py: a few ms per Kilobot step, so seeks stay well under 100 ms),
-#: and 25 robots' compressed snapshots every 25 steps stay a small share of the file.
+#: A robot is keyframed at least every 25 steps (cheap firmware: 25 robots' compressed
+#: snapshots every 25 steps stay a small share of the file)...
 KEYFRAME_EVERY = 25
+#: ...and sooner once its control steps since the last keyframe took 40 ms: a seek re-executes
+#: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
+#: whatever the script costs per step (the issue's seek goal).
+KEYFRAME_BUDGET_SECONDS = 0.040
 #: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
 FLUSH_EVERY = 50
 #: ...or after one wall-clock second, so a slow swarm loses at most ~1 s if killed.
@@ -119,6 +123,11 @@ def program_record(program: Any, program_id: int, source: str | None) -> dict[st
             "strings": list(program.strings), "debug_map": debug, "source": source}
 
 
+def jsonable(value: Any) -> Any:
+    """Overlay data (numpy arrays, tuples) as JSON-ready lists and numbers."""
+    return _jsonable(value)
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return np.round(value, 6).tolist() if value.dtype.kind == "f" else value.tolist()
@@ -184,6 +193,7 @@ class MissionRecorder:
         self.count = len(sim.robots)
         self._index_of = {s.robot_id: s.index for s in sim.robots}
         self._capturing: dict[int, CapturingRobot] = {}
+        self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         for state in sim.robots:
             if isinstance(state.robot, CapturingRobot):
                 self._capturing[state.index] = state.robot
@@ -254,6 +264,17 @@ class MissionRecorder:
             "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         }
         self.rec.log(layout.MISSION, self.rr.AnyValues(meta=json.dumps(meta)), static=True)
+        # For the Rerun viewer: the table's walls (so the 3D view frames the whole world) and
+        # series names for the plots.
+        rr = self.rr
+        walls = [[(a[0], a[1], 0.0), (b[0], b[1], 0.0)] for a, b in world.walls]
+        if walls:
+            self.rec.log(layout.WALLS, rr.LineStrips3D(walls, colors=(90, 90, 110)), static=True)
+        names = [f"robot {s.robot_id}" for s in states]
+        for figure in layout.HEAP_FIGURES:
+            self.rec.log(f"{layout.HEAP}/{figure}", rr.SeriesLines(names=names), static=True)
+        self.rec.log(layout.MESSAGE_TOTALS, rr.SeriesLines(
+            names=["sent", "received", "dropped", "bytes"]), static=True)
 
     def _program_id(self, program: Any, step: int) -> int:
         key = id(program)
@@ -293,6 +314,8 @@ class MissionRecorder:
         snapshots, programs = [], []
         for index in indexes:
             state = self.sim.robots[index]
+            self._keyframed[index] = step
+            self._capturing[index].busy_seconds = 0.0
             snapshot = state.robot.snapshot()
             snapshots.append(zlib.compress(snapshot, SNAPSHOT_COMPRESSION))
             programs.append(self._program_id(state.program, step))
@@ -325,9 +348,15 @@ class MissionRecorder:
                 records.append((index, inputs))
         blob = encode_step(records)
         self._buffer_frame(step, blob)
-        if (step - self.start_step) % self.keyframe_every == 0:
-            self._keyframe([i for i, r in self._capturing.items()
-                            if sim.robots[i].robot is r and sim.robots[i].failure is None], step)
+        due = []
+        for i, robot in self._capturing.items():
+            state = sim.robots[i]
+            if state.robot is not robot or state.failure is not None:
+                continue
+            if (step - self._keyframed.get(i, self.start_step) >= self.keyframe_every
+                    or robot.busy_seconds >= KEYFRAME_BUDGET_SECONDS):
+                due.append(i)
+        self._keyframe(due, step)
         self._watch_events(step)
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
@@ -452,13 +481,10 @@ class MissionRecorder:
             origins=positions, vectors=(vectors * reach).astype(np.float32)).partition(per_robot))
         links = b["links"]
         link_counts = [len(x) for x in links]
-        strips = []
-        for step_links, step_positions in zip(links, b["positions"], strict=True):
-            for a, c in step_links:
-                strips.append(np.stack([step_positions[a], step_positions[c]]))
         if sum(link_counts):
-            send(layout.LINKS, indexes=indexes, columns=rr.LineStrips3D.columns(
-                strips=strips).partition(link_counts))
+            ends = np.concatenate([p[k] for p, k in zip(b["positions"], links, strict=True)])
+            send(layout.LINKS, indexes=indexes, columns=rr.Arrows3D.columns(
+                origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0]).partition(link_counts))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
                       else np.zeros(0, np.int32)).astype(np.int32)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(

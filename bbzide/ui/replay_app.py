@@ -21,6 +21,7 @@ import time
 import viser
 
 from bbzide.ui.inspector_panel import InspectorPanel
+from bbzide.ui.overlay_view import OverlayView
 from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
 from bbzide.ui.scene import SwarmScene
 
@@ -41,6 +42,7 @@ class ReplayApp:
         )
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.scene.set_world(session.geometry())
+        self.overlays = OverlayView(self.server)
         self.step = session.first_step
         self.playing = False
         self.speed = 1.0
@@ -141,6 +143,7 @@ class ReplayApp:
         with self._lock:
             self.step = step
             self.scene.draw(session.frame(step))
+            self.overlays.show(session.recording.overlays_at(step) or None)
             if int(self.slider.value) != step:
                 self.slider.value = step
             for inspector in list(self._inspectors.values()):

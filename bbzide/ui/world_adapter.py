@@ -21,6 +21,7 @@ Lower rooms are imported lazily, so `bbzide --help` never needs them, and a miss
 from __future__ import annotations
 
 import importlib
+import json
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -108,19 +109,23 @@ class WorldsBackend:
         simulation = self._engine.Simulation(
             world, program, robots=robots, seed=seed, robot_factory=recordable.factory
         )
-        return WorldsSimulation(simulation, program, self.platform(world), recordable)
+        return WorldsSimulation(simulation, program, self.platform(world), recordable,
+                                self._recording)
 
 
 class WorldsSimulation:
     """A `bbzide.worlds.engine.Simulation` behind the UI's `SimulationHandle` interface."""
 
-    def __init__(self, simulation: Any, program: Any, profile: Any, recordable: Any = None) -> None:
+    def __init__(self, simulation: Any, program: Any, profile: Any, recordable: Any = None,
+                 recording: ModuleType | None = None) -> None:
         self.sim = simulation
+        self._recording = recording or _import("bbzide.recording.recorder")
         self.program = program
         self.profile = profile
         self.recordable = recordable
         self.recorder: Any = None
         self.source_text: str | None = None
+        self._overlays: tuple[str, dict[str, Any]] | None = None
 
     @property
     def step_count(self) -> int:
@@ -147,7 +152,7 @@ class WorldsSimulation:
             raise UserError("this swarm was not built for recording")
         self.stop_recording()
         source = self.source_text
-        self.recorder = importlib.import_module("bbzide.recording.recorder").MissionRecorder(
+        self.recorder = self._recording.MissionRecorder(
             path, self.sim, self.recordable, force=force, source_of=lambda _program: source
         )
         return self.recorder
@@ -181,6 +186,14 @@ class WorldsSimulation:
 
     def geometry(self) -> WorldGeometry:
         return world_geometry(self.sim.world)
+
+    def overlays(self) -> dict[str, Any]:
+        """The world's overlays as plain data; the same object while they do not change."""
+        plain = self._recording.jsonable(self.sim.world.overlays())
+        key = json.dumps(plain, sort_keys=True)
+        if self._overlays is None or self._overlays[0] != key:
+            self._overlays = (key, plain)
+        return self._overlays[1]
 
     # ---- inspector ------------------------------------------------------------------------------
     def inspect(self, index: int) -> RobotInspection:

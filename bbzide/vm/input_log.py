@@ -25,6 +25,7 @@ fixed little-endian layout (no pickle: a recording is a file a user may get from
 from __future__ import annotations
 
 import struct
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -116,6 +117,8 @@ class CapturingRobot:
         self.capturing = False
         self.current = StepInputs()
         self._on_boot = on_boot
+        #: Seconds spent in captured control steps (the recorder keyframes by this budget).
+        self.busy_seconds = 0.0
 
     # the engine's FirmwareLoop protocol ---------------------------------------------------------
     def boot(self) -> None:
@@ -136,10 +139,12 @@ class CapturingRobot:
             return self.robot.control_step()
         self.current.stepped = True
         self.tap.log = self.current.host_calls
+        started = time.perf_counter()
         try:
             return self.robot.control_step()
         finally:
             self.tap.log = None
+            self.busy_seconds += time.perf_counter() - started
 
     def take_inputs(self) -> StepInputs:
         """The inputs since the last call (one engine step), and start a new record."""

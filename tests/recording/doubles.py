@@ -4,7 +4,8 @@
 numbers) plus a few counters, and depends on every kind of outside input the recorder must
 capture: received messages with their situated data (folded into a checksum), and the world's
 host functions `rand`, `light` (returned values), `led` and `set_motor` (effects on the world),
-`abs` with a wrong argument count now and then (an `expect_args` failure). So a rebuilt toy
+`abs` with a wrong argument count now and then (an `expect_args` failure). Robot 7 fails at
+its 60th step, like a VM error. So a rebuilt toy
 equals the live one only if every input was recorded and replayed in order.
 """
 
@@ -13,9 +14,21 @@ from __future__ import annotations
 import json
 import struct
 import zlib
+from dataclasses import dataclass
 from typing import Any
 
 from bbzide.vm.heap import Heap
+
+#: Robot 7 stops with an error at its 60th control step (an `error` event to jump to).
+FAILING_ROBOT, FAILING_STEP = 7, 60
+
+
+@dataclass
+class ToyFailure:
+    reason: str
+    pc: int = 0
+    location: Any = None
+    message: str = ""
 
 
 class ToyCall:
@@ -74,6 +87,9 @@ class ToyRobot:
 
     def control_step(self) -> list[bytes]:
         self.steps += 1
+        if self.robot_id == FAILING_ROBOT and self.steps == FAILING_STEP:
+            self.failure = ToyFailure("MEM", message="toy out of memory")
+            return []
         draw = self._call("rand")
         light = self._call("light")
         self.checksum = zlib.crc32(struct.pack("<qq", int(draw), int(light)), self.checksum)

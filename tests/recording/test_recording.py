@@ -100,6 +100,11 @@ def test_keyframes_cover_start_period_and_reboot(recorded: dict) -> None:
     assert keyframes[0] == 4 and 14 in keyframes and 54 in keyframes   # reboot at step 54
     kinds = [e.kind for e in recorded["recording"].events]
     assert kinds.count("program") == 2  # recording start and the reload
+    errors = [e for e in recorded["recording"].events if e.kind == "error"]
+    assert len(errors) == 1 and errors[0].robot == 7 and "MEM" in errors[0].text
+    row = recorded["recording"].row(errors[0].step)
+    assert recorded["recording"].failed[row].tolist() == [i == 7 for i in range(ROBOTS)]
+    assert not recorded["recording"].failed[row - 1].any()
 
 
 def test_existing_file_needs_force(recorded: dict, tmp_path: Path) -> None:
@@ -187,3 +192,20 @@ def test_killed_writer_leaves_a_readable_file(tmp_path: Path) -> None:
     assert recording.truncated
     assert recording.last_step >= 30
     RobotRebuilder(recording, build=ToyRobot).robot_at(2, recording.last_step)
+
+
+def test_crafted_keyframe_is_refused_not_unpickled() -> None:
+    import pickle
+
+    from bbzide.recording.rebuild import check_snapshot
+    from bbzide.vm.profiles import PROFILES
+    from bbzide.vm.vm import VM
+
+    class Payload:
+        def __reduce__(self) -> tuple:
+            return (os.system, ("echo crafted",))
+
+    check_snapshot(VM(PROFILES["kilobot"], 3).snapshot(), "a real VM snapshot")  # accepted
+    for crafted in (pickle.dumps(Payload()), pickle.dumps((1, [pickle.dumps(Payload())]))):
+        with pytest.raises(RecordingError, match="not a VM snapshot"):
+            check_snapshot(crafted, "keyframe")

@@ -21,7 +21,7 @@ from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
 from bbzide.recording.recorder import MissionRecorder
 from bbzide.ui.replay_app import ReplayApp
-from bbzide.ui.replay_session import ReplaySession
+from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
 from tests.recording.doubles import ToyRobot
 from tests.recording.test_recording import toy_swarm
 
@@ -111,6 +111,21 @@ def test_step_buttons_play_and_jumps(replay: tuple) -> None:
     paused = app.step
     time.sleep(0.5)
     assert app.step == paused
+
+
+def test_jump_to_the_robot_error(replay: tuple) -> None:
+    app, page = replay
+    app.seek(10)
+    wait_until(lambda: shown_step(page) == 10, 10, message="seek 10")
+    errors = app.session.event_steps("error")
+    assert len(errors) == 1
+    kinds = [kind for kind, _ in JUMP_KINDS]
+    page.get_by_role("button", name="next ▶").nth(kinds.index("error")).click()
+    wait_until(lambda: shown_step(page) == errors[0], 10, message="jump to the error")
+    assert "1 in error" in page.locator("text=/of \\d+\\.\\.\\d+/").first.inner_text()
+    page.get_by_role("button", name="◀ previous").nth(kinds.index("error")).click()
+    time.sleep(0.5)
+    assert app.step == errors[0]  # no earlier error: stays
 
 
 def test_seek_latency_is_recorded(replay: tuple) -> None:
