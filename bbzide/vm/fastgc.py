@@ -56,13 +56,20 @@ _NO_ACTREC = 0xFF
 _SEG_MARK_HI = 0x40   # SEG_MARK (bit 14) in the high byte of the segment mdata word
 _SEG_VALID_HI = 0x80  # SEG_VALID (bit 15) in the high byte
 _SEG_NEXT = 0x3FFF
+#: flag in a collect() ``info`` entry: first marked from a permanent root (depth < 64)
+PERMANENT_PHASE = 64
 
 
 @_compile
-def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, size: int,
-            s: int, g: int, elems: int, reserved: int, limit: int) -> int:
+def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, info: Any,
+            traversed: Any, size: int, s: int, g: int, elems: int, reserved: int,
+            limit: int) -> int:
     """One ``bbzheap_gc`` on ``d``; ``stack[0..top]`` are the roots (an int buffer).
 
+    Also records how it marked, for the VM's skip rules: ``info[x]`` =
+    the depth at which x was first marked (0: not marked) plus ``PERMANENT_PHASE`` if that
+    happened while marking from the permanent roots; ``traversed[1..traversed[0]]`` = the
+    tables whose elements were visited (first marked at a depth below the limit).
     Returns the new ``rtobj * 65536 + ltseg`` (numba returns one int fastest).
     """
     n = rtobj // s
@@ -75,6 +82,10 @@ def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, size: in
         d[size - (j + 1) * g + mo + 1] &= 0xFF ^ _SEG_MARK_HI
     for i in range(n):
         d[i * s] &= 0xFF ^ _GC_MARK
+    for i in range(size // s):
+        info[i] = 0
+    traversed[0] = 0
+    phase = PERMANENT_PHASE
     # frames of the explicit mark stack: segment, next word, depth, segments walked
     f_seg = [0] * (limit + 2)
     f_word = [0] * (limit + 2)
@@ -90,6 +101,7 @@ def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, size: in
                 continue
         else:
             x = _i(stack[top - (r - n)])
+            phase = 0
         # mark(x) at depth 2, then run frames until this root is done
         depth = 2
         fp = -1
@@ -98,9 +110,13 @@ def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, size: in
             if 0 <= x < nobj and depth <= limit and not _i(d[x * s]) & _GC_MARK:
                 o = x * s
                 d[o] |= _GC_MARK
+                info[x] = depth + phase
                 m = _i(d[o])
                 t = m & _TYPE_MASK
                 if t == _TABLE:
+                    if depth < limit:
+                        traversed[0] += 1
+                        traversed[traversed[0]] = x
                     seg = _i(d[o + 1]) | (_i(d[o + 2]) << 8)
                     if 0 <= seg and (seg + 1) * g <= size:
                         fp += 1
@@ -200,3 +216,4 @@ def first_free_segment(d: bytearray, ltseg: int, size: int, g: int, elems: int) 
         if not _i(d[size - (j + 1) * g + mo + 1]) & _SEG_VALID_HI:
             return j
     return -1
+

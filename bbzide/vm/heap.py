@@ -16,6 +16,8 @@ Object byte 0 is the metadata (type bits 0-2, valid 3, permanent 4, GC mark 5, t
 
 from __future__ import annotations
 
+import numpy as np
+
 from bbzide.vm.fastgc import first_free as _first_free
 from bbzide.vm.fastgc import first_free_segment as _first_free_segment
 from bbzide.vm.profiles import Profile
@@ -58,6 +60,10 @@ class Heap:
         self.ltseg = self.size
         self.peak_used = 0
         self.gc_runs = 0
+        #: how the last compiled collection marked (fastgc.collect's info/traversed)
+        nobj = self.objects = self.size // self.obj_size  # object slots the heap can hold
+        self.gc_info = np.zeros(nobj, np.uint8)
+        self.gc_traversed = np.zeros(nobj + 1, np.int32)
 
     # ---- whole-heap operations -------------------------------------------------------
     def clear(self) -> None:

@@ -28,6 +28,7 @@ from enum import IntEnum
 
 from bbzide.compiler import bbzfloat
 from bbzide.vm import gc as gcmod
+from bbzide.vm.fastgc import PERMANENT_PHASE
 from bbzide.vm.fastgc import collect as _collect
 from bbzide.vm.heap import (
     CLOSURE,
@@ -234,7 +235,7 @@ class VM:
         h.gc_runs += 1
         sp = self.stackptr
         r = _collect(h.data, array("H", self.stack[:sp + 1]), sp, h.rtobj, h.ltseg,
-                     *self._geometry)
+                     h.gc_info, h.gc_traversed, *self._geometry)
         h.rtobj = r >> 16
         h.ltseg = r & 0xFFFF
 
@@ -446,7 +447,7 @@ class VM:
         A single step always collects (reference collector in stress mode, the compiled
         one in fast mode): code outside the VM may have changed the heap since the last
         instruction. The loops of :meth:`run` and :meth:`closure_call` skip collections
-        they can prove changeless (see :meth:`_after_instr`).
+        they can prove changeless (see ``_SKIP_RULES``).
         """
         if self.state == State.READY:
             if self.stress_gc:
@@ -454,38 +455,6 @@ class VM:
             else:
                 self.collect_fast()
             self.exec_instr()
-
-    def _after_instr(self, op: int) -> bool:
-        """Fast mode: would a collection now change nothing? (Then it is skipped.)
-
-        Called after a READY instruction ``op`` that ran on a collected heap, i.e. on a
-        fixed point of the collector (every valid object is marked; marking does not read
-        valid bits, so collecting again would reproduce the same bytes). The instruction
-        keeps that fixed point when it only
-        * changed pc (nop, calls, jump);
-        * pushed an object that the next collection marks in its permanent-root phase:
-          nil, or a local read from a permanent activation record (``lload``): its stack
-          root then finds it marked and returns, so the marking is the same;
-        * pushed a leaf (no children: int, float, string, non-lambda closure) that is
-          either new — the next collection would set just its mark bit, done here — or
-          deduplicated (a valid string: already marked). A leaf's mark cannot change the
-          traversal of anything else, whatever the depth limit.
-        Anything else (pops, stores, calls, tables, lambdas) returns False and the next
-        step runs the whole collector. The equivalence test checks this on the corpus
-        and on generated programs.
-        """
-        if op in _PC_ONLY_OPCODES or op == 2:
-            return True
-        h = self.heap
-        d = h.data
-        s = h.obj_size
-        if op in _NEW_LEAF_OPCODES:
-            d[self.stack[self.stackptr] * s] |= GC_MARK
-            return True
-        if op == 41:  # lload
-            if d[self.lsyms * s] & PERMANENT:
-                return True
-        return False
 
     def exec_instr(self) -> None:
         offset = self.pc
@@ -1112,7 +1081,7 @@ class VM:
         ``closure_call`` (until blockptr drops to ``saved``), with the instruction budget.
 
         Stress mode steps exactly as ``bbzvm_step``. Fast mode skips the collections that
-        :meth:`_after_instr` proves changeless (counted in ``gc_runs`` all the same); the
+        ``_SKIP_RULES`` proves changeless (counted in ``gc_runs`` all the same); the
         first step of a loop always collects, since code outside it may have changed the
         heap.
         """
@@ -1133,10 +1102,15 @@ class VM:
                         return
             return
         heap = self.heap
+        data = heap.data
+        s = heap.obj_size
+        info = heap.gc_info
         collect = self.collect_fast
         execute = self.exec_instr
-        after = self._after_instr
         bcode = self.bcode
+        size = len(bcode)
+        stack = self.stack
+        rules = _SKIP_RULES
         fixed = False
         while saved is None or saved < self.blockptr:
             if self.state != ready:
@@ -1147,7 +1121,25 @@ class VM:
                 collect()
             pc = self.pc
             execute()
-            fixed = self.state == ready and pc < len(bcode) and after(bcode[pc])
+            # Is the heap still a fixed point of the collector? (see _SKIP_RULES)
+            rule = rules[bcode[pc]] if pc < size and self.state == ready else 0
+            if rule == _PUSHED_NEW:
+                top = stack[self.stackptr]
+                m = data[top * s]
+                t = m & TYPE_MASK
+                fixed = t != TABLE and (t != CLOSURE or not m & FLAG2)
+                if fixed:
+                    data[top * s] = m | GC_MARK
+            elif rule == _PUSHED_OLD:
+                top = stack[self.stackptr]
+                m = data[top * s]
+                t = m & TYPE_MASK
+                if t != TABLE and (t != CLOSURE or not m & FLAG2):
+                    fixed = bool(m & GC_MARK)
+                else:
+                    fixed = bool(info[top] & PERMANENT_PHASE)
+            else:
+                fixed = rule == _PC_ONLY
             n += 1
             if budget is not None:
                 if saved is None:
@@ -1165,8 +1157,27 @@ def _s32(v: int) -> int:
 
 #: Opcodes that change nothing but pc: nop, calls, jump.
 _PC_ONLY_OPCODES = frozenset({0, 34, 44})
-#: pushf, pushi, pushs, pushcn, pushcc: push a new (or deduplicated) leaf object.
-_NEW_LEAF_OPCODES = frozenset({35, 36, 37, 38, 39})
+# Fast-mode skip rules (VM._loop). An instruction that starts on a fixed point of the
+# collector (a heap a collection would leave unchanged: right after one, or after an
+# instruction accepted here) keeps it — so the next collection may be skipped — when:
+# * _PC_ONLY: it changed nothing but pc (nop, calls, jump);
+# * _PUSHED_OLD: it pushed an existing object (pushnil, lload) that is a marked *leaf*
+#   (anything but a table or a lambda closure: the marker never looks inside it, so its
+#   new stack root changes no other mark), or a non-leaf the last collection first marked
+#   from the permanent roots (``gc_info``): its stack root then finds it marked, a no-op;
+# * _PUSHED_NEW: it pushed a new leaf (pushf, pushi, pushs — or a deduplicated, hence
+#   marked, string —, pushcn, pushcc, dup of a leaf): the next collection would only set
+#   its mark bit, which the loop sets.
+# None of these changes how non-leaves are traversed, so ``gc_info`` stays true. Every
+# other instruction (pops, stores, calls, tables, lambdas) is followed by a collection.
+_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW = 1, 2, 3
+_SKIP_RULES: list[int] = [0] * 256
+for _op in _PC_ONLY_OPCODES:
+    _SKIP_RULES[_op] = _PC_ONLY
+for _op in (2, 41):
+    _SKIP_RULES[_op] = _PUSHED_OLD
+for _op in (3, 35, 36, 37, 38, 39):
+    _SKIP_RULES[_op] = _PUSHED_NEW
 
 _SIMPLE_OPS: list[Callable[[VM], None]] = [
     VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,
