@@ -7,7 +7,7 @@ until each has sent 200 broadcasts; a test's loss is 1 - heard / (broadcasts the
 summed over the drones. The model's loss curve is the paper's own measurement, so this checks
 that the engine's rate estimate, loss draws and the VM's receive path give it back.
 
-    PYTHONPATH=. python experiments/crazyflie_packet_loss.py [tests, default 20]
+    PYTHONPATH=. python experiments/crazyflie_packet_loss.py [tests, default 20] [drones, 4]
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ BROADCASTS = 200
 PAPER = {2: "0", 10: "1.55 ± 0.97", 20: "1.9 ± 1.2"}
 
 
-def loss_percent(period: int, seed: int, program: object) -> float:
+def loss_percent(period: int, seed: int, program: object, drones: int) -> float:
     steps = BROADCASTS * period + 1   # +1: the last broadcasts arrive one step later
-    sim = run("crazyflie", program, DRONES, seed, steps)
+    sim = run("crazyflie", program, drones, seed, steps)
     sent = globals_of(sim, "sent")
     heard = globals_of(sim, "heard")
     expected = sum(sum(sent) - s for s in sent)
@@ -32,12 +32,13 @@ def loss_percent(period: int, seed: int, program: object) -> float:
 
 def main() -> None:
     tests = int(sys.argv[1]) if len(sys.argv) > 1 else 20
+    drones = int(sys.argv[2]) if len(sys.argv) > 2 else DRONES
     rows = []
     for hz, period in ((2, 10), (10, 2), (20, 1)):
         program = compile_example("crazyflie", "examples/crazyflie/packet_loss.bzz",
                                   {"PERIOD": period, "COUNT": BROADCASTS})
-        losses = [loss_percent(period, seed, program) for seed in range(tests)]
-        rows.append([f"{hz} Hz ({period * 50} ms)", tests, mean_sd(losses),
+        losses = [loss_percent(period, seed, program, drones) for seed in range(tests)]
+        rows.append([f"{hz} Hz ({period * 50} ms)", f"{tests} x {drones} drones", mean_sd(losses),
                      f"{min(losses):.1f}-{max(losses):.1f}", PAPER[hz]])
     print(table(["broadcast rate", "tests", "loss (%)", "range (%)", "paper (%)"], rows))
 
