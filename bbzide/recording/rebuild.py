@@ -49,7 +49,7 @@ def program_from_record(record: dict[str, Any]) -> Any:
 _SAFE_GLOBALS = {("builtins", "set"), ("builtins", "frozenset"), ("builtins", "bytearray"),
                  ("builtins", "complex"), ("collections", "deque"),
                  ("collections", "OrderedDict"), ("copyreg", "_reconstructor"),
-                 ("builtins", "object")}
+                 ("builtins", "object"), ("bbzide.diagnostics", "SourceLocation")}
 #: Nested pickles are checked too, down to this depth (a snapshot of a snapshot at most).
 _NESTED_PICKLES = 4
 
