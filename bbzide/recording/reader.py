@@ -73,6 +73,7 @@ class Keyframe:
     step: int
     snapshot: bytes  # zlib-compressed Robot.snapshot()
     program: int
+    base: int = -1   # step of the full keyframe used as zlib dictionary (-1: this one is full)
 
 
 @dataclass
@@ -313,14 +314,15 @@ def _rare_rows(recording: Recording, columns: Columns, last: int) -> None:
         steps, robots = _rows(columns.get((layout.KEYFRAMES, "robots"), []))
         _, snapshots = _rows(columns.get((layout.KEYFRAMES, "snapshots"), []))
         _, programs = _rows(columns.get((layout.KEYFRAMES, "programs"), []))
-        for step, who, snaps, progs in zip(steps.tolist(), robots, snapshots, programs,
-                                           strict=True):
+        _, bases = _rows(columns.get((layout.KEYFRAMES, "bases"), []))
+        for step, who, snaps, progs, base in zip(steps.tolist(), robots, snapshots, programs,
+                                                 bases, strict=True):
             if step > last:
                 continue
-            for index, snapshot, program in zip(who.as_py(), snaps.as_py(), progs.as_py(),
-                                                strict=True):
+            for index, snapshot, program, based_on in zip(
+                    who.as_py(), snaps.as_py(), progs.as_py(), base.as_py(), strict=True):
                 recording.keyframes.setdefault(int(index), []).append(
-                    Keyframe(int(step), snapshot, int(program)))
+                    Keyframe(int(step), snapshot, int(program), int(based_on)))
         steps, texts = _rows(columns.get((layout.EVENTS, "TextLog:text"), []))
         _, kinds = _rows(columns.get((layout.EVENTS, "kind"), []))
         _, robots = _rows(columns.get((layout.EVENTS, "robot"), []))

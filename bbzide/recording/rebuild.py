@@ -49,7 +49,7 @@ def program_from_record(record: dict[str, Any]) -> Any:
 _SAFE_GLOBALS = {("builtins", "set"), ("builtins", "frozenset"), ("builtins", "bytearray"),
                  ("builtins", "complex"), ("collections", "deque"),
                  ("collections", "OrderedDict"), ("copyreg", "_reconstructor"),
-                 ("builtins", "object")}
+                 ("builtins", "object"), ("bbzide.diagnostics", "SourceLocation")}
 #: Nested pickles are checked too, down to this depth (a snapshot of a snapshot at most).
 _NESTED_PICKLES = 4
 
@@ -156,14 +156,27 @@ class RobotRebuilder:
         robot = self._build(self.program(keyframe.program), profile,
                             int(meta["robot_ids"][index]), host.functions())
         robot.boot()
+        robot.restore(self.snapshot(index, keyframe))
+        return robot, host
+
+    def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
+        """The keyframe's `Robot.snapshot()` bytes, inflated (with its full base) and checked."""
         try:
-            snapshot = zlib.decompress(keyframe.snapshot)
+            if keyframe.base < 0:
+                snapshot = zlib.decompress(keyframe.snapshot)
+            else:
+                base = next((k for k in self.recording.keyframes[index]
+                             if k.step == keyframe.base and k.base < 0), None)
+                if base is None:
+                    raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
+                                         f"needs a full keyframe at step {keyframe.base}")
+                unpacker = zlib.decompressobj(zdict=zlib.decompress(base.snapshot))
+                snapshot = unpacker.decompress(keyframe.snapshot) + unpacker.flush()
         except zlib.error as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None
         check_snapshot(snapshot, f"keyframe of robot #{index} at step {keyframe.step}")
-        robot.restore(snapshot)
-        return robot, host
+        return snapshot
 
     def _inputs(self, step: int) -> dict[int, Any]:
         decoded = self._decoded.get(step)

@@ -264,10 +264,10 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int
         frames=_stack_rows(vm, reader),
         globals=globals_,
         stigmergy=_stigmergy_rows(vm, reader, strings),
-        neighbors=_neighbor_rows(vm),
+        neighbors=_neighbor_rows(vm, profile, reader, gsyms),
         swarms=[f"swarm = {by_name['swarm']}"] if "swarm" in by_name else [],
-        in_queue=[_message_text(m) for m in vm.queues.inbox],
-        out_queue=[_message_text(m) for m in vm.queues.outbox],
+        in_queue=[_message_text(m) for m in vm.queues.in_messages()],
+        out_queue=[_message_text(m) for m in vm.queues.out_messages()],
         last_error=error_text,
         last_error_line=error_line,
         warnings=_runtime_warnings(vm),
@@ -298,14 +298,19 @@ def _stigmergy_rows(vm: Any, reader: HeapReader, strings: list[str]) -> list[tup
     return rows
 
 
-def _neighbor_rows(vm: Any) -> list[tuple[str, str]]:
-    return [(f"robot {n.robot}", f"distance {n.distance}, azimuth {n.azimuth}")
-            for n in getattr(vm.neighbors, "ring", [])]
+def _neighbor_rows(vm: Any, profile: Any, reader: HeapReader, gsyms: int
+                   ) -> list[tuple[str, str]]:
+    """XTREME builds keep neighbors in a ring buffer outside the heap; others in a table."""
+    if profile.xtreme:
+        return [(f"robot {n.robot}", f"distance {n.distance}, azimuth {n.azimuth}")
+                for n in vm.neighbors.entries()]
+    table = reader.named_refs(gsyms).get("neighbors")
+    return [] if table is None else reader.named_entries(table)
 
 
 def _runtime_warnings(vm: Any) -> list[str]:
     """Pitfalls only a running VM can see: messages filling the payload."""
-    for message in vm.queues.outbox:
+    for message in vm.queues.out_messages():
         if isinstance(message, bytes | bytearray) and len(message) >= DEFAULT_PAYLOAD_BYTES - 1:
             return [f"outgoing message of {len(message)} B is near the "
                     f"{DEFAULT_PAYLOAD_BYTES} B payload"]

@@ -28,8 +28,8 @@ pytestmark = pytest.mark.skipif(importlib.util.find_spec("bbzide.vm.robot") is N
                                 reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
 
 REPO = Path(__file__).resolve().parents[2]
-ROBOTS = 16
-STEPS = 80
+ROBOTS = 9
+STEPS = 60
 
 
 def vm_state(robot: object) -> tuple:
