@@ -1,0 +1,183 @@
+"""The worlds room's command line: `bbzide run X.bzz --world W ...` and `bbzide worlds`.
+
+    bbzide run X.bzz|X.bbo --world kilobot|crazyflie|... [--robots N] [--steps S] [--seed K]
+               [--comm-range M] [--loss P] [--set KEY=VALUE]... [-I DIR]...
+    bbzide worlds               list the worlds, their platform, host functions and example
+
+`run` is shared with the VM room (single robot): `bbzide/cli.py` builds one parser from both
+rooms' options, so `add_world_run_arguments` adds only the options the VM room has not added
+already (`--steps`, `--seed`, the script argument). The script is compiled for the world's
+platform (BittyBuzz base strings + the world's host names); the run prints one summary: speed,
+radio traffic and every robot error with its source line. Every problem is a `UserError`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+from typing import Any
+
+from bbzide.diagnostics import UserError
+from bbzide.worlds.radio import WorldConfigError
+from bbzide.worlds.registry import WORLDS, world_spec
+
+#: Steps of a headless run when neither room's parser gives a default: 10 s of Kilobot time.
+DEFAULT_STEPS = 100
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    worlds = subparsers.add_parser("worlds", help="list the simulated worlds")
+    worlds.set_defaults(handler=run_list_worlds)
+
+
+def _has_option(parser: argparse.ArgumentParser, option: str) -> bool:
+    return option in parser._option_string_actions
+
+
+def add_world_run_arguments(parser: argparse.ArgumentParser) -> None:
+    if not any(action.dest == "script" for action in parser._actions):
+        parser.add_argument("script", help="the .bzz (or .bbo) file")
+    group = parser.add_argument_group("swarm in a world (with --world)")
+    group.add_argument("--world", help=f"run a swarm in a world: {', '.join(WORLDS)}")
+    group.add_argument("--robots", type=int, default=None,
+                       help="number of robots (default: the world's)")
+    if not _has_option(parser, "--steps"):
+        group.add_argument("--steps", type=int, default=DEFAULT_STEPS, help="control steps")
+    if not _has_option(parser, "--seed"):
+        group.add_argument("--seed", type=int, default=0, help="random seed")
+    group.add_argument("--comm-range", type=float, default=None, help="radio range, metres")
+    group.add_argument("--loss", type=float, default=None,
+                       help="message loss probability (replaces the world's loss model)")
+    group.add_argument("--set", dest="world_options", action="append", default=[],
+                       metavar="KEY=VALUE", help="world option, e.g. width=2.0 (repeatable)")
+    if not _has_option(parser, "-I"):
+        group.add_argument("-I", dest="include", action="append", default=[],
+                           help="include folder")
+
+
+def parse_world_options(items: list[str]) -> dict[str, Any]:
+    """`KEY=VALUE` strings -> options; numbers become int/float, the rest stay strings."""
+    options: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise WorldConfigError(f"world option {item!r} must be KEY=VALUE")
+        parsed: Any = value
+        for convert in (int, float):
+            try:
+                parsed = convert(value)
+                break
+            except ValueError:
+                continue
+        options[key.replace("-", "_")] = parsed
+    return options
+
+
+def load_script(path: Path, host_names: tuple[str, ...], include: list[str]) -> Any:
+    """Compile a `.bzz` for a world's string table (or load a `.bbo`): a BittyBuzzProgram."""
+    from bbzide import compiler
+
+    if not path.exists():
+        raise UserError(f"no such script: {path}")
+    if path.suffix == ".bbo":
+        return compiler.load_program(path)
+    strings = compiler.bittybuzz_string_table(list(host_names))
+    include_path = (*include, str(path.parent))
+    return compiler.compile_file(str(path), include_path=include_path,
+                                 string_table=strings).to_bbo()
+
+
+def run_world(args: argparse.Namespace) -> int:
+    from bbzide.worlds.engine import Simulation
+
+    spec = world_spec(args.world)
+    steps = int(args.steps if args.steps is not None else DEFAULT_STEPS)
+    if steps < 0:
+        raise WorldConfigError(f"--steps must be >= 0, got {steps}")
+    robots = args.robots if args.robots is not None else spec.default_robots
+    program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
+                                                                    or []))
+    radio: dict[str, Any] = {}
+    if args.comm_range is not None:
+        radio["comm_range"] = args.comm_range
+    if args.loss is not None:
+        radio["loss_probability"] = args.loss
+        radio["loss_by_rate"] = ()
+    started = time.perf_counter()
+    sim = Simulation(spec.name, program, robots=robots, seed=int(args.seed or 0),
+                     world_options=parse_world_options(args.world_options), radio=radio)
+    booted = time.perf_counter()
+    sim.run(steps)
+    finished = time.perf_counter()
+    print(summary(sim, steps, booted - started, finished - booted))
+    return 0
+
+
+def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> str:
+    """The text `bbzide run --world` prints."""
+    world = sim.world
+    rate = steps / run_seconds if run_seconds > 0 else float("inf")
+    totals = sim.totals
+    lines = [
+        f"world {world.name}: {sim.count} robots, {steps} steps of {world.step_seconds:g} s "
+        f"({sim.time:g} s simulated), seed {sim.seed}",
+        f"speed: {rate:.1f} steps/s ({run_seconds:.2f} s; boot {boot_seconds:.2f} s)",
+        f"messages: {totals['sent']} sent, {totals['received']} received, "
+        f"{totals['dropped']} dropped, {totals['bytes']} bytes",
+    ]
+    spent = sum(sim.timings.values())
+    if spent > 0:
+        shares = ", ".join(f"{name} {100 * t / spent:.0f} %" for name, t in sim.timings.items())
+        lines.append(f"time: {shares}")
+    failures = sim.failures
+    lines.append(f"errors: {len(failures)} robot(s)" if failures else "errors: none")
+    # Robots that fail the same way (same error at the same place) are listed together, so
+    # a script error in a 1,000-robot swarm prints one entry, not 1,000.
+    groups: dict[tuple[str, str, str], list[Any]] = {}
+    for state in failures:
+        f = state.failure
+        key = (str(getattr(f, "reason", f)), str(getattr(f, "location", "")),
+               str(getattr(f, "message", "")))
+        groups.setdefault(key, []).append(state)
+    for states in groups.values():
+        lines.append("  " + describe_failure(states[0], others=len(states) - 1))
+    return "\n".join(lines)
+
+
+def describe_failure(state: Any, others: int = 0) -> str:
+    """`robot 3 (step 12): MEM at gradient.bzz:14:2, pc 37: <message>` plus the source line
+    (`robot 3 and 4 others ...` when `others` robots failed the same way)."""
+    failure = state.failure
+    reason = getattr(failure, "reason", str(failure))
+    location = getattr(failure, "location", None)
+    pc = getattr(failure, "pc", None)
+    message = getattr(failure, "message", "")
+    who = f"robot {state.robot_id}" + (f" and {others} other(s)" if others else "")
+    text = f"{who} (step {state.failure_step}): {reason}"
+    if location is not None:
+        text += f" at {location}"
+    if pc is not None:
+        text += f", pc {pc}"
+    if message:
+        text += f": {message}"
+    line = _source_line(location)
+    if line is not None:
+        text += f"\n      {line.strip()}"
+    return text
+
+
+def _source_line(location: Any) -> str | None:
+    try:
+        lines = Path(location.file).read_text(encoding="utf-8").splitlines()
+    except (OSError, AttributeError, TypeError):
+        return None
+    return lines[location.line - 1] if 1 <= location.line <= len(lines) else None
+
+
+def run_list_worlds(args: argparse.Namespace) -> int:
+    for spec in WORLDS.values():
+        print(f"{spec.name:10} {spec.title}: profile {spec.profile}, "
+              f"{spec.default_robots} robots by default, example {spec.example}")
+        print(f"{'':10} host functions: {', '.join(spec.host_names)}")
+    return 0

@@ -1,0 +1,445 @@
+"""The swarm engine: many BittyBuzz firmware loops stepped together in one world.
+
+Design: one `Simulation` owns the per-robot arrays (positions, headings, LED colours), one
+`Robot` (bbzide.vm.robot, the firmware loop around a VM) per robot that has a program, the
+`Radio` and a `World` (geometry, host functions, sensors, physics). Every control step runs the
+same fixed order, whatever the world:
+
+    1. world.sense           sensor readings for this step
+    2. deliver               messages due now -> Robot.receive(msg, distance, azimuth, elevation)
+    3. control               each live, awake robot: Robot.control_step() -> outgoing messages;
+                             a robot whose VM fails is marked (reason, pc, source line) and stops
+    4. radio                 send queues -> range, loss, bandwidth -> in flight for latency steps
+    5. world.advance         actuator commands and physics over one control period
+
+Randomness comes from one `numpy.random.Generator` per purpose (placement, radio loss, radio
+noise, world, one per robot for its `rand` host function), all spawned from the run seed, so the
+same seed gives the same trajectories and heaps, and adding a noise source does not change the
+others' draws. Robots may differ (`RobotGroup`: program, profile, labels); a group without a
+program is a passive body (a target) that the radio and the physics still see.
+
+The UI reads `robots` (`RobotState`: pose, heading, led, failure, robot, robot_id, labels),
+`links`, `step_count`, `world` (bounds, walls, robot_radius, comm_range) and `stats`; the names
+are fixed in ARCHITECTURE.md ("worlds → ui").
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+import numpy as np
+
+from bbzide.diagnostics import UserError
+from bbzide.worlds.radio import Radio, TrafficCounters, WorldConfigError
+from bbzide.worlds.registry import WORLDS, create_world
+from bbzide.worlds.world import HostFunction, RadioSettings, World
+
+__all__ = [
+    "WORLDS", "RobotGroup", "RobotState", "Simulation", "StepStats", "WorldConfigError",
+]
+
+
+class FirmwareLoop(Protocol):
+    """What the engine needs of a robot's firmware (bbzide.vm.robot.Robot has all of it)."""
+
+    failure: Any
+
+    def boot(self) -> None: ...
+    def receive(self, message: bytes, distance: float, azimuth: float,
+                elevation: float) -> None: ...
+    def control_step(self) -> list[bytes]: ...
+
+
+#: Builds a firmware loop: (program, profile, robot_id, host_functions) -> FirmwareLoop.
+RobotFactory = Callable[[Any, Any, int, Mapping[str, HostFunction]], FirmwareLoop]
+
+
+@dataclass
+class RobotGroup:
+    """Robots that share a program and a profile (None program: a passive body)."""
+
+    count: int
+    program: Any = None                  # BittyBuzzProgram, CompiledProgram or None
+    profile: Any = None                  # Profile or profile name; None: the world's
+    labels: dict[str, Any] = field(default_factory=dict)   # e.g. {"role": "target"}
+
+
+@dataclass
+class StepStats:
+    """Radio traffic of one control step, per robot (arrays indexed like `robots`) and total."""
+
+    step: int
+    sent: np.ndarray
+    received: np.ndarray
+    dropped: np.ndarray
+    bytes_sent: np.ndarray
+    bytes_received: np.ndarray
+
+    @property
+    def total_sent(self) -> int:
+        return int(self.sent.sum())
+
+    @property
+    def total_received(self) -> int:
+        return int(self.received.sum())
+
+    @property
+    def total_dropped(self) -> int:
+        return int(self.dropped.sum())
+
+    @property
+    def total_bytes(self) -> int:
+        return int(self.bytes_sent.sum())
+
+    def as_dict(self) -> dict[str, int]:
+        return {"step": self.step, "sent": self.total_sent, "received": self.total_received,
+                "dropped": self.total_dropped, "bytes": self.total_bytes}
+
+
+class RobotState:
+    """One robot as the UI sees it: a view on the engine's arrays plus its firmware loop."""
+
+    __slots__ = ("_sim", "index", "robot_id", "robot", "program", "profile", "_labels",
+                 "failure", "failure_step", "group")
+
+    def __init__(self, sim: Simulation, index: int, robot_id: int, group: RobotGroup,
+                 profile: Any) -> None:
+        self._sim = sim
+        self.index = index
+        self.robot_id = robot_id
+        self.group = group
+        self.program = group.program
+        self.profile = profile
+        self.robot: FirmwareLoop | None = None
+        self._labels: dict[str, Any] = dict(group.labels)
+        self.failure: Any = None
+        self.failure_step: int | None = None
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        x, y, z = self._sim.positions[self.index]
+        return (float(x), float(y), float(z))
+
+    @property
+    def heading(self) -> float:
+        return float(self._sim.headings[self.index])
+
+    @property
+    def led(self) -> tuple[float, float, float]:
+        r, g, b = self._sim.leds[self.index]
+        return (float(r), float(g), float(b))
+
+    @property
+    def alive(self) -> bool:
+        return self.robot is not None and self.failure is None
+
+    @property
+    def labels(self) -> dict[str, Any]:
+        """Group and world labels, plus the watched script globals (read now, from the heap)."""
+        labels = dict(self._labels)
+        for name in self._sim.watch:
+            if self.robot is not None:
+                value = self.global_value(name)
+                if value is not None:
+                    labels[name] = value
+        return labels
+
+    def set_label(self, name: str, value: Any) -> None:
+        """A label set by the world (e.g. "flying") or the engine."""
+        self._labels[name] = value
+
+    def global_value(self, name: str) -> Any:
+        """The script global `name` decoded (int, float, string, None; tables/closures by
+        kind), read from the VM heap; None when the robot has no VM or no such global."""
+        robot = self.robot
+        vm = getattr(robot, "vm", None)
+        if vm is None:
+            return None
+        return read_global(vm, _bbo_program(self.program).strings, name)
+
+    def __repr__(self) -> str:
+        return f"RobotState(id={self.robot_id}, pose={self.pose}, failure={self.failure})"
+
+
+def _bbo_program(program: Any) -> Any:
+    """A CompiledProgram becomes its BittyBuzzProgram; anything else is taken as it is."""
+    to_bbo = getattr(program, "to_bbo", None)
+    return to_bbo() if callable(to_bbo) and not hasattr(program, "bbo") else program
+
+
+def _default_robot_factory(instruction_budget: int | None, loop: str) -> RobotFactory:
+    def build(program: Any, profile: Any, robot_id: int,
+              host_functions: Mapping[str, HostFunction]) -> FirmwareLoop:
+        from bbzide.vm.robot import Robot  # the VM room; imported late (bbzide --help stays fast)
+
+        kwargs: dict[str, Any] = {"host_functions": host_functions, "loop": loop}
+        if instruction_budget is not None:
+            kwargs["instruction_budget"] = instruction_budget
+        return Robot(program, profile, robot_id, **kwargs)
+
+    return build
+
+
+class Simulation:
+    """A swarm in a world. `Simulation("kilobot", program, robots=25, seed=1).step()`."""
+
+    def __init__(
+        self,
+        world: str | World,
+        program: Any = None,
+        robots: int | None = None,
+        seed: int = 0,
+        *,
+        groups: Sequence[RobotGroup] | None = None,
+        positions: np.ndarray | None = None,
+        headings: np.ndarray | None = None,
+        world_options: Mapping[str, Any] | None = None,
+        radio: RadioSettings | Mapping[str, Any] | None = None,
+        robot_factory: RobotFactory | None = None,
+        instruction_budget: int | None = None,
+        loop: str = "pop",
+        watch: Sequence[str] = ("role",),
+    ) -> None:
+        self.world: World = (create_world(world, **dict(world_options or {}))
+                             if isinstance(world, str) else world)
+        if isinstance(radio, RadioSettings):
+            self.world.radio = radio
+        elif radio:
+            self.world.radio = _with_overrides(self.world.radio, radio)
+        if groups is None:
+            count = robots if robots is not None else _default_robots(self.world)
+            groups = [RobotGroup(count=count, program=program)]
+        self.groups = list(groups)
+        self.count = sum(g.count for g in self.groups)
+        self._check_count()
+        self.seed = seed
+        #: Script globals shown as labels (read only when `labels` is read).
+        self.watch = tuple(watch)
+        self._initial_positions = None if positions is None else np.asarray(positions, float)
+        self._initial_headings = None if headings is None else np.asarray(headings, float)
+        self._factory = robot_factory or _default_robot_factory(instruction_budget, loop)
+        self.timings: dict[str, float] = {"sense": 0.0, "vm": 0.0, "radio": 0.0, "physics": 0.0}
+        self._reset_world()
+        self._boot_all()
+
+    # ---- set-up -----------------------------------------------------------------------------
+    def _check_count(self) -> None:
+        if self.count < 1 or any(g.count < 0 for g in self.groups):
+            raise WorldConfigError(f"a swarm needs at least 1 robot, got {self.count}")
+        fit = self.world.max_robots()
+        if self.count > fit:
+            width, height = self.world.size
+            raise WorldConfigError(
+                f"{self.count} robots do not fit in the {self.world.name} world "
+                f"({width:g} m x {height:g} m holds at most {fit})")
+
+    def _reset_world(self) -> None:
+        streams = np.random.SeedSequence(self.seed).spawn(5)
+        self.rng: dict[str, np.random.Generator] = {
+            name: np.random.default_rng(s)
+            for name, s in zip(("placement", "loss", "noise", "world"), streams[:4], strict=True)
+        }
+        self.robot_rngs = [np.random.default_rng(s) for s in streams[4].spawn(self.count)]
+        placed, turned = self.world.place(self.count, self.rng["placement"])
+        if self._initial_positions is not None:
+            placed = _checked_array(self._initial_positions, (self.count, 3), "positions")
+        if self._initial_headings is not None:
+            turned = _checked_array(self._initial_headings, (self.count,), "headings")
+        self.positions = np.array(placed, dtype=np.float64)
+        self.headings = np.array(turned, dtype=np.float64)
+        self.leds = np.zeros((self.count, 3), dtype=np.float64)
+        self.step_count = 0
+        self.links: list[tuple[int, int]] = []
+        self.stats = StepStats(0, *(np.zeros(self.count, dtype=np.int64) for _ in range(5)))
+        self.totals = {"sent": 0, "received": 0, "dropped": 0, "bytes": 0}
+        self.radio = Radio(self.world.radio, self.count, self.world.step_seconds,
+                           self.rng["loss"], self.rng["noise"])
+        self.robots: list[RobotState] = []
+        index = 0
+        for group in self.groups:
+            profile = _profile(group.profile or self.world.profile_name)
+            for _ in range(group.count):
+                self.robots.append(RobotState(self, index, index, group, profile))
+                index += 1
+        self._ids = np.array([s.robot_id for s in self.robots], dtype=np.int64)
+        self.world.attach(self)
+
+    def _boot_all(self) -> None:
+        started = time.perf_counter()
+        for state in self.robots:
+            self._boot(state)
+        self.timings["vm"] += time.perf_counter() - started
+
+    def _boot(self, state: RobotState) -> None:
+        state.failure = None
+        state.failure_step = None
+        state.robot = None
+        if state.program is None:
+            return
+        program = _bbo_program(state.program)
+        functions = self.world.host_functions(self, state.index)
+        robot = self._factory(program, state.profile, state.robot_id, functions)
+        state.robot = robot
+        robot.boot()
+        self._check_failure(state)
+
+    def _check_failure(self, state: RobotState) -> None:
+        robot = state.robot
+        if robot is not None and robot.failure is not None and state.failure is None:
+            state.failure = robot.failure
+            state.failure_step = self.step_count
+
+    # ---- running ----------------------------------------------------------------------------
+    def step(self) -> StepStats:
+        """One control step of every robot, the radio and the physics."""
+        step = self.step_count
+        counters = TrafficCounters.zeros(self.count)
+        clock = time.perf_counter
+        t0 = clock()
+        self.world.sense(self)
+        t1 = clock()
+        robots = self.robots
+        for receiver, deliveries in enumerate(self.radio.due(step)):
+            if not deliveries:
+                continue
+            state = robots[receiver]
+            if not state.alive:
+                counters.dropped[receiver] += len(deliveries)
+                continue
+            robot = state.robot
+            receive = robot.receive
+            size = 0
+            for _, message, distance, azimuth, elevation in deliveries:
+                receive(message, distance, azimuth, elevation)
+                size += len(message)
+            counters.received[receiver] += len(deliveries)
+            counters.bytes_received[receiver] += size
+        world = self.world
+        radio = self.radio
+        for state in robots:
+            if not state.alive or world.is_asleep(state.index, step):
+                continue
+            outgoing = state.robot.control_step()
+            if state.robot.failure is not None:
+                self._check_failure(state)
+                continue
+            if outgoing:
+                radio.enqueue(state.index, outgoing, counters)
+        t2 = clock()
+        listening = np.fromiter((s.alive for s in robots), dtype=bool, count=self.count)
+        used = radio.transmit(step, self.positions, self.headings, listening, counters)
+        self.links = list(zip(self._ids[used[:, 0]].tolist(), self._ids[used[:, 1]].tolist(),
+                              strict=True))
+        t3 = clock()
+        world.advance(self, world.step_seconds)
+        t4 = clock()
+        timings = self.timings
+        timings["sense"] += t1 - t0
+        timings["vm"] += t2 - t1
+        timings["radio"] += t3 - t2
+        timings["physics"] += t4 - t3
+        self.stats = StepStats(step, counters.sent, counters.received, counters.dropped,
+                               counters.bytes_sent, counters.bytes_received)
+        self.totals["sent"] += self.stats.total_sent
+        self.totals["received"] += self.stats.total_received
+        self.totals["dropped"] += self.stats.total_dropped
+        self.totals["bytes"] += self.stats.total_bytes
+        self.step_count = step + 1
+        return self.stats
+
+    def run(self, steps: int) -> None:
+        for _ in range(steps):
+            self.step()
+
+    # ---- programs and queries ---------------------------------------------------------------
+    def load_program(self, program: Any, keep_state: bool = True) -> None:
+        """Reboot every programmed robot on `program`; keep the world as it is or reset it."""
+        for group in self.groups:
+            if group.program is not None:
+                group.program = program
+        for state in self.robots:
+            state.program = state.group.program
+        if not keep_state:
+            self._reset_world()
+        else:
+            self.radio = Radio(self.world.radio, self.count, self.world.step_seconds,
+                               self.rng["loss"], self.rng["noise"])
+            self.world.attach(self)
+        self._boot_all()
+
+    @property
+    def time(self) -> float:
+        """Simulated seconds since the start."""
+        return self.step_count * self.world.step_seconds
+
+    @property
+    def failures(self) -> list[RobotState]:
+        return [s for s in self.robots if s.failure is not None]
+
+    def state_of(self, robot_id: int) -> RobotState:
+        for state in self.robots:
+            if state.robot_id == robot_id:
+                return state
+        raise KeyError(robot_id)
+
+
+def read_global(vm: Any, strings: list[str], name: str) -> Any:
+    """A global of a VM, decoded from its heap (see `RobotState.global_value`)."""
+    from bbzide.compiler import bbzfloat
+    from bbzide.vm import heap
+    from bbzide.vm.inspector import globals_by_name
+
+    index = globals_by_name(vm, strings).get(name)
+    if index is None:
+        return None
+    h = vm.heap
+    kind = h.obj_type(index)
+    if kind == heap.INT:
+        return h.int_value(index)
+    if kind == heap.FLOAT:
+        return bbzfloat.to_float(h.u16(index))
+    if kind == heap.STRING:
+        sid = h.u16(index)
+        return strings[sid] if sid < len(strings) else sid
+    if kind == heap.TABLE:
+        return "table"
+    if kind == heap.CLOSURE:
+        return "closure"
+    return None
+
+
+def _profile(profile: Any) -> Any:
+    if not isinstance(profile, str):
+        return profile
+    from bbzide.vm.profiles import PROFILES
+
+    try:
+        return PROFILES[profile]
+    except KeyError:
+        raise UserError(f"unknown platform profile {profile!r}; "
+                        f"choose one of {', '.join(sorted(PROFILES))}") from None
+
+
+def _default_robots(world: World) -> int:
+    spec = WORLDS.get(world.name)
+    return spec.default_robots if spec else 1
+
+
+def _with_overrides(settings: RadioSettings, overrides: Mapping[str, Any]) -> RadioSettings:
+    import dataclasses
+
+    known = {f.name for f in dataclasses.fields(RadioSettings)}
+    unknown = sorted(set(overrides) - known)
+    if unknown:
+        raise WorldConfigError(f"unknown radio setting(s) {', '.join(unknown)}; "
+                               f"known: {', '.join(sorted(known))}")
+    return dataclasses.replace(settings, **overrides)
+
+
+def _checked_array(values: np.ndarray, shape: tuple[int, ...], what: str) -> np.ndarray:
+    if values.shape != shape:
+        raise WorldConfigError(f"{what} must have shape {shape}, got {values.shape}")
+    return values

@@ -1,0 +1,58 @@
+"""`bbzide run --world` and `bbzide worlds`: bad input is a one-line error, never a traceback."""
+
+from pathlib import Path
+
+import pytest
+
+from bbzide.cli import main
+
+REPO = Path(__file__).resolve().parents[2]
+GRADIENT = REPO / "examples" / "kilobot" / "gradient.bzz"
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--world", "mars"], "unknown world 'mars'"),
+    (["--world", "kilobot", "--robots", "0"], "at least 1 robot"),
+    (["--world", "kilobot", "--robots", "5000"], "do not fit"),
+    (["--world", "kilobot", "--comm-range", "-0.1"], "range must be >= 0"),
+    (["--world", "kilobot", "--loss", "1.5"], "loss probability"),
+    (["--world", "kilobot", "--set", "light=disco"], "unknown light field"),
+    (["--world", "kilobot", "--set", "colour=red"], "bad option"),
+    (["--world", "kilobot", "--set", "width"], "KEY=VALUE"),
+    (["--world", "crazyflie", "--set", "formation=chain", "--robots", "40"], "do not fit"),
+])
+def test_bad_parameters(extra, words, capsys):
+    assert main(["run", str(GRADIENT), *extra]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
+
+
+def test_script_that_does_not_compile(tmp_path, capsys):
+    script = tmp_path / "broken.bzz"
+    script.write_text("function step() {\n  led(1\n}\n")
+    assert main(["run", str(script), "--world", "kilobot"]) == 1
+    err = capsys.readouterr().err
+    assert "broken.bzz:3" in err and "Traceback" not in err
+
+
+def test_missing_script(capsys):
+    assert main(["run", "nowhere.bzz", "--world", "kilobot"]) == 1
+    assert "no such script" in capsys.readouterr().err
+
+
+def test_worlds_lists_every_world(capsys):
+    assert main(["worlds"]) == 0
+    out = capsys.readouterr().out
+    assert "kilobot" in out and "crazyflie" in out and "set_motor" in out
+
+
+def test_a_run_prints_speed_traffic_and_errors_with_source_lines(tmp_path, capsys):
+    script = tmp_path / "crash.bzz"
+    script.write_text("var n = 0\nfunction step() {\n  neighbors.broadcast(\"n\", n)\n"
+                      "  n = n + 1\n  if (n == 3) {\n    n = n / 0\n  }\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "3", "--steps", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "world kilobot: 3 robots, 5 steps" in out and "steps/s" in out
+    assert "messages: 6 sent" in out                  # 2 steps x 3 robots before the crash
+    assert "errors: 3 robot(s)" in out
+    assert "robot 0 and 2 other(s) (step 2): MATH" in out and "crash.bzz:" in out
