@@ -6,7 +6,7 @@ options; ``bbzharness-pc`` → the PC profile, ``bbzavr.py`` → the Kilobot pro
 (``tools/bbzconf.py``): level (a) byte-exact (heap bytes except C-closure pointers) and level
 (b) semantic. A failing run is reported with bbzconf's first lines: the dump, the field or
 the heap byte offsets that differ. The pass counts at both levels are printed at the end of
-the pytest run.
+the pytest run (``tests/corpus.py`` ``report``).
 """
 
 from __future__ import annotations
@@ -23,8 +23,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from conformance_summary import SUMMARY  # noqa: E402
-from corpus import BBZ_DIR, BBZCONF  # noqa: E402
+from corpus import BBZ_DIR, BBZCONF, report  # noqa: E402
 
 from bbzide.vm.harness import run_command_line  # noqa: E402
 from bbzide.vm.harness_options import split_command_line  # noqa: E402
@@ -80,8 +79,8 @@ def results() -> dict[str, tuple[int, str, int, str]]:
             out[name] = (da, ra, db, rb)
     a = sum(1 for v in out.values() if v[0] == 0)
     b = sum(1 for v in out.values() if v[2] == 0)
-    SUMMARY.append(f"corpus conformance: level (a) {a}/{len(out)} runs, "
-                   f"level (b) {b}/{len(out)} runs")
+    report("VM harness runs equal at level (a) (bbzconf diff)", a, len(out))
+    report("VM harness runs equal at level (b) (bbzconf sdiff)", b, len(out))
     return out
 
 
