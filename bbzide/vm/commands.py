@@ -23,6 +23,7 @@ from pathlib import Path
 from bbzide.diagnostics import UserError
 from bbzide.vm.harness_options import Registration, group_registrations
 from bbzide.vm.profiles import PROFILES
+from bbzide.vm.robot import DEFAULT_BUDGET
 
 #: control steps when --steps is not given
 DEFAULT_STEPS = 10
@@ -56,8 +57,10 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
                             "(default: log=print)")
     group.add_argument("--inject", type=Path, help="message injection file (corpus format)")
     group.add_argument("--dump", action="store_true", help="print #BBZDUMP 1 dumps")
-    group.add_argument("--budget", type=int, default=None,
-                       help="instruction budget per call into Buzz code (default: none)")
+    group.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
+                       help="instructions per call into Buzz code before the robot fails "
+                            f"with BUDGET (default {DEFAULT_BUDGET}; 0 = no limit, as the "
+                            "reference harness)")
     if not _has_option(parser, "-I"):
         group.add_argument("-I", dest="include", action="append", default=[],
                            help="include folder")
@@ -101,7 +104,7 @@ def run_single_robot(args: argparse.Namespace) -> int:
                       seed=int(args.seed or 0), loop=args.loop, registrations=registrations,
                       injections=injections, bbo_name=script.with_suffix(".bbo").name,
                       bo_name=script.with_suffix(".bo").name,
-                      instruction_budget=args.budget)
+                      instruction_budget=args.budget or None)
     out = sys.stdout
     if args.dump:
         out.write("\n".join(run.lines) + "\n")

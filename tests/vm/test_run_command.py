@@ -50,3 +50,10 @@ def test_run_error_names_the_source_position(tmp_path: Path, capsys) -> None:  #
 def test_run_missing_file_is_a_user_error(tmp_path: Path, capsys) -> None:  # noqa: ANN001
     assert main(["run", str(tmp_path / "nope.bzz")]) == 1
     assert "no such file" in capsys.readouterr().err
+
+
+def test_run_stops_an_infinite_loop(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    script = tmp_path / "spin.bzz"
+    script.write_text("function step() {\n  while(1) { x = 1 }\n}\n")
+    assert main(["run", str(script), "--steps", "1", "--budget", "3000"]) == 1
+    assert "BUDGET" in capsys.readouterr().err
