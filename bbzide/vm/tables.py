@@ -218,10 +218,40 @@ def darray_elements(heap: Heap, d: int) -> list[int]:
         seg = nxt
 
 
+class CloneFailed(HeapFull):
+    """``bbzdarray_clone`` ran out of memory after choosing the new object's slot: the C
+    has already written that index to its output (``vm->lsyms`` in ``callc``)."""
+
+    def __init__(self, index: int) -> None:
+        super().__init__(index)
+        self.index = index
+
+
+#: mdata of a table object whose first segment could not be allocated (valid, unmarked)
+_FRESH_TABLE = TABLE | VALID
+
+
 def darray_clone(heap: Heap, d: int) -> int:
-    c = darray_new(heap)
+    """``bbzdarray_clone``; raises CloneFailed(index) when the slot was taken but a segment
+    was missing, HeapFull when not even an object slot was free."""
+    rtobj = heap.rtobj
+    try:
+        c = darray_new(heap)
+    except HeapFull:
+        if heap.rtobj != rtobj:
+            raise CloneFailed(rtobj // heap.obj_size) from None
+        # first fit took the first free slot, now marked valid with no segment: right after
+        # a collection it is the first valid, unmarked, non-permanent table slot
+        s = heap.obj_size
+        for i in range(heap.reserved, heap.rtobj // s):
+            if heap.data[i * s] == _FRESH_TABLE:
+                raise CloneFailed(i) from None
+        raise
     for e in darray_elements(heap, d):
-        darray_push(heap, c, e)
+        try:
+            darray_push(heap, c, e)
+        except HeapFull:
+            raise CloneFailed(c) from None
     return c
 
 

@@ -54,9 +54,7 @@ from bbzide.vm.neighbors import NeighborsState
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (
-    compare as type_compare,
-)
-from bbzide.vm.tables import (
+    CloneFailed,
     darray_clone,
     darray_destroy,
     darray_find,
@@ -69,6 +67,9 @@ from bbzide.vm.tables import (
     lambda_alloc,
     table_get,
     table_set,
+)
+from bbzide.vm.tables import (
+    compare as type_compare,
 )
 from bbzide.vm.vstig import VstigStore
 
@@ -146,7 +147,7 @@ class VM:
         self.swarm = SwarmState()
         self.vstig = VstigStore()
         self.neighbors = NeighborsState()
-        self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap)
+        self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap, profile.obj_size)
 
     # =================================================================== construct
     def construct(self, robot: int | None = None) -> None:
@@ -583,13 +584,14 @@ class VM:
             if tl == FLOAT or tr == FLOAT:
                 self.seterror(Error.TYPE)
                 return
-            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)))
+            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)), float_ops=False)
             return
         if tl == INT and tr == INT:
             self._int_arith(kind, h.int_value(lhs), h.int_value(rhs))
             return
         if tl not in (INT, FLOAT) or tr not in (INT, FLOAT):
             self.seterror(Error.MATH)
+            self.push(self.nil)  # the C pushes the operator's nil result anyway
             return
         a = float(h.int_value(lhs)) if tl == INT else bbzfloat.to_float(h.u16(lhs))
         b = float(h.int_value(rhs)) if tr == INT else bbzfloat.to_float(h.u16(rhs))
@@ -610,12 +612,13 @@ class VM:
                 r = a - float(_s16(int(q))) * b if math.isfinite(q) else math.nan
             else:
                 self.seterror(Error.MATH)
+                self.push(self.nil)  # float '^': MATH, then push(nil) as the C does
                 return
         except OverflowError:
             r = math.inf
         self.push_float(bbzfloat.from_float(r))
 
-    def _int_arith(self, kind: int, a: int, b: int) -> None:
+    def _int_arith(self, kind: int, a: int, b: int, float_ops: bool = True) -> None:
         if kind == 0:
             r = a + b
         elif kind == 1:
@@ -641,6 +644,9 @@ class VM:
                 r = -1
             else:
                 self.seterror(Error.MATH)
+                if float_ops:  # the float build returns nil and pushes it; the int build 0
+                    self.push(self.nil)
+                    return
                 r = 0
         self.push_int(r)
 
@@ -810,6 +816,8 @@ class VM:
         if not self.assert_type(t, TABLE):
             return
         self.stackptr -= 3
+        if self.state == State.ERROR:  # bbzvm_assert_state() after the pops
+            return
         m = h.mdata(v)
         if (m & TYPE_MASK == CLOSURE and m & FLAG2 and h.data[v * h.obj_size + 2] != NO_ACTREC
                 and not h.mdata(h.data[v * h.obj_size + 2]) & FLAG2):
@@ -909,6 +917,10 @@ class VM:
         src = self.dflt_actrec if (not is_lambda or actrec == NO_ACTREC) else actrec
         try:
             self.lsyms = darray_clone(h, src)
+        except CloneFailed as failed:  # the C has already stored the new index in lsyms
+            self.lsyms = failed.index
+            self.seterror(Error.MEM)
+            return
         except HeapFull:
             self.seterror(Error.MEM)
             return

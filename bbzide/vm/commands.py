@@ -1,0 +1,117 @@
+"""``bbzide run X.bzz|X.bbo --platform P --steps N ...``: one robot, headless, on the VM model.
+
+The options are the corpus harness's (``--robot --steps --seed --loop --reg NAME=KIND
+--inject FILE``) plus ``--platform`` (a profile), ``--dump`` (print the ``#BBZDUMP 1`` text
+instead of the script's log) and ``--budget`` (instructions per entry into Buzz code), so
+every command of ``bbz/*.cmd`` can be replayed with ``bbzide run ... --dump`` and diffed
+with the reference by ``bbzconf.py diff``. Without ``--reg`` the script gets ``log`` (the
+harness's ``print`` kind). A ``.bzz`` is compiled with the BittyBuzz string table extended
+by the registered names, exactly as the corpus's ``.bst`` files are built.
+
+Output: the arguments of every ``log`` call, one line each (the ``out`` lines without
+``out``); a VM error becomes a ``UserError`` at the failing instruction's source position.
+``bbzide/cli.py`` defines ``run`` (shared with the worlds) and calls ``add_run_arguments`` and
+``run_single_robot``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from bbzide.diagnostics import UserError
+from bbzide.vm.harness_options import Registration, group_registrations
+from bbzide.vm.profiles import PROFILES
+
+#: control steps when --steps is not given
+DEFAULT_STEPS = 10
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """No subcommand of its own: ``run`` is registered by ``bbzide/cli.py``."""
+
+
+def _has_option(parser: argparse.ArgumentParser, option: str) -> bool:
+    return option in parser._option_string_actions
+
+
+def add_run_arguments(parser: argparse.ArgumentParser) -> None:
+    if not any(action.dest == "script" for action in parser._actions):
+        parser.add_argument("script", help="the .bzz (or .bbo) file")
+    group = parser.add_argument_group("one robot on the VM model (without --world)")
+    group.add_argument("--platform", default="kilobot", choices=sorted(PROFILES),
+                       help="VM profile (default kilobot)")
+    if not _has_option(parser, "--steps"):
+        group.add_argument("--steps", type=int, default=None,
+                           help=f"control steps (default {DEFAULT_STEPS})")
+    if not _has_option(parser, "--seed"):
+        group.add_argument("--seed", type=int, default=0, help="seed of the rand host kind")
+    group.add_argument("--robot", type=int, default=0, help="robot id (default 0)")
+    group.add_argument("--loop", choices=("pop", "robot"), default="pop",
+                       help="pop the value step() returns (default) or keep it, like the "
+                            "Kilobot firmware (the stack grows)")
+    group.add_argument("--reg", action="append", default=[], metavar="NAME=KIND",
+                       help="host closure: print|log|ret0|ret0/N|retnil|rand|min|reti:V "
+                            "(default: log=print)")
+    group.add_argument("--inject", type=Path, help="message injection file (corpus format)")
+    group.add_argument("--dump", action="store_true", help="print #BBZDUMP 1 dumps")
+    group.add_argument("--budget", type=int, default=None,
+                       help="instruction budget per call into Buzz code (default: none)")
+    if not _has_option(parser, "-I"):
+        group.add_argument("-I", dest="include", action="append", default=[],
+                           help="include folder")
+
+
+def host_names(registrations: list[Registration]) -> list[str]:
+    """Names the registrations add to the string table (``tbl`` and each field)."""
+    names: list[str] = []
+    for reg in registrations:
+        names.append(reg.name)
+        names.extend(f for f, _ in reg.fields)
+    return names
+
+
+def load(script: Path, registrations: list[Registration], include: list[str]):  # noqa: ANN201
+    """A BittyBuzzProgram from a ``.bzz`` (compiled) or a ``.bbo`` (+ ``.bo``/``.bdb``)."""
+    from bbzide.compiler import bittybuzz_string_table, compile_file, load_program
+
+    if not script.exists():
+        raise UserError(f"{script}: no such file")
+    if script.suffix == ".bbo":
+        bo, bdb = script.with_suffix(".bo"), script.with_suffix(".bdb")
+        return load_program(script, bo=bo if bo.exists() else None,
+                            bdb=bdb if bdb.exists() else None)
+    table = bittybuzz_string_table(host_names(registrations))
+    return compile_file(script, include_path=include, string_table=table).to_bbo()
+
+
+def run_single_robot(args: argparse.Namespace) -> int:
+    from bbzide.vm.harness import run_harness
+    from bbzide.vm.injections import parse_injection_file
+
+    script = Path(args.script)
+    registrations = group_registrations(args.reg or ["log=print"])
+    program = load(script, registrations, list(getattr(args, "include", []) or []))
+    injections = parse_injection_file(args.inject) if args.inject else []
+    steps = DEFAULT_STEPS if args.steps is None else int(args.steps)
+    if steps < 0:
+        raise UserError("--steps must be ≥ 0")
+    run = run_harness(program, PROFILES[args.platform], robot_id=args.robot, steps=steps,
+                      seed=int(args.seed or 0), loop=args.loop, registrations=registrations,
+                      injections=injections, bbo_name=script.with_suffix(".bbo").name,
+                      bo_name=script.with_suffix(".bo").name,
+                      instruction_budget=args.budget)
+    out = sys.stdout
+    if args.dump:
+        out.write("\n".join(run.lines) + "\n")
+    else:
+        for line in run.lines:
+            if line == "out" or line.startswith("out "):
+                out.write(line[4:] + "\n")
+    out.flush()
+    failure = run.robot.failure
+    if failure is not None:
+        raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
+                        f"{failure.message}", failure.location)
+    return 0
