@@ -6,7 +6,8 @@ skips the collections it proves changeless (ARCHITECTURE.md "vm speed"). Every o
 state must be identical: heap bytes (stale bytes, mark and valid bits included), rtobj/ltseg,
 stack, pc, state, error events with their pc, the GC run count.
 
-Observed: at every dump point of every corpus run (the corpus driver), and for generated
+Observed: every dump of the 92 corpus harness runs (``tests/vm/test_core_corpus.py`` also
+compares the vm-core driver's dumps), and for generated
 Buzz programs (hypothesis) after every phase and after random instruction counts — a budget
 stops the run mid-step, as an inspector pausing the VM would. Mutated bytecode exercises the
 corrupt states (stale references, freed-but-referenced objects) where a shortcut would show.
@@ -23,15 +24,12 @@ from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-from core_driver import parse_reference, run_script  # noqa: E402
 from corpus import BBZ_DIR  # noqa: E402
 
 from bbzide.compiler import compile_source  # noqa: E402
 from bbzide.diagnostics import CompileError  # noqa: E402
 from bbzide.vm.profiles import KILOBOT, PC, Profile  # noqa: E402
 from bbzide.vm.vm import VM, State  # noqa: E402
-
-DUMPS = sorted(Path(BBZ_DIR).glob("*.dump"))
 
 
 def _observe(vm: VM) -> tuple:
@@ -40,12 +38,31 @@ def _observe(vm: VM) -> tuple:
             vm.heap.gc_runs, vm.instructions_executed)
 
 
-def test_corpus_runs_identical_at_every_dump() -> None:
-    for f in DUMPS:
-        _, ref, _ = parse_reference(f)
-        stress = run_script(Path(BBZ_DIR), f.name, stress_gc=True)
-        fast = run_script(Path(BBZ_DIR), f.name, stress_gc=False)
-        assert [vars(s) for s in stress] == [vars(s) for s in fast], f.name
+def _harness_lines() -> list[tuple[str, list[str]]]:
+    """(profile name, arguments) of every harness run in the corpus ``.cmd`` files."""
+    runs = []
+    for cmd in sorted(Path(BBZ_DIR).glob("*.cmd")):
+        for line in cmd.read_text().splitlines():
+            words = line.split()
+            if words and words[0] in ("bbzharness-pc", "bbzavr.py") and ">" in words:
+                runs.append(("pc" if words[0] == "bbzharness-pc" else "kilobot",
+                             words[1:words.index(">")]))
+    return runs
+
+
+def test_corpus_harness_runs_identical() -> None:
+    """The whole firmware loop (messages, neighbors, stigmergy, swarms, injections) through
+    vm-runtime's harness: every ``#BBZDUMP 1`` line (all heap bytes) equal in both modes."""
+    from bbzide.vm.harness import run_command_line
+    from bbzide.vm.profiles import get_profile
+
+    runs = _harness_lines()
+    assert len(runs) == 92
+    for profile, argv in runs:
+        stress = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=True)
+        fast = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=False)
+        assert (stress.lines, stress.status) == (fast.lines, fast.status), argv
+        assert stress.robot.vm.heap.gc_runs == fast.robot.vm.heap.gc_runs, argv
 
 
 # ---- generated programs ---------------------------------------------------------------
