@@ -240,6 +240,14 @@ class VM:
         h.rtobj = r >> 16
         h.ltseg = r & 0xFFFF
 
+    def settle(self) -> None:
+        """Make every observable byte exact now. A no-op: the fast mode defers nothing
+        past the instruction being run — it skips only collections that would change
+        nothing but a new leaf's mark bit, which it sets where that collection would have
+        run — so whenever the VM is not inside ``step``/``run``/``closure_call`` the heap,
+        ROP/LSP and stack are those of the reference. Kept so that observers (inspector,
+        dumps) can say what they need without knowing how the VM runs."""
+
     def alloc_or_mem(self, fn: Callable[[Heap], int]) -> int:
         """Run an allocating heap function; MEM error and nil on failure."""
         try:
@@ -1117,6 +1125,7 @@ class VM:
         data = heap.data
         s = heap.obj_size
         info = heap.gc_info
+        objects = heap.objects
         collect = self.collect_fast
         execute = self.exec_instr
         bcode = self.bcode
@@ -1124,24 +1133,28 @@ class VM:
         stack = self.stack
         rules = _SKIP_RULES
         fixed = False
+        pending = -1  # byte offset of a new leaf whose mark the next collection sets
         while saved is None or saved < self.blockptr:
             if self.state != ready:
                 return
             if fixed:
+                # the skipped collection's only effect, done where it would have run
                 heap.gc_runs += 1
+                if pending >= 0:
+                    data[pending] |= GC_MARK
             else:
                 collect()
             pc = self.pc
             execute()
             # Is the heap still a fixed point of the collector? (see _SKIP_RULES)
             rule = rules[bcode[pc]] if pc < size and self.state == ready else 0
-            if rule == _PUSHED_NEW:
-                top = stack[self.stackptr]
-                m = data[top * s]
-                t = m & TYPE_MASK
-                fixed = t != TABLE and (t != CLOSURE or not m & FLAG2)
-                if fixed:
-                    data[top * s] = m | GC_MARK
+            pending = -1
+            if rule >= _PUSHED_OLD and stack[self.stackptr] >= objects:
+                fixed = False  # an index past the heap (corrupt code): let the GC decide
+            elif rule == _PUSHED_NEW:
+                pending = stack[self.stackptr] * s
+                t = data[pending] & TYPE_MASK
+                fixed = t != TABLE and (t != CLOSURE or not data[pending] & FLAG2)
             elif rule == _PUSHED_OLD:
                 top = stack[self.stackptr]
                 m = data[top * s]
@@ -1179,7 +1192,8 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 #   from the permanent roots (``gc_info``): its stack root then finds it marked, a no-op;
 # * _PUSHED_NEW: it pushed a new leaf (pushf, pushi, pushs — or a deduplicated, hence
 #   marked, string —, pushcn, pushcc, dup of a leaf): the next collection would only set
-#   its mark bit, which the loop sets.
+#   its mark bit, which the loop sets in its place, at the start of the next step (not
+#   before: a VM stopped between the two shows the unmarked object, as the firmware).
 # None of these changes how non-leaves are traversed, so ``gc_info`` stays true. Every
 # other instruction (pops, stores, calls, tables, lambdas) is followed by a collection.
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW = 1, 2, 3

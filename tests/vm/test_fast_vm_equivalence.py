@@ -1,0 +1,217 @@
+"""The fast VM (compiled collector + skipped collections) against the reference mode.
+
+``VM(stress_gc=True)`` collects with the transcription of ``bbzheap_gc`` before every
+instruction, as the firmware does; ``VM(stress_gc=False)`` runs the compiled collector and
+skips the collections it proves changeless (ARCHITECTURE.md "vm speed"). Every observable
+state must be identical: heap bytes (stale bytes, mark and valid bits included), rtobj/ltseg,
+stack, pc, state, error events with their pc, the GC run count.
+
+Observed: every dump of the 92 corpus harness runs (``tests/vm/test_core_corpus.py`` also
+compares the vm-core driver's dumps), and for generated
+Buzz programs (hypothesis) after every phase and after random instruction counts — a budget
+stops the run mid-step, as an inspector pausing the VM would. Mutated bytecode exercises the
+corrupt states (stale references, freed-but-referenced objects) where a shortcut would show.
+"""
+
+from __future__ import annotations
+
+import random
+import sys
+from pathlib import Path
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+from corpus import BBZ_DIR  # noqa: E402
+
+from bbzide.compiler import compile_source  # noqa: E402
+from bbzide.diagnostics import CompileError  # noqa: E402
+from bbzide.vm.profiles import KILOBOT, PC, Profile  # noqa: E402
+from bbzide.vm.vm import VM, State  # noqa: E402
+
+
+def _observe(vm: VM) -> tuple:
+    return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
+            vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data), list(vm.error_events),
+            vm.heap.gc_runs, vm.instructions_executed)
+
+
+def _harness_lines() -> list[tuple[str, list[str]]]:
+    """(profile name, arguments) of every harness run in the corpus ``.cmd`` files."""
+    runs = []
+    for cmd in sorted(Path(BBZ_DIR).glob("*.cmd")):
+        for line in cmd.read_text().splitlines():
+            words = line.split()
+            if words and words[0] in ("bbzharness-pc", "bbzavr.py") and ">" in words:
+                runs.append(("pc" if words[0] == "bbzharness-pc" else "kilobot",
+                             words[1:words.index(">")]))
+    return runs
+
+
+def test_corpus_harness_runs_identical() -> None:
+    """The whole firmware loop (messages, neighbors, stigmergy, swarms, injections) through
+    vm-runtime's harness: every ``#BBZDUMP 1`` line (all heap bytes) equal in both modes."""
+    from bbzide.vm.harness import run_command_line
+    from bbzide.vm.profiles import get_profile
+
+    runs = _harness_lines()
+    assert len(runs) == 92
+    for profile, argv in runs:
+        stress = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=True)
+        fast = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=False)
+        assert (stress.lines, stress.status) == (fast.lines, fast.status), argv
+        assert stress.robot.vm.heap.gc_runs == fast.robot.vm.heap.gc_runs, argv
+
+
+# ---- generated programs ---------------------------------------------------------------
+# Small Buzz programs built to reach every skip rule's edge: locals and globals (pushes of
+# existing objects), literals (new leaves), tables nested deeper than the GC mark depth
+# (freed-but-referenced objects, first-visit-wins order), lambdas with activation records,
+# strings (dedupe), errors (division by zero, calls of non-closures, floats on Kilobot).
+
+_NAMES = ["a", "b", "c"]
+
+
+def _operand(draw: st.DrawFn, depth: int) -> str:
+    """An arithmetic operand (Buzz accepts table literals and lambdas only as whole
+    expressions, spec §A.3)."""
+    kind = draw(st.sampled_from(["int", "int", "var", "var", "field"]
+                                + (["bin", "cmp"] if depth < 3 else ["str"])))
+    if kind == "int":
+        return str(draw(st.integers(0, 40000)))
+    if kind == "var":
+        return draw(st.sampled_from(_NAMES + ["g", "i"]))
+    if kind == "str":
+        return repr(draw(st.sampled_from(["x", "y", "a"])))
+    if kind == "field":
+        return f"t.{draw(st.sampled_from(['x', 'y', 'n', 'h']))}"
+    if kind == "bin":
+        op = draw(st.sampled_from(["+", "-", "*", "/", "%"]))
+        # literal divisors: a division by zero would end most runs early (MATH error)
+        rhs = str(draw(st.integers(1, 9))) if op in "/%" else _operand(draw, depth + 1)
+        return f"({_operand(draw, depth + 1)} {op} {rhs})"
+    op = draw(st.sampled_from(["==", "!=", "<", ">="]))
+    return f"({_operand(draw, depth + 1)} {op} {_operand(draw, depth + 1)})"
+
+
+def _expr(draw: st.DrawFn, depth: int) -> str:
+    kind = draw(st.sampled_from(["op", "op", "op", "table", "lambda"]))
+    if kind == "op":
+        return _operand(draw, depth)
+    if kind == "table":
+        return f"{{.x = {_expr(draw, depth + 1)}, .y = {_operand(draw, depth + 1)}}}"
+    return f"function(p) {{ return p + {_operand(draw, depth + 1)} }}"
+
+
+def _nested(levels: int) -> str:
+    text = "1"
+    for _ in range(levels):
+        text = f"{{.n = {text}, .x = 2}}"
+    return text
+
+
+def _stmt(draw: st.DrawFn, depth: int) -> str:
+    kind = draw(st.sampled_from(["set", "set", "global", "field", "if", "while", "call",
+                                 "nest", "lambda"] if depth < 2 else ["set", "global"]))
+    if kind == "set":
+        return f"{draw(st.sampled_from(_NAMES))} = {_expr(draw, 0)}"
+    if kind == "global":
+        return f"g = {_expr(draw, 0)}"
+    if kind == "field":
+        return f"t.{draw(st.sampled_from(['x', 'y']))} = {_expr(draw, 0)}"
+    if kind == "if":
+        return (f"if ({_operand(draw, 1)}) {{ {_stmt(draw, depth + 1)} }} "
+                f"else {{ {_stmt(draw, depth + 1)} }}")
+    if kind == "while":
+        n = draw(st.integers(0, 8))
+        body = " ".join(_stmt(draw, depth + 1) for _ in range(draw(st.integers(1, 4))))
+        return f"i = 0 while (i < {n}) {{ {body} i = i + 1 }}"
+    if kind == "call":
+        return f"{draw(st.sampled_from(_NAMES))} = helper({_operand(draw, 1)})"
+    if kind == "nest":
+        return f"t.n = {_nested(draw(st.integers(5, 11)))}"
+    return f"f = function(q) {{ return q * {_operand(draw, 1)} }} a = f(3)"
+
+
+@st.composite
+def programs(draw: st.DrawFn) -> str:
+    body = [_stmt(draw, 0) for _ in range(draw(st.integers(1, 8)))]
+    init = [_stmt(draw, 0) for _ in range(draw(st.integers(0, 3)))]
+    return "\n".join([
+        "g = 0",
+        "i = 0",
+        "t = {.x = 1}",
+        "function helper(v) { var w = v t.h = w return w }",
+        "function init() {",
+        "  var a = 1 var b = 2 var c = 3 var f = nil",
+        *init,
+        "}",
+        "function step() {",
+        "  var a = g var b = 1 var c = t var f = nil",
+        *body,
+        "}",
+    ]) + "\n"
+
+
+def _run(bbo: bytes, strings: list[str], profile: Profile, stress: bool,
+         budget: int | None) -> list[tuple]:
+    """Top level, init, 4 steps; observed after each phase. ``budget`` stops every phase
+    after that many instructions (a mid-step observation)."""
+    vm = VM(profile, stress_gc=stress)
+    vm.instruction_budget = budget
+    vm.construct()
+    vm.set_bcode(bbo)
+    out = [_observe(vm)]
+    vm.run(max_instructions=budget if budget is not None else 20_000)
+    out.append(_observe(vm))
+    for name in ["init"] + ["step"] * 4:
+        if vm.state == State.ERROR:
+            break
+        if name not in strings:
+            continue
+        vm.state = State.READY
+        vm.push_nil()
+        vm.function_call(strings.index(name), 0)
+        if vm.state == State.READY:
+            vm.pop()
+        out.append(_observe(vm))
+    return out
+
+
+def _compare(bbo: bytes, strings: list[str], seed: int) -> None:
+    rng = random.Random(seed)
+    for profile in (PC, KILOBOT):
+        for budget in (None, rng.randrange(1, 60), rng.randrange(60, 600)):
+            stress = _run(bbo, strings, profile, True, budget)
+            fast = _run(bbo, strings, profile, False, budget)
+            assert stress == fast, (profile.name, budget)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(programs(), st.integers(0, 2**32))
+def test_generated_programs_identical(source: str, seed: int) -> None:
+    try:
+        program = compile_source(source, "gen.bzz").to_bbo()
+    except CompileError:
+        return
+    _compare(program.bbo, program.strings, seed)
+
+
+_BASE = compile_source(
+    "t = {.x = {.y = {.z = 1}}}\n"
+    "function step() { var a = t.x var b = 3 * 4 a.q = b t.l = function(p) { return p + b }"
+    " var c = t.l(2) g = {.n = {.n = {.n = {.n = {.n = {.n = {.n = {.n = 1}}}}}}}} }\n",
+    "mutate.bzz",
+).to_bbo()
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.integers(0, len(_BASE.bbo) - 1), st.integers(0, 255)),
+                min_size=1, max_size=4), st.integers(0, 2**32))
+def test_mutated_bytecode_identical(mutations: list[tuple[int, int]], seed: int) -> None:
+    code = bytearray(_BASE.bbo)
+    for offset, value in mutations:
+        code[offset] = value
+    _compare(bytes(code), _BASE.strings, seed)
