@@ -160,11 +160,12 @@ def _run(bbo: bytes, strings: list[str], profile: Profile, stress: bool,
     """Top level, init, 4 steps; observed after each phase. ``budget`` stops every phase
     after that many instructions (a mid-step observation)."""
     vm = VM(profile, stress_gc=stress)
-    vm.instruction_budget = budget
+    # nested loops may share their counter and never end: always bounded
+    vm.instruction_budget = budget if budget is not None else 5_000
     vm.construct()
     vm.set_bcode(bbo)
     out = [_observe(vm)]
-    vm.run(max_instructions=budget if budget is not None else 20_000)
+    vm.run()
     out.append(_observe(vm))
     for name in ["init"] + ["step"] * 4:
         if vm.state == State.ERROR:
