@@ -15,8 +15,10 @@ here: `bbzide.vm.commands.add_run_arguments(parser)` adds the single-robot optio
 harness's: --platform, --robot, --reg, --inject, --loop, --seed, --dump, ...) and
 `bbzide.worlds.commands.add_world_run_arguments(parser)` the swarm options (--world, --robots, ...);
 with `--world` the worlds room runs it (`run_world(args)`), otherwise the VM room
-(`run_single_robot(args)`). This file only routes and turns `UserError`
-into a one-screen message with exit status 1: no traceback reaches a user.
+(`run_single_robot(args)`); with `--record` (options from
+`bbzide.recording.commands.add_record_arguments`) the recording room runs it
+(`run_recorded(args)`, above the worlds, which never import it). This file only routes and
+turns `UserError` into a one-screen message with exit status 1: no traceback reaches a user.
 """
 
 from __future__ import annotations
@@ -77,8 +79,15 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
         vm_commands.add_run_arguments(run)
     if world_commands is not None:
         world_commands.add_world_run_arguments(run)
+    record_commands = _optional_module("bbzide.recording.commands")
+    if record_commands is not None:
+        record_commands.add_record_arguments(run)
 
     def dispatch(args: argparse.Namespace) -> int:
+        if getattr(args, "record", None):
+            if record_commands is None:
+                raise UserError("recording is not available in this build")
+            return int(record_commands.run_recorded(args) or 0)
         if getattr(args, "world", None):
             if world_commands is None:
                 raise UserError("worlds are not available in this build")

@@ -23,6 +23,7 @@ from bbzide.ui.controls import RunControls
 from bbzide.ui.editor_server import EditorServer
 from bbzide.ui.file_watcher import FileWatcher
 from bbzide.ui.inspector_panel import InspectorPanel
+from bbzide.ui.overlay_view import OverlayView
 from bbzide.ui.pitfalls import find_pitfalls
 from bbzide.ui.program_session import CompileOutcome, Diagnostic, ProgramSession
 from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
@@ -33,6 +34,9 @@ from bbzide.ui.world_backend import SwarmFrame, WorldBackend
 TICK_SECONDS = 0.25
 #: Width of the editor panel: ~70 columns of 13 px monospace plus the line-number gutter.
 EDITOR_PANEL_WIDTH = 600
+#: World overlays (light field, belief map, targets) are re-read every 4 ticks (1 s): they
+#: change slowly and the Kilobot light raster costs 1,024 evaluations.
+OVERLAY_TICKS = 4
 #: How long an inspector refresh may wait for the current step to end before skipping a tick.
 INSPECT_LOCK_TIMEOUT = 0.2
 
@@ -57,8 +61,11 @@ class IdeApp:
         )
         self.editor_server = EditorServer(self.session, host=host)
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
+        self.overlays = OverlayView(self.server)
+        self._overlay_ticks = 0
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
         self.controls.world.on_update(lambda _: self._change_world(str(self.controls.world.value)))
+        self.controls.record.on_update(lambda _: self._toggle_recording(self.controls.record.value))
         self._inspectors: dict[int, InspectorPanel] = {}
         self._world_generation = -1
         self._build_dirty = True
@@ -133,6 +140,12 @@ class IdeApp:
     def _pitfalls(self, text: str) -> list[Diagnostic]:
         platform = self.backend.platform(self.controller.settings.world)
         return find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+
+    def _toggle_recording(self, on: bool) -> None:
+        if not on:
+            self.controller.set_recording(None)
+            return
+        self.controller.set_recording(new_recording_path(self.session.path), self.session.text)
 
     def _reload_from_disk(self) -> None:
         self.session.reload_from_disk()
@@ -216,6 +229,15 @@ class IdeApp:
         view.warnings = self._program_warnings() + view.warnings
         inspector.refresh(view)
 
+    def _refresh_overlays(self) -> None:
+        try:
+            with self.controller.locked(timeout=INSPECT_LOCK_TIMEOUT) as sim:
+                read = getattr(sim, "overlays", None)
+                overlays = read() if read is not None else None
+        except StepInProgress:
+            return
+        self.overlays.show(overlays)
+
     def _program_warnings(self) -> list[str]:
         """The running program's compiler warnings and pitfalls, as `line:col: message`."""
         good = self.session.last_good
@@ -241,6 +263,9 @@ class IdeApp:
         self.controls.refresh_status(note)
         if self._build_dirty:
             self._refresh_build_view()
+        self._overlay_ticks += 1
+        if self._overlay_ticks % OVERLAY_TICKS == 1:
+            self._refresh_overlays()
         busy_since = self.controller.status.step_started_at
         step_is_long = (
             busy_since is not None and time.monotonic() - busy_since > INSPECT_LOCK_TIMEOUT
@@ -248,3 +273,16 @@ class IdeApp:
         for inspector in list(self._inspectors.values()):
             if inspector.selected is not None and not step_is_long:
                 self._refresh_inspector(inspector)
+
+
+def new_recording_path(script: Path) -> Path:
+    """`<script folder>/recordings/<script>-<date>-<time>.rrd`, never an existing file."""
+    folder = script.parent / "recordings"
+    folder.mkdir(exist_ok=True)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    path = folder / f"{script.stem}-{stamp}.rrd"
+    suffix = 1
+    while path.exists():
+        suffix += 1
+        path = folder / f"{script.stem}-{stamp}-{suffix}.rrd"
+    return path

@@ -1,6 +1,7 @@
 """`bbzide ide [X.bzz]`: open the browser IDE (also what plain `bbzide` does).
 
     bbzide ide [X.bzz] [--world W] [--robots N] [--seed K] [--host H] [--port P] [--no-browser]
+    bbzide replay X.rrd [--host H] [--port P] [--no-browser]
 
 Without a script the IDE opens the world's example. The example is copied once to a scratch
 file in the user's data directory (`~/.local/share/bbzide/scratch/`), because the editor saves
@@ -54,6 +55,43 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         no_browser=False,
         paused=False,
     )
+    register_replay(subparsers)
+
+
+def register_replay(subparsers: argparse._SubParsersAction) -> None:
+    replay = subparsers.add_parser(
+        "replay", help="open a recorded mission (.rrd) in the IDE: timeline, scene, inspector"
+    )
+    replay.add_argument("recording", type=Path, help="a recording made with --record")
+    replay.add_argument("--host", default="127.0.0.1", help="address to listen on")
+    replay.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (default 8080)")
+    replay.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
+    replay.set_defaults(handler=run_replay)
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    from bbzide.recording.reader import read_recording
+    from bbzide.ui.replay_app import ReplayApp
+    from bbzide.ui.replay_session import ReplaySession
+
+    recording = read_recording(args.recording)
+    app = ReplayApp(ReplaySession(recording), host=args.host, port=args.port).start()
+    cut = " (cut off: shown up to its last flushed step)" if recording.truncated else ""
+    print(
+        f"bbzide replay: {app.url}  ({args.recording}: steps {recording.first_step}.."
+        f"{recording.last_step}{cut}; Ctrl-C to stop)",
+        flush=True,
+    )
+    if not args.no_browser:
+        webbrowser.open(app.url)
+    try:
+        while True:
+            time.sleep(3600)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app.stop()
+    return 0
 
 
 def run_ide(args: argparse.Namespace) -> int:

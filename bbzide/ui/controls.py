@@ -62,6 +62,11 @@ class RunControls:
             self.seed = gui.add_number(
                 "Seed", initial_value=settings.seed, min=0, max=2**31 - 1, step=1
             )
+            self.record = gui.add_checkbox(
+                "Record",
+                initial_value=False,
+                hint="Write the run to a new .rrd (replay it with `bbzide replay FILE.rrd`)",
+            )
             self.keep_state = gui.add_checkbox(
                 "Keep world on reload",
                 initial_value=settings.keep_state_on_reload,
@@ -117,6 +122,8 @@ def status_text(status: RunStatus, has_program: bool) -> str:
         text += (
             f"  \n⚠ one step has run for {time.monotonic() - started:.1f} s (a loop in the script?)"
         )
+    if status.recording:
+        text += f"  \n⏺ recording to `{status.recording}`"
     if status.error:
         text += f"  \n**world error:** `{status.error}`"
     return text

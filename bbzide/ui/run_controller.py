@@ -54,6 +54,7 @@ class RunStatus:
     step_started_at: float | None = None  # monotonic time the current step began (None = idle)
     error: str | None = None  # a world/engine failure (not a robot's VM error)
     program_generation: int = 0  # bumps when a new program is loaded
+    recording: str | None = None  # the .rrd being written (None = not recording)
 
 
 class RunController:
@@ -89,6 +90,7 @@ class RunController:
         self._stop.set()
         self._wake.set()
         self._thread.join(timeout=10)
+        self._stop_recording()
 
     def add_frame_listener(self, listener: Callable[[SwarmFrame], None]) -> None:
         self._on_frame.append(listener)
@@ -108,6 +110,10 @@ class RunController:
     def load_program(self, program: Any) -> None:
         """A new compiled program for every robot (world kept or reset per the settings)."""
         self._send("program", program)
+
+    def set_recording(self, path: Any, source: str | None = None) -> None:
+        """Start recording the swarm into `path` (a new .rrd), or stop when `path` is None."""
+        self._send("record", (path, source))
 
     def update_settings(self, **changes: Any) -> None:
         """Change world/robots/seed (rebuilds the world) or speed/keep_state (takes effect now)."""
@@ -178,6 +184,18 @@ class RunController:
                 with self._sim_lock:
                     self._sim.load_program(argument, keep_state=True)
                 self._publish(force=True)
+        elif command == "record":
+            path, source = argument
+            if path is None:
+                self._stop_recording()
+            elif self._sim is not None:
+                start = getattr(self._sim, "start_recording", None)
+                if start is None:
+                    raise RuntimeError("this world cannot be recorded")
+                with self._sim_lock:
+                    self._sim.source_text = source  # type: ignore[attr-defined]
+                    start(path)
+                self.status.recording = str(path)
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
@@ -191,6 +209,7 @@ class RunController:
         if self._program is None:
             return
         settings = self.settings
+        self._stop_recording()  # a rebuilt world starts a new timeline at step 0
         sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed)
         with self._sim_lock:
             self._sim = sim
@@ -198,6 +217,13 @@ class RunController:
         self.status.robots = settings.robots
         self._rate_marks.clear()
         self._publish(force=True)
+
+    def _stop_recording(self) -> None:
+        stop = getattr(self._sim, "stop_recording", None)
+        if stop is not None:
+            with self._sim_lock:
+                stop()
+        self.status.recording = None
 
     def _step_once(self) -> None:
         assert self._sim is not None

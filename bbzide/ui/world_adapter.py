@@ -1,11 +1,18 @@
-"""The compiler, VM and worlds rooms as the IDE sees them: the one file that imports them.
+"""The lower rooms (compiler, VM, worlds, recording) as the IDE sees them, in this one file.
 
 Everything the UI needs from the lower rooms passes through `WorldsBackend` (which worlds exist,
-compile for a world's platform, start a swarm) and `WorldsSimulation` (step, draw, inspect). The
-contracts in ARCHITECTURE.md name the calls (`compile_source`, `bittybuzz_string_table`,
-`CompiledProgram.to_bbo`, `Simulation(world, program, robots=N, seed=K)`, `Robot.vm`,
-`PlatformProfile`) but not every field, so field look-ups go through `_field`, which names the
-spellings it accepts; when a room settles a name, this is the only place to change.
+compile for a world's platform, start a swarm) and `WorldsSimulation` (step, draw, inspect,
+record). The names are the ones the rooms settled in ARCHITECTURE.md: `WORLDS` (`WorldSpec`:
+example, profile, host_names, default_robots), `Simulation(world, program, robots=N, seed=K,
+robot_factory=...)` with `step_count`, the `positions`/`headings`/`leds` arrays, `robots`
+(`RobotState`: failure, robot, robot_id), `links` (robot ids) and `world` (bounds, walls,
+robot_radius, robot_height, comm_range); `Profile` (heap_size, obj_size, rsv_actrec,
+elems_per_tseg); the VM's `heap` (data, rtobj, ltseg, peak_used, gc_runs), `gsyms`, `vstig`,
+`neighbors`, `queues`.
+
+Swarms are built through the recording room's `Recordable` factory, so the IDE's Record toggle
+can start recording any running swarm (robots pass their inputs through untouched until then).
+`inspect_robot` builds the inspector view from any robot, live or rebuilt from a recording.
 
 Lower rooms are imported lazily, so `bbzide --help` never needs them, and a missing room is a
 `UserError` that says which one, never a traceback.
@@ -14,7 +21,7 @@ Lower rooms are imported lazily, so `bbzide --help` never needs them, and a miss
 from __future__ import annotations
 
 import importlib
-from collections.abc import Sequence
+import json
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -31,10 +38,6 @@ REPO_ROOT = Path(__file__).resolve().parents[2]
 #: table with ~25 robots").
 DEFAULT_WORLD_HINT = "kilobot"
 DEFAULT_ROBOTS = 25
-#: Objects per table segment when a profile does not say (BittyBuzz's default, notes §E.1).
-DEFAULT_ELEMS_PER_SEGMENT = 5
-#: Kilobot radius (m), used when a world does not say how big its robots are.
-KILOBOT_RADIUS = 0.0165
 
 
 #: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
@@ -55,28 +58,16 @@ def _import(module: str) -> ModuleType:
         ) from None
 
 
-def _field(obj: Any, names: Sequence[str], default: Any = None) -> Any:
-    """The first of `names` that `obj` has (attribute or mapping key), else `default`."""
-    for name in names:
-        if isinstance(obj, dict) and name in obj:
-            return obj[name]
-        if hasattr(obj, name):
-            value = getattr(obj, name)
-            return value() if callable(value) and name.startswith(("get_", "compute_")) else value
-    return default
-
-
 class WorldsBackend:
     """The real worlds (bbzide.worlds), compiled with the real compiler for each platform."""
 
     def __init__(self) -> None:
         self._compiler = _import("bbzide.compiler")
         self._engine = _import("bbzide.worlds.engine")
-        worlds_package = _import("bbzide.worlds")
-        registry = _field(self._engine, ("WORLDS",)) or _field(worlds_package, ("WORLDS",))
-        if not registry:
-            raise MissingRoomError("bbzide.worlds has no WORLDS registry")
-        self._worlds: dict[str, Any] = dict(registry)
+        _import("bbzide.vm.robot")  # the firmware loop every world drives
+        self._profiles = _import("bbzide.vm.profiles").PROFILES
+        self._recording = _import("bbzide.recording.recorder")
+        self._worlds: dict[str, Any] = dict(self._engine.WORLDS)
 
     # ---- what exists ---------------------------------------------------------------------------
     def world_names(self) -> list[str]:
@@ -87,33 +78,23 @@ class WorldsBackend:
         return next((n for n in names if DEFAULT_WORLD_HINT in n.lower()), names[0])
 
     def default_robots(self, world: str) -> int:
-        return int(_field(self._worlds[world], ("default_robots",), DEFAULT_ROBOTS))
+        return int(self._worlds[world].default_robots)
 
     def example_path(self, world: str) -> Path | None:
-        example = _field(self._worlds[world], ("example", "example_path", "default_script"))
-        if example is None:
+        example = self._worlds[world].example
+        if not example:
             return None
         path = Path(example)
         return path if path.is_absolute() else REPO_ROOT / path
 
     def platform(self, world: str) -> Any:
-        spec = self._worlds[world]
-        profile = _field(spec, ("profile", "platform"))
-        if isinstance(profile, str):
-            profile = _import("bbzide.vm.profiles").PROFILES[profile]
-        return profile
+        return self._profiles[self._worlds[world].profile]
 
     def flash_budget(self, world: str) -> int | None:
-        name = str(_field(self.platform(world), ("name",), ""))
-        return PLATFORM_MEMORY.get(name, (None, None))[1]
+        return PLATFORM_MEMORY.get(self.platform(world).name, (None, None))[1]
 
     def host_names(self, world: str) -> list[str]:
-        spec = self._worlds[world]
-        names = _field(spec, ("host_names", "host_function_names"))
-        if names is None:
-            functions = _field(spec, ("host_functions",), {})
-            names = list(functions) if isinstance(functions, dict) else []
-        return list(names)
+        return list(self._worlds[world].host_names)
 
     # ---- compile and run -----------------------------------------------------------------------
     def compile(self, text: str, path: Path, world: str) -> tuple[Any, Any]:
@@ -124,161 +105,216 @@ class WorldsBackend:
         return compiled, compiled.to_bbo()
 
     def create(self, world: str, program: Any, robots: int, seed: int) -> WorldsSimulation:
-        simulation = self._engine.Simulation(world, program, robots=robots, seed=seed)
-        return WorldsSimulation(simulation, program, self.platform(world))
+        recordable = self._recording.Recordable()
+        simulation = self._engine.Simulation(
+            world, program, robots=robots, seed=seed, robot_factory=recordable.factory
+        )
+        return WorldsSimulation(simulation, program, self.platform(world), recordable,
+                                self._recording)
 
 
 class WorldsSimulation:
     """A `bbzide.worlds.engine.Simulation` behind the UI's `SimulationHandle` interface."""
 
-    def __init__(self, simulation: Any, program: Any, profile: Any) -> None:
+    def __init__(self, simulation: Any, program: Any, profile: Any, recordable: Any = None,
+                 recording: ModuleType | None = None) -> None:
         self.sim = simulation
+        self._recording = recording or _import("bbzide.recording.recorder")
         self.program = program
         self.profile = profile
+        self.recordable = recordable
+        self.recorder: Any = None
+        self.source_text: str | None = None
+        self._overlays: tuple[str, dict[str, Any]] | None = None
 
     @property
     def step_count(self) -> int:
-        return int(_field(self.sim, ("step_count", "steps", "step_index", "time_step"), 0))
+        return int(self.sim.step_count)
 
     def step(self) -> None:
         self.sim.step()
-
-    def _robot_states(self) -> list[Any]:
-        return list(self.sim.robots)
+        if self.recorder is not None:
+            self.recorder.record_step()
 
     def robot(self, index: int) -> Any:
-        state = self._robot_states()[index]
-        return _field(state, ("robot", "firmware"), state)
+        return self.sim.robots[index].robot
 
     def load_program(self, program: Any, keep_state: bool) -> None:
         self.program = program
+        if self.recorder is not None and not keep_state:
+            self.stop_recording()  # the world restarts at step 0: a new timeline
         self.sim.load_program(program, keep_state=keep_state)
 
+    # ---- recording -----------------------------------------------------------------------------
+    def start_recording(self, path: Path, force: bool = False) -> Any:
+        """Record this swarm from its current step into `path` (a new `.rrd`)."""
+        if self.recordable is None:
+            raise UserError("this swarm was not built for recording")
+        self.stop_recording()
+        source = self.source_text
+        self.recorder = self._recording.MissionRecorder(
+            path, self.sim, self.recordable, force=force, source_of=lambda _program: source
+        )
+        return self.recorder
+
+    def stop_recording(self) -> Path | None:
+        recorder, self.recorder = self.recorder, None
+        if recorder is None:
+            return None
+        recorder.close()
+        return recorder.path
+
+    # ---- drawing -------------------------------------------------------------------------------
     def frame(self) -> SwarmFrame:
-        states = self._robot_states()
-        count = len(states)
-        positions = np.zeros((count, 2))
-        headings = np.zeros(count)
-        leds = np.zeros((count, 3))
-        failed = np.zeros(count, dtype=bool)
-        ids: list[int] = []
-        for i, state in enumerate(states):
-            pose = _field(state, ("pose", "position"))
-            positions[i] = (pose[0], pose[1])
-            heading = _field(state, ("heading", "theta", "yaw"))
-            headings[i] = heading if heading is not None else (pose[2] if len(pose) > 2 else 0.0)
-            led = _field(state, ("led", "led_color", "color"), (0, 0, 0))
-            leds[i] = led[:3]
-            failed[i] = _field(state, ("failure",)) is not None
-            ids.append(int(_field(state, ("robot_id", "id"), i)))
-        if leds.max() > 1.0:
-            leds = leds / 255.0
+        sim = self.sim
+        states = sim.robots
+        failed = np.fromiter((s.failure is not None for s in states), dtype=bool, count=len(states))
+        ids = [int(s.robot_id) for s in states]
         index_of = {robot_id: i for i, robot_id in enumerate(ids)}
-        links = [
-            (index_of.get(a, a), index_of.get(b, b))
-            for a, b in (_field(self.sim, ("links",)) or [])
-        ]
-        link_array = np.array(links, dtype=np.int32).reshape(-1, 2)
-        return SwarmFrame(self.step_count, positions, headings, leds, failed, link_array, ids)
+        links = np.array(
+            [(index_of[a], index_of[b]) for a, b in sim.links], dtype=np.int32
+        ).reshape(-1, 2)
+        return SwarmFrame(
+            int(sim.step_count),
+            np.array(sim.positions[:, :2], dtype=np.float64),
+            np.array(sim.headings, dtype=np.float64),
+            np.clip(np.array(sim.leds, dtype=np.float64), 0.0, 1.0),
+            failed,
+            links,
+            ids,
+        )
 
     def geometry(self) -> WorldGeometry:
-        world = _field(self.sim, ("world",), self.sim)
-        bounds = _field(world, ("bounds",), (-0.5, -0.5, 0.5, 0.5))
-        walls = _field(world, ("walls", "overlay_segments"), [])
-        segments = np.array(walls, dtype=np.float64).reshape(-1, 2, 2)
-        radius = float(_field(world, ("robot_radius",), KILOBOT_RADIUS))
-        comm_range = float(_field(world, ("comm_range", "radio_range"), 0.1))
-        height = float(_field(world, ("robot_height", "altitude"), 0.0))
-        return WorldGeometry(radius, comm_range, tuple(bounds), segments, height)
+        return world_geometry(self.sim.world)
+
+    def overlays(self) -> dict[str, Any]:
+        """The world's overlays as plain data; the same object while they do not change."""
+        plain = self._recording.jsonable(self.sim.world.overlays())
+        key = json.dumps(plain, sort_keys=True)
+        if self._overlays is None or self._overlays[0] != key:
+            self._overlays = (key, plain)
+        return self._overlays[1]
 
     # ---- inspector ------------------------------------------------------------------------------
     def inspect(self, index: int) -> RobotInspection:
-        robot = self.robot(index)
-        vm = robot.vm
-        profile = self.profile
-        geometry = HeapGeometry(
-            size=int(_field(profile, ("heap_size",))),
-            object_size=int(_field(profile, ("obj_size", "object_size"))),
-            reserved=int(_field(profile, ("rsv_actrec", "reserved_actrecs", "reserved"))),
-            elems_per_segment=int(
-                _field(profile, ("elems_per_segment", "elems_per_tseg"), DEFAULT_ELEMS_PER_SEGMENT)
-            ),
-        )
-        heap_obj = _field(vm, ("heap",), vm)  # bbzide.vm.heap.Heap: data, rtobj, ltseg
-        heap_bytes = bytes(_field(heap_obj, ("data",)))
-        rop = int(_field(heap_obj, ("rtobj", "rightmost_object_ptr")))
-        lsp = int(_field(heap_obj, ("ltseg", "leftmost_segment_ptr")))
-        strings = list(getattr(self.program, "strings", []))
-        reader = HeapReader(heap_bytes, geometry, rop, lsp, strings)
-        decoded = reader.decode()
-        failure = getattr(robot, "failure", None)
-        error_text = None
-        error_line = None
-        if failure is not None:
-            where = _field(failure, ("location",))
-            error_text = (
-                f"{_field(failure, ('reason',), 'error')}: {_field(failure, ('message',), '')}"
-            )
-            if where is not None:
-                error_text += f" at {where}"
-                error_line = _source_line(where)
-        gsyms = int(_field(vm, ("gsyms",), geometry.reserved + 3))
-        globals_ = reader.named_entries(gsyms)
-        by_name = dict(globals_)
-        table_index = reader.named_refs(gsyms)
-        return RobotInspection(
-            robot_index=index,
-            robot_id=int(_field(robot, ("robot_id", "id"), index)),
-            step=self.step_count,
-            state=str(_field(vm, ("state",), "?")),
-            pc=_field(vm, ("pc",)),
-            heap_size=geometry.size,
-            rop=rop,
-            lsp=lsp,
-            reserved_bytes=geometry.reserved * geometry.object_size,
-            blocks=decoded.blocks,
-            used_bytes=decoded.used_bytes,
-            free_bytes=decoded.free_bytes,
-            peak_bytes=_field(heap_obj, ("peak_used", "peak_bytes")),
-            gc_runs=_field(heap_obj, ("gc_runs",)),
-            ram_bytes=_field(profile, ("ram_size", "ram_bytes"))
-            or PLATFORM_MEMORY.get(str(_field(profile, ("name",), "")), (None, None))[0],
-            objects=decoded.objects,
-            frames=[str(f) for f in (_field(vm, ("frames", "call_frames"), []) or [])],
-            globals=globals_,
-            stigmergy=_table_rows(reader, table_index.get("stigmergy")),
-            neighbors=_table_rows(reader, table_index.get("neighbors")),
-            swarms=[f"swarm = {by_name['swarm']}"] if "swarm" in by_name else [],
-            in_queue=[_message_text(m) for m in (_field(vm, ("in_messages", "inmsgs"), []) or [])],
-            out_queue=[
-                _message_text(m) for m in (_field(vm, ("out_messages", "outmsgs"), []) or [])
-            ],
-            last_error=error_text,
-            last_error_line=error_line,
-            warnings=_runtime_warnings(vm, profile),
-        )
+        state = self.sim.robots[index]
+        if state.robot is None:
+            raise UserError(f"robot #{index} has no VM (a passive body)")
+        return inspect_robot(state.robot, self.profile, state.program or self.program, index,
+                             self.step_count)
+
+
+def world_geometry(world: Any) -> WorldGeometry:
+    """Drawing facts of a `World` (or of a recording's `geometry` metadata, same names)."""
+    get = world.get if isinstance(world, dict) else lambda name: getattr(world, name)
+    segments = np.array(get("walls"), dtype=np.float64).reshape(-1, 2, 2)
+    return WorldGeometry(
+        float(get("robot_radius")),
+        float(get("comm_range")),
+        tuple(float(v) for v in get("bounds")),
+        segments,
+        float(get("robot_height")),
+    )
+
+
+def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int
+                  ) -> RobotInspection:
+    """The inspector's view of one robot's VM (a live robot, or one rebuilt from a recording)."""
+    vm = robot.vm
+    heap = vm.heap
+    geometry = HeapGeometry(
+        size=int(profile.heap_size),
+        object_size=int(profile.obj_size),
+        reserved=int(profile.rsv_actrec),
+        elems_per_segment=int(profile.elems_per_tseg),
+    )
+    rop, lsp = int(heap.rtobj), int(heap.ltseg)
+    strings = list(getattr(program, "strings", []) or [])
+    reader = HeapReader(bytes(heap.data), geometry, rop, lsp, strings)
+    decoded = reader.decode()
+    failure = robot.failure
+    error_text = None
+    error_line = None
+    if failure is not None:
+        where = getattr(failure, "location", None)
+        error_text = f"{getattr(failure, 'reason', 'error')}: {getattr(failure, 'message', '')}"
+        if where is not None:
+            error_text += f" at {where}"
+            error_line = _source_line(where)
+    gsyms = int(vm.gsyms)
+    globals_ = reader.named_entries(gsyms)
+    by_name = dict(globals_)
+    return RobotInspection(
+        robot_index=index,
+        robot_id=int(getattr(robot, "robot_id", index)),
+        step=step,
+        state=getattr(vm.state, "name", str(vm.state)).lower(),
+        pc=int(vm.pc),
+        heap_size=geometry.size,
+        rop=rop,
+        lsp=lsp,
+        reserved_bytes=geometry.reserved * geometry.object_size,
+        blocks=decoded.blocks,
+        used_bytes=decoded.used_bytes,
+        free_bytes=decoded.free_bytes,
+        peak_bytes=int(heap.peak_used),
+        gc_runs=int(heap.gc_runs),
+        ram_bytes=PLATFORM_MEMORY.get(profile.name, (None, None))[0],
+        objects=decoded.objects,
+        frames=_stack_rows(vm, reader),
+        globals=globals_,
+        stigmergy=_stigmergy_rows(vm, reader, strings),
+        neighbors=_neighbor_rows(vm, profile, reader, gsyms),
+        swarms=[f"swarm = {by_name['swarm']}"] if "swarm" in by_name else [],
+        in_queue=[_message_text(m) for m in vm.queues.in_messages()],
+        out_queue=[_message_text(m) for m in vm.queues.out_messages()],
+        last_error=error_text,
+        last_error_line=error_line,
+        warnings=_runtime_warnings(vm),
+    )
 
 
 #: Wire payload of one message on every BittyBuzz robot (notes §F.4: Kilobot `data[9]`).
 DEFAULT_PAYLOAD_BYTES = 9
+#: The inspector lists at most this many stack entries (the top ones): a screenful.
+STACK_ROWS = 24
 
 
-def _runtime_warnings(vm: Any, profile: Any) -> list[str]:
-    """Pitfalls only a running VM can see: int16 wrap-around, messages filling the payload."""
-    warnings = []
-    overflows = _field(vm, ("int16_overflows", "overflow_count", "int_overflows"))
-    if overflows:
-        warnings.append(f"int16 overflow seen {overflows} time(s): values wrapped around")
-    payload = int(_field(profile, ("message_payload", "payload_bytes"), DEFAULT_PAYLOAD_BYTES))
-    for message in _field(vm, ("out_messages", "outmsgs"), []) or []:
-        if isinstance(message, bytes | bytearray) and len(message) >= payload - 1:
-            warnings.append(f"outgoing message of {len(message)} B is near the {payload} B payload")
-            break
-    return warnings
+def _stack_rows(vm: Any, reader: HeapReader) -> list[str]:
+    top = int(vm.stackptr)
+    rows = []
+    for position in range(top, max(-1, top - STACK_ROWS), -1):
+        index = int(vm.stack[position])
+        rows.append(f"stack[{position}] = #{index} {reader.value_text(index)}")
+    return rows
 
 
-def _table_rows(reader: HeapReader, index: int | None) -> list[tuple[str, str]]:
-    return [] if index is None else reader.named_entries(index)
+def _stigmergy_rows(vm: Any, reader: HeapReader, strings: list[str]) -> list[tuple[str, str]]:
+    rows = []
+    for entry in getattr(vm.vstig, "entries", []):
+        key = strings[entry.key] if 0 <= entry.key < len(strings) else f"#{entry.key}"
+        rows.append((f"{key} (t{entry.timestamp}, robot {entry.robot})",
+                     reader.value_text(entry.value)))
+    return rows
+
+
+def _neighbor_rows(vm: Any, profile: Any, reader: HeapReader, gsyms: int
+                   ) -> list[tuple[str, str]]:
+    """XTREME builds keep neighbors in a ring buffer outside the heap; others in a table."""
+    if profile.xtreme:
+        return [(f"robot {n.robot}", f"distance {n.distance}, azimuth {n.azimuth}")
+                for n in vm.neighbors.entries()]
+    table = reader.named_refs(gsyms).get("neighbors")
+    return [] if table is None else reader.named_entries(table)
+
+
+def _runtime_warnings(vm: Any) -> list[str]:
+    """Pitfalls only a running VM can see: messages filling the payload."""
+    for message in vm.queues.out_messages():
+        if isinstance(message, bytes | bytearray) and len(message) >= DEFAULT_PAYLOAD_BYTES - 1:
+            return [f"outgoing message of {len(message)} B is near the "
+                    f"{DEFAULT_PAYLOAD_BYTES} B payload"]
+    return []
 
 
 def _message_text(message: Any) -> str:

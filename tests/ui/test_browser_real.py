@@ -47,14 +47,8 @@ def robot_vm_pointers(ide: IdeSession, index: int) -> tuple[int, int]:
     with ide.app.controller.locked() as sim:
         assert sim is not None
         view = sim.inspect(index)
-        vm = sim.robot(index).vm
-        heap = getattr(vm, "heap", vm)
-        rop = next(
-            getattr(heap, n) for n in ("rightmost_object_ptr", "rtobj", "rop") if hasattr(heap, n)
-        )
-        lsp = next(
-            getattr(heap, n) for n in ("leftmost_segment_ptr", "ltseg", "lsp") if hasattr(heap, n)
-        )
+        heap = sim.robot(index).vm.heap
+        rop, lsp = heap.rtobj, heap.ltseg  # BittyBuzz names (ARCHITECTURE "vm → worlds, ui")
         assert (view.rop, view.lsp) == (rop, lsp)
         return int(rop), int(lsp)
 

@@ -1,0 +1,47 @@
+"""The shape of a bbzide mission recording: Rerun entity paths, component names, constants.
+
+Design: a recording is a plain Rerun `.rrd` (rerun-sdk 0.41) on one timeline, `step` (a
+sequence: the engine's `step_count` after that many control steps; step 0 is the state after
+boot), plus `time` (a duration, simulated seconds) for the Rerun viewer. Everything a person
+looks at uses Rerun archetypes so the Rerun viewer draws it; everything only bbzide needs
+(headings, failure flags, per-robot counters, the VM inputs, keyframes, metadata) is stored as
+`AnyValues` components next to them. Writer (`recorder.py`) and reader (`reader.py`) both use
+the names below, and README.md ("Recording entity paths") lists them for users.
+
+Per-robot values are batches of N (robot index order, the engine's `robots` order) per step.
+"""
+
+from __future__ import annotations
+
+#: `/mission` static component `meta` (JSON) starts with this; anything else is foreign.
+FORMAT = "bbzide-mission"
+#: Bumped when the layout changes incompatibly; the reader refuses newer versions.
+FORMAT_VERSION = 1
+APPLICATION_ID = "bbzide"
+
+TIMELINE = "step"
+TIME_SECONDS = "time"
+
+MISSION = "/mission"                       # static: meta (JSON)
+PROGRAMS = "/mission/programs"             # at first use: program (JSON: id, bbo, strings, ...)
+WALLS = "/world/walls"                     # static LineStrips3D: walls and obstacles
+ROBOTS = "/world/robots"                   # Points3D (positions, colors = LED, radii, labels)
+#                                            + AnyValues heading, failed, label:<name>
+HEADINGS = "/world/robots/headings"        # Arrows3D from each robot along its heading
+LINKS = "/world/links"                     # Arrows3D sender -> receiver + AnyValues pairs
+OVERLAYS = "/world/overlays"               # AnyValues overlays (JSON) when they change
+TARGETS = "/world/targets"                 # Points3D of overlay targets (when a world has some)
+MESSAGES = "/robots/messages"              # AnyValues sent, received, bytes_sent per robot
+MESSAGE_TOTALS = "/stats/messages"         # Scalars sent, received, dropped, bytes (4 series)
+HEAP = "/robots/heap"                      # /robots/heap/<figure>: Scalars, one per robot
+HEAP_FIGURES = ("used", "free", "peak", "rop", "lsp", "gc_runs")
+EVENTS = "/events"                         # TextLog + AnyValues kind, robot
+INPUTS = "/vm/inputs"                      # AnyValues inputs: one blob per step (input_log)
+KEYFRAMES = "/vm/keyframes"                # AnyValues robots, snapshots (zlib), programs
+
+#: Event kinds (the replay's jump buttons): a robot's VM stopped; a watched label changed;
+#: a world overlay reports one more target found; recording started or a program was loaded.
+EVENT_ERROR = "error"
+EVENT_ROLE = "role"
+EVENT_TARGET = "target"
+EVENT_PROGRAM = "program"

@@ -1,0 +1,340 @@
+"""Reads a bbzide mission recording (`.rrd`) back into arrays, tolerating a cut-off tail.
+
+Design: a replay needs random access to every step (seek <= 100 ms), so the whole recording is
+read once into numpy arrays indexed by step (positions, LED colours, headings, failure flags,
+labels, heap figures, message counters), plus the rare rows (keyframes, programs, events,
+overlays) as sorted lists. Reading goes through `rerun.chunk.RrdReader(...).stream()` and each
+chunk's Arrow record batch (no DataFusion needed).
+
+Checks, each a `RecordingError` that says what is wrong:
+* not starting with Rerun's `RRF2` header: not an `.rrd` at all (foreign file);
+* an `.rrd` without our `/mission` metadata (`layout.FORMAT`): some other program's recording;
+* a newer `layout.FORMAT_VERSION`; rows that do not decode; steps missing in the middle.
+
+A file whose writer was killed ends without Rerun's footer and maybe in the middle of a message.
+`rrd_frames` walks Rerun's framing (12-byte file header; then messages of a u64 kind and a u64
+length, both little-endian, kind 0 = end of stream), and a torn last message is cut off
+(the complete prefix goes to a temporary file that Rerun then reads). Entities are flushed one
+after the other, so the recording ends at the last step that *every* per-step entity reached.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+import tempfile
+import warnings
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bbzide.recording import layout
+from bbzide.recording.recorder import RecordingError
+
+RRD_MAGIC = b"RRF2"
+#: "RRF2", a 4-byte version and 4 bytes of encoding options (rerun 0.41 `re_log_encoding`).
+FILE_HEADER_BYTES = 12
+#: Each message: u64 kind, u64 payload length (little-endian), then the payload.
+MESSAGE_HEADER = struct.Struct("<QQ")
+END_OF_STREAM = 0
+
+#: Per-step columns every recording has; a step counts only once all of them reached it.
+_PER_STEP = (
+    (layout.ROBOTS, "Points3D:positions"),
+    (layout.ROBOTS, "heading"),
+    (layout.MESSAGES, "sent"),
+    (f"{layout.HEAP}/used", "Scalars:scalars"),
+    (f"{layout.HEAP}/gc_runs", "Scalars:scalars"),
+    (layout.MESSAGE_TOTALS, "Scalars:scalars"),
+    (layout.LINKS, "pairs"),
+    (layout.INPUTS, "inputs"),
+)
+
+
+def rrd_frames(data: bytes) -> tuple[int, bool]:
+    """(bytes of complete messages incl. the header, whether the stream ended cleanly)."""
+    end = FILE_HEADER_BYTES
+    while end + MESSAGE_HEADER.size <= len(data):
+        kind, length = MESSAGE_HEADER.unpack_from(data, end)
+        if kind == END_OF_STREAM:
+            return end, True
+        if end + MESSAGE_HEADER.size + length > len(data):
+            break
+        end += MESSAGE_HEADER.size + length
+    return end, False
+
+
+@dataclass
+class Keyframe:
+    step: int
+    snapshot: bytes  # zlib-compressed Robot.snapshot()
+    program: int
+    base: int = -1   # step of the full keyframe used as zlib dictionary (-1: this one is full)
+
+
+@dataclass
+class Event:
+    step: int
+    kind: str
+    robot: int  # robot index, -1 for the whole swarm
+    text: str
+
+
+@dataclass
+class Recording:
+    path: Path
+    meta: dict[str, Any]
+    steps: np.ndarray                      # (S,) int64, consecutive
+    positions: np.ndarray                  # (S, N, 3) float32, metres
+    headings: np.ndarray                   # (S, N) float32, radians
+    leds: np.ndarray                       # (S, N, 3) uint8
+    failed: np.ndarray                     # (S, N) bool
+    labels: dict[str, np.ndarray]          # name -> (S, N) str
+    heap: dict[str, np.ndarray]            # figure -> (S, N) int64
+    messages: dict[str, np.ndarray]        # sent/received/bytes_sent -> (S, N) int64
+    totals: np.ndarray                     # (S, 4): sent, received, dropped, bytes
+    links: list[np.ndarray]                # per step (M, 2) robot indexes
+    inputs: list[bytes]                    # per step: inputs that led to it (input_log blob)
+    keyframes: dict[int, list[Keyframe]] = field(default_factory=dict)  # robot index -> sorted
+    programs: dict[int, dict[str, Any]] = field(default_factory=dict)
+    events: list[Event] = field(default_factory=list)
+    overlays: list[tuple[int, dict[str, Any]]] = field(default_factory=list)
+    truncated: bool = False                # the writer did not close the file
+
+    @property
+    def first_step(self) -> int:
+        return int(self.steps[0])
+
+    @property
+    def last_step(self) -> int:
+        return int(self.steps[-1])
+
+    @property
+    def robot_count(self) -> int:
+        return int(self.meta["robots"])
+
+    def row(self, step: int) -> int:
+        if not self.first_step <= step <= self.last_step:
+            raise RecordingError(f"step {step} is outside the recording "
+                                 f"({self.first_step}..{self.last_step})")
+        return step - self.first_step
+
+    def overlays_at(self, step: int) -> dict[str, Any]:
+        current: dict[str, Any] = {}
+        for at, overlays in self.overlays:
+            if at > step:
+                break
+            current = overlays
+        return current
+
+
+def read_recording(path: Path | str) -> Recording:
+    """The recording at `path`, or a `RecordingError` saying why it cannot be read."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise RecordingError(f"no such recording: {path}") from None
+    except OSError as error:
+        raise RecordingError(f"cannot read {path}: {error.strerror}") from None
+    if data[:4] != RRD_MAGIC:
+        raise RecordingError(f"{path} is not a Rerun recording (.rrd): it does not start with "
+                             f"the {RRD_MAGIC.decode()} header")
+    complete, ended = rrd_frames(data)
+    if complete <= FILE_HEADER_BYTES:
+        raise RecordingError(f"{path} holds no complete data (cut off before its first flush)")
+    torn = complete < len(data) and not ended
+    if torn:
+        with tempfile.NamedTemporaryFile(suffix=".rrd", delete=False) as prefix:
+            prefix.write(data[:complete])
+        try:
+            columns = _read_columns(Path(prefix.name), path)
+        finally:
+            os.unlink(prefix.name)
+    else:
+        columns = _read_columns(path, path)
+    recording = _assemble(path, columns)
+    recording.truncated = not ended
+    return recording
+
+
+Columns = dict[tuple[str, str], list[tuple[np.ndarray, Any]]]
+
+
+def _read_columns(readable: Path, shown: Path) -> tuple[Columns, dict[str, Any]]:
+    from rerun.chunk import RrdReader
+
+    columns: Columns = defaultdict(list)
+    static: dict[str, Any] = {}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "no footer" on a killed writer's file
+            stream = RrdReader(str(readable)).stream()
+            for chunk in stream:
+                batch = chunk.to_record_batch()
+                entity = chunk.entity_path
+                names = batch.schema.names
+                if chunk.is_static:
+                    for name in names:
+                        if not name.startswith("rerun."):
+                            static[f"{entity}:{name}"] = batch.column(name)
+                    continue
+                if layout.TIMELINE not in names:
+                    continue
+                steps = batch.column(layout.TIMELINE).to_numpy(zero_copy_only=False)
+                for name in names:
+                    if name.startswith("rerun.") or name in (layout.TIMELINE,
+                                                             layout.TIME_SECONDS):
+                        continue
+                    columns[(entity, name)].append((steps, batch.column(name)))
+    except (RuntimeError, ValueError, OSError) as error:
+        raise RecordingError(f"{shown} is a corrupt recording: {error}") from None
+    return columns, static
+
+
+def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
+    raw = static.get(f"{layout.MISSION}:meta")
+    if raw is None:
+        raise RecordingError(f"{path} is a Rerun recording, but not one of bbzide's (it has no "
+                             f"{layout.MISSION} metadata)")
+    try:
+        meta = json.loads(raw.flatten()[0].as_py())
+    except (ValueError, IndexError, TypeError) as error:
+        raise RecordingError(f"{path}: unreadable mission metadata ({error})") from None
+    if not isinstance(meta, dict) or meta.get("format") != layout.FORMAT:
+        raise RecordingError(f"{path} is a Rerun recording, but not one of bbzide's")
+    if int(meta.get("version", 0)) > layout.FORMAT_VERSION:
+        raise RecordingError(f"{path} was written by a newer bbzide (format "
+                             f"{meta.get('version')}; this one reads {layout.FORMAT_VERSION})")
+    return meta
+
+
+def _rows(parts: list[tuple[np.ndarray, Any]]) -> tuple[np.ndarray, list[Any]]:
+    """All rows of one column, sorted by step: (steps, per-row python/arrow values)."""
+    steps = np.concatenate([s for s, _ in parts]) if parts else np.zeros(0, np.int64)
+    values: list[Any] = []
+    for _, column in parts:
+        values.extend(column[i] for i in range(len(column)))
+    order = np.argsort(steps, kind="stable")
+    return steps[order], [values[i] for i in order]
+
+
+def _dense(parts: list[tuple[np.ndarray, Any]], first: int, last: int, width: int,
+           inner: int = 0) -> np.ndarray:
+    """A per-step, per-robot column as an (S, width[, inner]) array for steps first..last."""
+    pieces = []
+    for steps, column in parts:
+        keep = (steps >= first) & (steps <= last)
+        if not keep.any():
+            continue
+        values = column.flatten()
+        if inner:
+            values = values.flatten()
+        flat = values.to_numpy(zero_copy_only=False)
+        shape = (len(steps), width, inner) if inner else (len(steps), width)
+        try:
+            block = flat.reshape(shape)
+        except ValueError:
+            raise RecordingError("a per-robot column does not have one value per robot") from None
+        pieces.append((steps[keep], block[keep]))
+    steps = np.concatenate([s for s, _ in pieces])
+    block = np.concatenate([b for _, b in pieces])
+    order = np.argsort(steps, kind="stable")
+    steps, block = steps[order], block[order]
+    unique, first_index = np.unique(steps, return_index=True)
+    if len(unique) != last - first + 1:
+        raise RecordingError(f"steps missing between {first} and {last}")
+    return block[first_index]
+
+
+def _assemble(path: Path, read: tuple[Columns, dict[str, Any]]) -> Recording:
+    columns, static = read
+    meta = _meta(static, path)
+    n = int(meta["robots"])
+    missing = [key for key in _PER_STEP if not columns.get(key)]
+    if missing:
+        raise RecordingError(f"{path} holds no complete step (cut off before its first flush)"
+                             if len(missing) == len(_PER_STEP)
+                             else f"{path} is a corrupt recording: no {missing[0][0]} data")
+    first = max(int(min(s.min() for s, _ in columns[key])) for key in _PER_STEP)
+    last = min(int(max(s.max() for s, _ in columns[key])) for key in _PER_STEP)
+    if last < first:
+        raise RecordingError(f"{path} holds no complete step")
+    try:
+        positions = _dense(columns[(layout.ROBOTS, "Points3D:positions")], first, last, n, 3)
+        colors = _dense(columns[(layout.ROBOTS, "Points3D:colors")], first, last, n)
+        leds = np.stack([(colors >> shift) & 0xFF for shift in (24, 16, 8)], -1).astype(np.uint8)
+        headings = _dense(columns[(layout.ROBOTS, "heading")], first, last, n)
+        failed = _dense(columns[(layout.ROBOTS, "failed")], first, last, n).astype(bool)
+        labels = {name: _dense(columns[(layout.ROBOTS, f"label:{name}")], first, last, n)
+                  for name in meta.get("watch", []) if columns.get((layout.ROBOTS,
+                                                                    f"label:{name}"))}
+        heap = {figure: _dense(columns[(f"{layout.HEAP}/{figure}", "Scalars:scalars")],
+                               first, last, n).astype(np.int64)
+                for figure in layout.HEAP_FIGURES}
+        messages = {name: _dense(columns[(layout.MESSAGES, name)], first, last, n)
+                    .astype(np.int64) for name in ("sent", "received", "bytes_sent")}
+        totals = _dense(columns[(layout.MESSAGE_TOTALS, "Scalars:scalars")], first, last, 4)
+        link_steps, link_rows = _rows(columns[(layout.LINKS, "pairs")])
+        input_steps, input_rows = _rows(columns[(layout.INPUTS, "inputs")])
+    except (KeyError, TypeError, ValueError) as error:
+        raise RecordingError(f"{path} is a corrupt recording: {error}") from None
+    links = _per_step(link_steps, link_rows, first, last,
+                      lambda v: np.array(v.as_py() or [], dtype=np.int32).reshape(-1, 2))
+    inputs = _per_step(input_steps, input_rows, first, last, lambda v: (v.as_py() or [b""])[0])
+    recording = Recording(
+        path, meta, np.arange(first, last + 1, dtype=np.int64), positions, headings, leds,
+        failed, labels, heap, messages, totals, links, inputs)
+    _rare_rows(recording, columns, last)
+    return recording
+
+
+def _per_step(steps: np.ndarray, rows: list[Any], first: int, last: int, convert: Any
+              ) -> list[Any]:
+    out: list[Any] = [None] * (last - first + 1)
+    for step, value in zip(steps.tolist(), rows, strict=True):
+        if first <= step <= last:
+            out[step - first] = convert(value)
+    if any(v is None for v in out):
+        raise RecordingError(f"steps missing between {first} and {last}")
+    return out
+
+
+def _rare_rows(recording: Recording, columns: Columns, last: int) -> None:
+    try:
+        for parts in (columns.get((layout.PROGRAMS, "program"), []),):
+            steps, rows = _rows(parts)
+            for value in rows:
+                record = json.loads(value.as_py()[0])
+                recording.programs[int(record["id"])] = record
+        steps, robots = _rows(columns.get((layout.KEYFRAMES, "robots"), []))
+        _, snapshots = _rows(columns.get((layout.KEYFRAMES, "snapshots"), []))
+        _, programs = _rows(columns.get((layout.KEYFRAMES, "programs"), []))
+        _, bases = _rows(columns.get((layout.KEYFRAMES, "bases"), []))
+        for step, who, snaps, progs, base in zip(steps.tolist(), robots, snapshots, programs,
+                                                 bases, strict=True):
+            if step > last:
+                continue
+            for index, snapshot, program, based_on in zip(
+                    who.as_py(), snaps.as_py(), progs.as_py(), base.as_py(), strict=True):
+                recording.keyframes.setdefault(int(index), []).append(
+                    Keyframe(int(step), snapshot, int(program), int(based_on)))
+        steps, texts = _rows(columns.get((layout.EVENTS, "TextLog:text"), []))
+        _, kinds = _rows(columns.get((layout.EVENTS, "kind"), []))
+        _, robots = _rows(columns.get((layout.EVENTS, "robot"), []))
+        for step, text, kind, robot in zip(steps.tolist(), texts, kinds, robots, strict=True):
+            if step <= last:
+                recording.events.append(Event(int(step), kind.as_py()[0], int(robot.as_py()[0]),
+                                              text.as_py()[0]))
+        steps, rows = _rows(columns.get((layout.OVERLAYS, "overlays"), []))
+        for step, value in zip(steps.tolist(), rows, strict=True):
+            if step <= last:
+                recording.overlays.append((int(step), json.loads(value.as_py()[0])))
+    except (ValueError, KeyError, TypeError, IndexError) as error:
+        raise RecordingError(f"{recording.path} is a corrupt recording: {error}") from None
+    if not recording.keyframes:
+        raise RecordingError(f"{recording.path} has no VM keyframes")

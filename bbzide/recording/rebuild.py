@@ -1,0 +1,191 @@
+"""Rebuilds one robot's exact VM at any recorded step: keyframe + recorded inputs re-executed.
+
+Design: `robot_at(index, step)` takes the robot's last keyframe at or before `step` (a
+`Robot.snapshot()`), builds a fresh `Robot` for the keyframe's program whose world host
+functions are `ReplayHostFunctions` (they repeat the recorded effects instead of reading a
+world), restores the snapshot and re-executes the recorded inputs of the steps after it
+(`input_log.replay_step`). The VM is deterministic given those inputs, so the result is the
+live robot's state byte for byte (tests/recording compare snapshots at random steps).
+
+Stepping forward one step at a time (the replay's play button with a robot selected) reuses
+the last rebuilt robot when no newer keyframe lies in between, so each frame re-executes one
+step, not up to `keyframe_every`.
+"""
+
+from __future__ import annotations
+
+import base64
+import bisect
+import io
+import pickle
+import zlib
+from collections.abc import Callable
+from typing import Any
+
+from bbzide.diagnostics import SourceLocation
+from bbzide.recording.reader import Keyframe, Recording
+from bbzide.recording.recorder import RecordingError, build_robot
+from bbzide.vm.input_log import (
+    InputLogError,
+    ReplayDivergence,
+    ReplayHostFunctions,
+    decode_step,
+    replay_step,
+)
+
+#: (program, profile, robot_id, host_functions) -> a firmware loop (default: bbzide's Robot).
+Builder = Callable[[Any, Any, int, Any], Any]
+
+
+def program_from_record(record: dict[str, Any]) -> Any:
+    from bbzide.compiler.program import BittyBuzzProgram
+
+    debug = {int(pc): SourceLocation(loc[0], int(loc[1]), int(loc[2]))
+             for pc, loc in record.get("debug_map", {}).items()}
+    return BittyBuzzProgram(base64.b64decode(record["bbo"]), list(record["strings"]), debug)
+
+
+#: What a VM snapshot pickle may name besides the VM room's own classes (`bbzide.vm.*`).
+_SAFE_GLOBALS = {("builtins", "set"), ("builtins", "frozenset"), ("builtins", "bytearray"),
+                 ("builtins", "complex"), ("collections", "deque"),
+                 ("collections", "OrderedDict"), ("copyreg", "_reconstructor"),
+                 ("builtins", "object"), ("bbzide.diagnostics", "SourceLocation")}
+#: Nested pickles are checked too, down to this depth (a snapshot of a snapshot at most).
+_NESTED_PICKLES = 4
+
+
+class _SnapshotUnpickler(pickle.Unpickler):
+    def find_class(self, module: str, name: str) -> Any:
+        if module.startswith("bbzide.vm.") or (module, name) in _SAFE_GLOBALS:
+            return super().find_class(module, name)
+        raise pickle.UnpicklingError(f"it names {module}.{name}")
+
+
+def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
+    """Refuse a pickled snapshot that names anything but VM-room classes and plain containers.
+
+    `Robot.restore` unpickles; a recording is a file from anywhere, and unpickling can run any
+    code a crafted file names. This loads it with an allow-list first (nested pickles too).
+    """
+    if not snapshot.startswith(b"\x80") or depth > _NESTED_PICKLES:
+        return
+    try:
+        loaded = _SnapshotUnpickler(io.BytesIO(snapshot)).load()
+    except Exception as error:  # noqa: BLE001 - any failure means "not a VM snapshot"
+        raise RecordingError(f"the {what} is not a VM snapshot ({error})") from None
+    stack = [loaded]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, bytes | bytearray) and bytes(item[:1]) == b"\x80":
+            check_snapshot(bytes(item), what, depth + 1)
+        elif isinstance(item, list | tuple | set | frozenset):
+            stack.extend(item)
+        elif isinstance(item, dict):
+            stack.extend(item.values())
+
+
+class RobotRebuilder:
+    def __init__(self, recording: Recording, build: Builder | None = None) -> None:
+        self.recording = recording
+        meta = recording.meta
+        self._build = build or (lambda program, profile, robot_id, host: build_robot(
+            program, profile, robot_id, host, meta.get("loop", "pop"),
+            meta.get("instruction_budget")))
+        self._programs: dict[int, Any] = {}
+        self._cache: dict[int, tuple[int, Any, ReplayHostFunctions, int]] = {}
+        self._decoded: dict[int, dict[int, Any]] = {}
+
+    def program(self, program_id: int) -> Any:
+        if program_id not in self._programs:
+            try:
+                record = self.recording.programs[program_id]
+            except KeyError:
+                raise RecordingError(f"the recording lacks program {program_id}") from None
+            self._programs[program_id] = program_from_record(record)
+        return self._programs[program_id]
+
+    def keyframe(self, index: int, step: int) -> Keyframe:
+        frames = self.recording.keyframes.get(index)
+        if not frames:
+            raise RecordingError(f"robot #{index} has no VM in this recording (passive body?)")
+        at = bisect.bisect_right([k.step for k in frames], step) - 1
+        if at < 0:
+            raise RecordingError(f"robot #{index} has no keyframe at or before step {step}")
+        return frames[at]
+
+    def has_vm(self, index: int) -> bool:
+        return bool(self.recording.keyframes.get(index))
+
+    def robot_at(self, index: int, step: int) -> Any:
+        """A robot whose VM is exactly robot `index`'s at recorded `step` (do not step it)."""
+        recording = self.recording
+        recording.row(step)
+        keyframe = self.keyframe(index, step)
+        cached = self._cache.get(index)
+        if cached is not None and keyframe.step <= cached[0] <= step and cached[3] == id(
+                keyframe):
+            at, robot, host, _ = cached
+        else:
+            robot, host = self._restore(index, keyframe)
+            at = keyframe.step
+        try:
+            for t in range(at + 1, step + 1):
+                inputs = self._inputs(t).get(index)
+                if inputs is not None:
+                    replay_step(robot, inputs, host)
+        except ReplayDivergence as error:
+            self._cache.pop(index, None)
+            raise RecordingError(f"robot #{index} cannot be rebuilt at step {step}: {error}"
+                                 ) from None
+        self._cache[index] = (step, robot, host, id(keyframe))
+        return robot
+
+    def program_at(self, index: int, step: int) -> Any:
+        return self.program(self.keyframe(index, step).program)
+
+    def _restore(self, index: int, keyframe: Keyframe) -> tuple[Any, ReplayHostFunctions]:
+        from bbzide.vm.profiles import PROFILES
+
+        meta = self.recording.meta
+        try:
+            profile = PROFILES[meta["profiles"][index]]
+        except KeyError:
+            raise RecordingError(f"unknown platform profile {meta['profiles'][index]!r}"
+                                 ) from None
+        host = ReplayHostFunctions(meta["host_names"][index])
+        robot = self._build(self.program(keyframe.program), profile,
+                            int(meta["robot_ids"][index]), host.functions())
+        robot.boot()
+        robot.restore(self.snapshot(index, keyframe))
+        return robot, host
+
+    def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
+        """The keyframe's `Robot.snapshot()` bytes, inflated (with its full base) and checked."""
+        try:
+            if keyframe.base < 0:
+                snapshot = zlib.decompress(keyframe.snapshot)
+            else:
+                base = next((k for k in self.recording.keyframes[index]
+                             if k.step == keyframe.base and k.base < 0), None)
+                if base is None:
+                    raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
+                                         f"needs a full keyframe at step {keyframe.base}")
+                unpacker = zlib.decompressobj(zdict=zlib.decompress(base.snapshot))
+                snapshot = unpacker.decompress(keyframe.snapshot) + unpacker.flush()
+        except zlib.error as error:
+            raise RecordingError(f"corrupt keyframe of robot #{index} at step "
+                                 f"{keyframe.step}: {error}") from None
+        check_snapshot(snapshot, f"keyframe of robot #{index} at step {keyframe.step}")
+        return snapshot
+
+    def _inputs(self, step: int) -> dict[int, Any]:
+        decoded = self._decoded.get(step)
+        if decoded is None:
+            try:
+                decoded = decode_step(self.recording.inputs[self.recording.row(step)])
+            except InputLogError as error:
+                raise RecordingError(f"corrupt inputs at step {step}: {error}") from None
+            if len(self._decoded) > 4096:  # a bounded memo: seeks revisit nearby steps
+                self._decoded.clear()
+            self._decoded[step] = decoded
+        return decoded

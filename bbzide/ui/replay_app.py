@@ -1,0 +1,246 @@
+"""The IDE in replay mode: a recorded mission on a timeline, the same scene and inspector.
+
+    browser tab ──viser──▶ timeline (slider, play/pause, speed, step ±1, event jumps)
+                           SwarmScene clicks ──▶ InspectorPanel (per tab, robot rebuilt at step)
+    player thread (≤ 30 Hz) ──▶ seek(step) ──▶ SwarmScene.draw(frame) · status · inspectors
+
+Design: there is no simulation; `seek(step)` is the one way the shown step changes (slider,
+buttons, jumps, the player thread) and does everything a step change needs, under one lock:
+draw the recorded frame, move the slider, rewrite the status line, rebuild and show each tab's
+selected robot. Playing at `speed`× advances `speed / step_seconds` steps per second, drawn at
+most `FRAME_HZ` times a second (at 16× several steps pass per frame). The editor is replaced
+by the recorded program's source, read-only.
+"""
+
+from __future__ import annotations
+
+import html
+import threading
+import time
+
+import viser
+
+from bbzide.ui.inspector_panel import InspectorPanel
+from bbzide.ui.overlay_view import OverlayView
+from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
+from bbzide.ui.scene import SwarmScene
+
+#: Playback speeds offered, as multiples of the mission's real time (the issue: 0.25x-16x).
+SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0, "8×": 8.0, "16×": 16.0}
+#: The player redraws at most this often: smooth enough, and a seek's inspector rebuild fits.
+FRAME_HZ = 30.0
+#: Width of the source panel (same as the live IDE's editor).
+SOURCE_PANEL_WIDTH = 560
+
+
+class ReplayApp:
+    def __init__(self, session: ReplaySession, host: str = "127.0.0.1", port: int = 8080) -> None:
+        self.session = session
+        self.server = viser.ViserServer(host=host, port=port, verbose=False)
+        self.server.gui.configure_theme(
+            control_width="large", show_share_button=False, dark_mode=False
+        )
+        self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
+        self.scene.set_world(session.geometry())
+        self.overlays = OverlayView(self.server)
+        self.step = session.first_step
+        self.playing = False
+        self.speed = 1.0
+        self.last_seek_seconds = 0.0
+        self._lock = threading.RLock()
+        self._inspectors: dict[int, InspectorPanel] = {}
+        self._stop = threading.Event()
+        self._player = threading.Thread(target=self._play_loop, name="bbzide-replay", daemon=True)
+        self._build_gui()
+        self.server.on_client_connect(self._on_client_connect)
+        self.server.on_client_disconnect(self._on_client_disconnect)
+
+    @property
+    def url(self) -> str:
+        host = self.server.get_host()
+        return (
+            f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}/"
+        )
+
+    def start(self) -> ReplayApp:
+        self.seek(self.session.first_step)
+        self._player.start()
+        return self
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._player.is_alive():
+            self._player.join(timeout=5)
+        self.server.stop()
+
+    # ---- layout ----------------------------------------------------------------------------------
+    def _build_gui(self) -> None:
+        gui = self.server.gui
+        session = self.session
+        recording = session.recording
+        meta = recording.meta
+        with gui.add_folder("Replay", order=1):
+            self.status_line = gui.add_markdown("*loading…*")
+            self.slider = gui.add_slider(
+                "Step", min=session.first_step, max=session.last_step, step=1,
+                initial_value=session.first_step)
+            self.transport = gui.add_button_group("Play", ("▶ Play", "❚❚ Pause"))
+            self.stepper = gui.add_button_group("Step", ("−1", "+1"))
+            self.speed_choice = gui.add_dropdown("Speed", tuple(SPEEDS), initial_value="1×")
+            self.jumps = {}
+            for kind, label in JUMP_KINDS:
+                count = len(session.event_steps(kind))
+                self.jumps[kind] = gui.add_button_group(
+                    f"{label} ({count})", ("◀ previous", "next ▶"), disabled=count == 0)
+        with gui.add_folder("View", order=2, expand_by_default=False):
+            links = gui.add_checkbox("Radio links", initial_value=self.scene.show_links)
+            trails = gui.add_checkbox("Trails", initial_value=self.scene.show_trails)
+        links.on_update(lambda _: self.scene.set_toggles(links=links.value))
+        trails.on_update(lambda _: self.scene.set_toggles(trails=trails.value))
+        panel = gui.add_panel()
+        with panel.add_tab("Mission", icon=viser.Icon.INFO_CIRCLE):
+            truncated = (" · **cut off** (the recorder did not finish; shown up to its last "
+                         "flushed step)" if recording.truncated else "")
+            gui.add_markdown(
+                f"**{html.escape(recording.path.name)}** · world `{meta['world']}` · "
+                f"{meta['robots']} robots · seed {meta['seed']} · steps "
+                f"{session.first_step}..{session.last_step}{truncated}")
+            events = session.events_text()
+            gui.add_markdown("**Events**\n\n" + ("\n".join(f"- {html.escape(e)}" for e in events)
+                                                 or "*none*"))
+        source = session.source()
+        with panel.add_tab("Program", icon=viser.Icon.CODE):
+            gui.add_html(
+                "<pre class='bbzide-replay-source' style='font-size:12px;line-height:1.35;"
+                "white-space:pre;overflow:auto;max-height:calc(100vh - 160px)'>"
+                + html.escape(source or "(the recording has no source text)") + "</pre>")
+        panel.dock_left()
+        panel.set_width(SOURCE_PANEL_WIDTH)
+        self.slider.on_update(lambda _: self._slider_moved())
+        self.transport.on_click(lambda event: self._transport(event.target.value))
+        self.stepper.on_click(lambda event: self.step_by(-1 if "−" in event.target.value else 1))
+        self.speed_choice.on_update(
+            lambda _: setattr(self, "speed", SPEEDS.get(str(self.speed_choice.value), 1.0)))
+        for kind, group in self.jumps.items():
+            group.on_click(lambda event, kind=kind: self.jump(kind, "next" in event.target.value))
+
+    def _on_client_connect(self, client: viser.ClientHandle) -> None:
+        inspector = InspectorPanel(client)
+        self._inspectors[client.client_id] = inspector
+        inspector.deselect.on_click(lambda _: self._select(client, None))
+        self.scene.aim_camera(client)
+
+    def _on_client_disconnect(self, client: viser.ClientHandle) -> None:
+        self._inspectors.pop(client.client_id, None)
+        self.scene.forget_client(client.client_id)
+
+    # ---- time ------------------------------------------------------------------------------------
+    def seek(self, step: int) -> None:
+        """Show `step` everywhere: scene, slider, status line, every tab's inspector."""
+        session = self.session
+        step = max(session.first_step, min(session.last_step, int(step)))
+        started = time.perf_counter()
+        with self._lock:
+            self.step = step
+            self.scene.draw(session.frame(step))
+            self.overlays.show(session.recording.overlays_at(step) or None)
+            if int(self.slider.value) != step:
+                self.slider.value = step
+            for inspector in list(self._inspectors.values()):
+                self._refresh_inspector(inspector)
+            self._refresh_status()
+        self.last_seek_seconds = time.perf_counter() - started
+
+    def step_by(self, delta: int) -> None:
+        self.playing = False
+        self.seek(self.step + delta)
+
+    def jump(self, kind: str, forward: bool) -> None:
+        target = self.session.jump(kind, self.step, forward)
+        if target is not None:
+            self.playing = False
+            self.seek(target)
+
+    def play(self) -> None:
+        if self.step >= self.session.last_step:
+            self.seek(self.session.first_step)
+        self.playing = True
+
+    def pause(self) -> None:
+        self.playing = False
+        self._refresh_status()
+
+    def _transport(self, value: str) -> None:
+        if "Play" in value:
+            self.play()
+        else:
+            self.pause()
+
+    def _slider_moved(self) -> None:
+        value = int(self.slider.value)
+        if value != self.step:
+            self.playing = False
+            self.seek(value)
+
+    def _play_loop(self) -> None:
+        position = float(self.step)
+        last = time.monotonic()
+        while not self._stop.wait(1.0 / FRAME_HZ):
+            now = time.monotonic()
+            if not self.playing:
+                position, last = float(self.step), now
+                continue
+            position += (now - last) * self.speed / self.session.step_seconds
+            last = now
+            if int(position) != self.step:
+                if position >= self.session.last_step:
+                    position = self.session.last_step
+                    self.playing = False
+                self.seek(int(position))
+
+    # ---- inspector -----------------------------------------------------------------------------
+    def _on_robot_click(self, client: viser.ClientHandle, index: int) -> None:
+        self._select(client, index)
+
+    def _select(self, client: viser.ClientHandle, index: int | None) -> None:
+        inspector = self._inspectors.get(client.client_id)
+        if inspector is None:
+            return
+        with self._lock:
+            inspector.selected = index
+            self.scene.select(client, index)
+            self._refresh_inspector(inspector)
+
+    def _refresh_inspector(self, inspector: InspectorPanel) -> None:
+        index = inspector.selected
+        if index is None:
+            inspector.show_nothing("*Click a robot to see its memory at this step.*")
+            return
+        if not self.session.has_vm(index):
+            inspector.show_nothing(f"*robot #{index} has no VM (a passive body)*")
+            return
+        try:
+            view = self.session.inspect(index, self.step)
+        except Exception as error:  # noqa: BLE001 - a damaged keyframe must not stop the replay
+            inspector.show_nothing(f"*cannot rebuild robot #{index} at step {self.step}: "
+                                   f"{html.escape(str(error))}*")
+            return
+        inspector.refresh(view)
+
+    def _refresh_status(self) -> None:
+        session = self.session
+        state = "playing" if self.playing else "paused"
+        labels = session.labels(self.step)
+        failed = int(session.recording.failed[session.recording.row(self.step)].sum())
+        parts = [f"**step {self.step}** of {session.first_step}..{session.last_step}", state,
+                 f"speed {self.speed:g}×", f"{failed} in error"]
+        for name, values in labels.items():
+            counts: dict[str, int] = {}
+            for value in values:
+                if value:
+                    counts[value] = counts.get(value, 0) + 1
+            if counts:
+                parts.append(f"{name}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+        text = " · ".join(parts)
+        if self.status_line.content != text:
+            self.status_line.content = text

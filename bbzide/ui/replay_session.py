@@ -1,0 +1,114 @@
+"""A recording seen the way the IDE sees a live swarm: frames, geometry, inspections by step.
+
+Design: `ReplaySession` is the replay's stand-in for `WorldsSimulation`. A frame is a row of the
+recording's arrays (no simulation, so any step is as cheap as the next: a seek is an index);
+an inspection rebuilds the clicked robot's VM at that step from its keyframe and the recorded
+inputs (`bbzide.recording.rebuild`) and decodes it with the same `inspect_robot` the live
+inspector uses, so what a user sees at a recorded step is what the live inspector showed.
+Event lists (errors, role changes, targets found) give the timeline's jump targets.
+"""
+
+from __future__ import annotations
+
+import bisect
+import threading
+from typing import Any
+
+import numpy as np
+
+from bbzide.recording import layout
+from bbzide.recording.reader import Recording
+from bbzide.recording.rebuild import RobotRebuilder
+from bbzide.ui.inspection import RobotInspection
+from bbzide.ui.world_adapter import inspect_robot, world_geometry
+from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
+
+#: The jump buttons, in the order shown: (event kind, button label).
+JUMP_KINDS = (
+    (layout.EVENT_TARGET, "Target found"),
+    (layout.EVENT_ERROR, "Robot error"),
+    (layout.EVENT_ROLE, "Role change"),
+)
+
+
+class ReplaySession:
+    def __init__(self, recording: Recording, rebuilder: RobotRebuilder | None = None) -> None:
+        self.recording = recording
+        self.rebuilder = rebuilder or RobotRebuilder(recording)
+        self._lock = threading.Lock()  # one rebuild at a time (the cache is not thread-safe)
+        self._event_steps = {
+            kind: sorted({e.step for e in recording.events if e.kind == kind})
+            for kind, _ in JUMP_KINDS
+        }
+
+    @property
+    def first_step(self) -> int:
+        return self.recording.first_step
+
+    @property
+    def last_step(self) -> int:
+        return self.recording.last_step
+
+    @property
+    def step_seconds(self) -> float:
+        return float(self.recording.meta.get("step_seconds", 0.1))
+
+    def geometry(self) -> WorldGeometry:
+        return world_geometry(self.recording.meta["geometry"])
+
+    def frame(self, step: int) -> SwarmFrame:
+        recording = self.recording
+        row = recording.row(step)
+        return SwarmFrame(
+            step,
+            recording.positions[row, :, :2].astype(np.float64),
+            recording.headings[row].astype(np.float64),
+            recording.leds[row].astype(np.float64) / 255.0,
+            recording.failed[row].copy(),
+            recording.links[row],
+            [int(i) for i in recording.meta["robot_ids"]],
+        )
+
+    def labels(self, step: int) -> dict[str, list[str]]:
+        row = self.recording.row(step)
+        return {name: values[row].tolist() for name, values in self.recording.labels.items()}
+
+    def inspect(self, index: int, step: int) -> RobotInspection:
+        from bbzide.vm.profiles import PROFILES
+
+        with self._lock:
+            robot = self.rebuilder.robot_at(index, step)
+            program = self.rebuilder.program_at(index, step)
+            profile = PROFILES[self.recording.meta["profiles"][index]]
+            view = inspect_robot(robot, profile, program, index, step)
+        row = self.recording.row(step)
+        view.notes.append(
+            f"rebuilt from the keyframe at step {self.rebuilder.keyframe(index, step).step}; "
+            f"heap used {self.recording.heap['used'][row][index]} B as recorded")
+        return view
+
+    def has_vm(self, index: int) -> bool:
+        return self.rebuilder.has_vm(index)
+
+    def event_steps(self, kind: str) -> list[int]:
+        return self._event_steps.get(kind, [])
+
+    def jump(self, kind: str, step: int, forward: bool) -> int | None:
+        """The next (or previous) step with an event of `kind`, or None."""
+        steps = self.event_steps(kind)
+        if forward:
+            at = bisect.bisect_right(steps, step)
+            return steps[at] if at < len(steps) else None
+        at = bisect.bisect_left(steps, step) - 1
+        return steps[at] if at >= 0 else None
+
+    def source(self) -> str | None:
+        programs: dict[int, dict[str, Any]] = self.recording.programs
+        for program_id in sorted(programs, reverse=True):
+            text = programs[program_id].get("source")
+            if text:
+                return text
+        return None
+
+    def events_text(self, limit: int = 200) -> list[str]:
+        return [f"step {e.step}: {e.text}" for e in self.recording.events[:limit]]

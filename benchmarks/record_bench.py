@@ -1,0 +1,124 @@
+"""Recording cost, file size and seek latency of mission recordings (issue #6 targets).
+
+    python benchmarks/record_bench.py [--robots 25] [--steps 1000] [--toy] [--world kilobot]
+
+Runs a swarm in a world for `--steps` steps while recording it, and prints:
+* recording overhead: time spent in `MissionRecorder.record_step` (and closing the file) as a
+  share of the simulation's own time (goal: <= 10 %);
+* file size, and the size extrapolated to 25 robots x 5,000 steps (goal: <= 50 MB);
+* seek latency in the replay: frame lookup + rebuilding one robot's VM at random steps
+  (keyframe + re-executed inputs) + decoding it for the inspector, median and worst (goal:
+  <= 100 ms);
+* read time of the whole file (paid once when a replay opens).
+
+With `--toy` the robots run `ToyRobot` (tests/recording/doubles.py: no Buzz VM) instead of the
+world's example on the real VM, which isolates the recorder's own cost.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+#: The issue's reference mission: 25 robots for 5,000 steps.
+TARGET_ROBOTS, TARGET_STEPS = 25, 5000
+#: Random seeks measured (each rebuilds the robot from its keyframe: no cache help).
+SEEKS = 40
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--world", default="kilobot")
+    parser.add_argument("--script", type=Path, default=None)
+    parser.add_argument("--robots", type=int, default=25)
+    parser.add_argument("--steps", type=int, default=1000)
+    parser.add_argument("--toy", action="store_true", help="toy firmware instead of the VM")
+    args = parser.parse_args()
+
+    import random
+
+    from bbzide.recording.reader import read_recording
+    from bbzide.recording.rebuild import RobotRebuilder
+    from bbzide.recording.recorder import MissionRecorder, Recordable
+    from bbzide.ui.replay_session import ReplaySession
+    from bbzide.worlds.commands import load_script
+    from bbzide.worlds.engine import Simulation
+    from bbzide.worlds.registry import WORLDS
+
+    spec = WORLDS[args.world]
+    script = args.script or REPO / spec.example
+    program = load_script(script, spec.host_names, [])
+    build = None
+    if args.toy:
+        from tests.recording.doubles import ToyRobot
+
+        build = ToyRobot
+    recordable = Recordable(build=build)
+    sim = Simulation(spec.name, program, robots=args.robots, seed=1,
+                     robot_factory=recordable.factory, watch=() if args.toy else ("role",))
+    # The same swarm without recording, for the reference simulation time.
+    plain = Simulation(spec.name, program, robots=args.robots, seed=1,
+                       robot_factory=Recordable(build=build).factory,
+                       watch=() if args.toy else ("role",))
+    started = time.perf_counter()
+    plain.run(args.steps)
+    plain_seconds = time.perf_counter() - started
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "bench.rrd"
+        started = time.perf_counter()
+        recorder = MissionRecorder(path, sim, recordable)
+        setup = time.perf_counter() - started
+        sim_seconds = 0.0
+        for _ in range(args.steps):
+            t0 = time.perf_counter()
+            sim.step()
+            sim_seconds += time.perf_counter() - t0
+            recorder.record_step()
+        t0 = time.perf_counter()
+        recorder.close()
+        record_seconds = recorder.seconds_spent + (time.perf_counter() - t0) + setup
+        size = path.stat().st_size
+        t0 = time.perf_counter()
+        recording = read_recording(path)
+        read_seconds = time.perf_counter() - t0
+        session = ReplaySession(recording, RobotRebuilder(recording, build=build))
+        rng = random.Random(1)
+        latencies = []
+        for _ in range(SEEKS):
+            step = rng.randint(recording.first_step, recording.last_step)
+            index = rng.randrange(args.robots)
+            session.rebuilder._cache.clear()  # a cold seek: keyframe + inputs every time
+            t0 = time.perf_counter()
+            session.frame(step)
+            if args.toy:  # the toy has no Buzz heap to decode
+                session.rebuilder.robot_at(index, step)
+            else:  # what the replay does for a selected robot: rebuild + inspector view
+                session.inspect(index, step)
+            latencies.append(time.perf_counter() - t0)
+
+    steps = args.steps
+    scale = (TARGET_ROBOTS * TARGET_STEPS) / (args.robots * steps)
+    firmware = "toy firmware" if args.toy else f"{script.name} on the VM"
+    print(f"{args.world}, {args.robots} robots x {steps} steps, {firmware}")
+    print(f"simulation: {sim_seconds:.2f} s while recording ({steps / sim_seconds:.1f} steps/s); "
+          f"{plain_seconds:.2f} s without")
+    print(f"recording:  {record_seconds:.3f} s = {100 * record_seconds / sim_seconds:.1f} % of "
+          f"the simulation time (goal <= 10 %), {1e3 * record_seconds / steps:.2f} ms/step")
+    print(f"file:       {size / 1e6:.2f} MB = {size / (args.robots * steps):.0f} B per robot-step;"
+          f" 25 x 5,000 extrapolated: {size * scale / 1e6:.1f} MB (goal <= 50 MB)")
+    print(f"open:       {read_seconds:.2f} s to read the whole file")
+    print(f"seek:       median {1e3 * statistics.median(latencies):.1f} ms, worst "
+          f"{1e3 * max(latencies):.1f} ms over {SEEKS} cold seeks (goal <= 100 ms; keyframe "
+          f"every {recording.meta['keyframe_every']} steps)")
+
+
+if __name__ == "__main__":
+    main()
