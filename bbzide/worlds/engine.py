@@ -429,8 +429,11 @@ class Simulation:
         if not keep_state:
             self._reset_world()
         else:
+            # Rebooted robots: messages in the air are lost, LEDs go dark, the world rebuilds
+            # its per-robot actuator state from where the bodies are now.
             self.radio = Radio(self.world.radio, self.count, self.world.step_seconds,
                                self.rng["loss"], self.rng["noise"])
+            self.leds[:] = 0.0
             self.world.attach(self)
         self._boot_all()
 
