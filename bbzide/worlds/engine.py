@@ -293,6 +293,7 @@ class Simulation:
         if state.program is None:
             return
         program = _bbo_program(state.program)
+        state.program = program          # converted once (global_value reads its strings)
         functions = self.world.host_functions(self, state.index)
         robot = self._factory(program, state.profile, state.robot_id, functions)
         state.robot = robot
