@@ -146,8 +146,10 @@ class CrazyflieLab(World):
     # ---- bodies -------------------------------------------------------------------------------
     def attach(self, sim: Simulation) -> None:
         count = sim.count
-        self.mode = np.full(count, LANDED, dtype=np.int64)
+        # A drone in the air when its firmware (re)boots lands: it has no flight command.
+        self.mode = np.where(sim.positions[:, 2] > 0, LANDING, LANDED).astype(np.int64)
         self.targets = sim.positions.copy()
+        self.targets[:, 2] = 0.0
         self.velocities = np.zeros((count, 3))
         self.ranges = np.full((count, 5), RANGER_MAX)
         self.bumps = np.zeros(count, dtype=np.int64)

@@ -97,3 +97,18 @@ def test_ble_loss_follows_the_papers_rates():
         lost[hz] = sim.totals["dropped"] / (sim.totals["dropped"] + sim.totals["received"])
     assert lost[2] == 0.0
     assert 0.012 < lost[20] < 0.026
+
+
+def test_reboot_in_the_air_lands():
+    def first_firmware_flies(robot, step):
+        if robot.program == "flies" and step == 0:
+            robot.call("takeoff", 1.0)
+        return []
+
+    sim = Simulation(CrazyflieLab(obstacles=()), program="flies", robots=1, seed=0,
+                     robot_factory=factory(first_firmware_flies))
+    sim.run(60)
+    assert sim.robots[0].pose[2] > 0.9
+    sim.load_program("stays", keep_state=True)     # the new firmware never calls takeoff
+    sim.run(80)
+    assert sim.robots[0].pose[2] == 0.0 and not sim.robots[0].labels["flying"]
