@@ -161,6 +161,12 @@ class HostCall:
             vm.push_nil()
         vm.ret1()
 
+    def ret_object(self, index: int) -> None:
+        """Return an existing heap object (by index) unchanged, as ``bbzvm_push(x); ret1``."""
+        self._done = True
+        self.vm.push(index)
+        self.vm.ret1()
+
     def fail(self, kind: str) -> None:
         from bbzide.vm.vm import Error
 

@@ -1,14 +1,34 @@
-"""Neighbors: the ``neighbors`` global, listeners and neighbor data (spec §F.7).
+"""Neighbors: the ``neighbors`` global, broadcast listeners and neighbor data (spec §F.7,
+``bbzneighbors.c``).
 
-Construct part only (owned by vm-core until the handover); library closures are NOTIMPL
-placeholders until vm-runtime implements them. XTREME builds (Kilobot) keep neighbor data
-in a ring buffer of plain records; other builds keep them in heap tables.
+Two memory models, chosen by the profile, as in the firmware:
+
+* **normal** (PC, Crazyflie, Zooids, M300): the data live in the heap. ``neighbors`` holds
+  under string 44 a sub-table robot id → {distance, azimuth, elevation} and under string 45
+  an int; ``vm.neighbors.count`` is a separate u8 counter. ``add`` marks an entry (key int 0
+  → int 0 in its data table) during the last ``neighbors_mark_time`` cycles before a
+  collection; the data GC deletes unmarked entries and unmarks the others.
+* **XTREME** (Kilobot): the data live in a ring buffer of ``neighbors_cap + 1`` plain
+  records outside the heap; the operations on ``neighbors`` build a temporary data table
+  per element, newest first. The data GC reproduces the firmware's ``bringToTop``, which
+  swaps positions (pos-1, pos) while a u8 ``pos`` counts up to its wrap-around.
+
+The data GC is run by ``bbzvm_process_outmsgs`` every ``neighbors_clr_period + 1`` calls
+(see :func:`process_outmsgs`). Every library closure mirrors its C function, including the
+``bbzvm_gc()`` calls, which are visible in the heap bytes.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
+
+from bbzide.vm import messages
+from bbzide.vm.heap import CLOSURE, INT, STRING
+from bbzide.vm.messages import RingBuffer
+from bbzide.vm.table_library import foreach_live, table_set_quiet, table_size_live, to_bool
+from bbzide.vm.tables import compare, table_get
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
@@ -16,12 +36,18 @@ if TYPE_CHECKING:
 STR_NEIGHBORS = 17
 STR_BROADCAST, STR_LISTEN, STR_IGNORE = 29, 30, 31
 STR_FOREACH, STR_FILTER, STR_MAP, STR_GET, STR_REDUCE, STR_COUNT = 18, 28, 19, 34, 20, 24
-STR_DATA = 44   # non-XTREME sub-table of neighbor data
-STR_RESET = 45  # int 0 stored under this key
+STR_DISTANCE, STR_AZIMUTH, STR_ELEVATION = 21, 22, 23
+STR_DATA = 44   # __INTERNAL_1_DO_NOT_USE__: non-XTREME sub-table of neighbor data
+STR_RESET = 45  # __INTERNAL_2_DO_NOT_USE__: the int "count" field
+
+#: neighbor record mdata bit that marks an entry as refreshed since the last data GC
+MARK = 0x01
 
 
 @dataclass
 class NeighborEntry:
+    """``bbzneighbors_elem_t``: ints 0..255 (XTREME/int builds) or bbzfloat bits."""
+
     robot: int
     distance: int
     azimuth: int
@@ -29,43 +55,400 @@ class NeighborEntry:
     mark: int = 0
 
 
+def _empty_ring(capacity: int) -> RingBuffer[NeighborEntry]:
+    return RingBuffer([NeighborEntry(0, 0, 0, 0) for _ in range(capacity)], capacity)
+
+
 @dataclass
 class NeighborsState:
     hpos: int = 0
     listeners: int = 0
     clear_counter: int = 10
-    count: int = 0
-    ring: list[NeighborEntry] = field(default_factory=list)
+    count: int = 0          # non-XTREME u8 counter (``vm->neighbors.count``)
+    ring: RingBuffer[NeighborEntry] = field(default_factory=lambda: _empty_ring(16))
+
+    def entries(self) -> list[NeighborEntry]:
+        """XTREME ring content, oldest first (ring position 0 first)."""
+        return [self.ring.at(i) for i in range(self.ring.size())]
 
 
-def _notimpl(vm: VM) -> None:
-    vm.not_implemented()
+# ---- helpers ------------------------------------------------------------------------------
+def _add_data(vm: VM, sid: int, data: int) -> None:
+    t = vm.stack[vm.stackptr]
+    vm.push_string(sid)
+    vm.push(data)
+    vm.tput()
+    vm.push(t)
+
+
+def _add_function(vm: VM, sid: int, symbol: str, fn: Callable[[VM], None]) -> None:
+    vm.add_function(vm.stack[vm.stackptr], sid, symbol, fn)
+
+
+def _push_data_table(vm: VM, e: NeighborEntry) -> None:
+    """``push_neighbor_data_table``: a new {distance, azimuth, elevation} table."""
+    new = vm.new_float if vm.profile.neighbors_floats else vm.new_int
+    vm.push_table()
+    _add_data(vm, STR_DISTANCE, new(e.distance))
+    _add_data(vm, STR_AZIMUTH, new(e.azimuth))
+    _add_data(vm, STR_ELEVATION, new(e.elevation))
+
+
+def _subfield(vm: VM, sid: int) -> int:
+    """``bbztable_get_subfield`` of the stack-top table (nil when absent)."""
+    v = table_get(vm.heap, vm.stack[vm.stackptr], vm.new_string_obj(sid))
+    return vm.nil if v is None else v
+
+
+def _add_neighborlike_fields(vm: VM, count: int) -> None:
+    if not vm.profile.xtreme:
+        sub = vm.new_table_obj()
+        _add_data(vm, STR_DATA, sub)
+        cnt = vm.new_int(count)
+        _add_data(vm, STR_RESET, cnt)
+    _add_function(vm, STR_FOREACH, "bbzneighbors_foreach", neighbors_foreach)
+    _add_function(vm, STR_FILTER, "bbzneighbors_filter", neighbors_filter)
+    _add_function(vm, STR_MAP, "bbzneighbors_map", neighbors_map)
+    _add_function(vm, STR_GET, "bbzneighbors_get", neighbors_get)
+    _add_function(vm, STR_REDUCE, "bbzneighbors_reduce", neighbors_reduce)
+    _add_function(vm, STR_COUNT, "bbzneighbors_count", neighbors_count)
+
+
+def _is_neighbors_table(vm: VM, self_obj: int) -> bool:
+    return compare(vm.heap, self_obj, vm.neighbors.hpos) == 0
+
+
+def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None]) -> None:
+    if not vm.profile.xtreme:
+        vm.op_lload(0)
+        sub = _subfield(vm, STR_DATA)
+        vm.pop()
+        foreach_live(vm, sub, fun)
+        return
+    self_obj = vm.lsym(0)
+    if _is_neighbors_table(vm, self_obj):
+        ring = vm.neighbors.ring
+        i = ring.size()
+        while i:
+            i -= 1
+            e = ring.at(i)
+            _push_data_table(vm, e)
+            data = vm.stack[vm.stackptr]
+            vm.pop()
+            fun(vm.new_int(e.robot), data)
+            vm.gc()
+    else:
+        foreach_live(vm, self_obj, fun)
+    vm.gc()
+
+
+# ---- library closures -------------------------------------------------------------------
+def neighbors_broadcast(vm: VM) -> None:
+    if not vm.assert_lnum(2):
+        return
+    h = vm.heap
+    topic, value = vm.lsym(1), vm.lsym(2)
+    s = h.obj_size
+    messages.outmsg_append_broadcast(vm.queues, vm.robot, h.u16(topic),
+                                     bytes(h.data[value * s:value * s + s]))
+    vm.ret0()
+
+
+def neighbors_listen(vm: VM) -> None:
+    if not vm.assert_lnum(2):
+        return
+    topic = vm.lsym(1)
+    if not vm.assert_type(topic, STRING):
+        return
+    c = vm.lsym(2)
+    if not vm.assert_type(c, CLOSURE):
+        return
+    table_set_quiet(vm, vm.neighbors.listeners, topic, c)
+    vm.ret0()
+
+
+def neighbors_ignore(vm: VM) -> None:
+    if not vm.assert_lnum(1):
+        return
+    topic = vm.lsym(1)
+    if not vm.assert_type(topic, STRING):
+        return
+    table_set_quiet(vm, vm.neighbors.listeners, topic, vm.nil)
+    vm.ret0()
+
+
+def neighbors_foreach(vm: VM) -> None:
+    if not vm.assert_lnum(1):
+        return
+    c = vm.lsym(1)
+    if not vm.assert_type(c, CLOSURE):
+        return
+
+    def fun(key: int, value: int) -> None:
+        vm.op_lload(0)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.closure_call(2)
+        vm.pop()
+        vm.gc()
+
+    _neighborlike_foreach(vm, fun)
+    vm.ret0()
+
+
+def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
+    from bbzide.vm.vm import Error
+
+    if not vm.assert_lnum(1):
+        return
+    c = vm.lsym(1)
+    if not vm.assert_type(c, CLOSURE):
+        return
+    ret_tbl = vm.push_table()
+    _add_neighborlike_fields(vm, 0)
+
+    def fun(key: int, value: int) -> None:
+        ss = vm.stack_depth()
+        vm.op_lload(0)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.closure_call(2)
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
+            return
+        ret = vm.stack[vm.stackptr]
+        vm.pop()
+        vm.push(ret_tbl)
+        vm.push_int(key)  # bbzvm_pushi(key): the firmware pushes the key's heap index
+        put(value, ret)
+        vm.gc()
+
+    _neighborlike_foreach(vm, fun)
+    vm.ret1()
+
+
+def neighbors_map(vm: VM) -> None:
+    def put(_value: int, ret: int) -> None:
+        vm.push(ret)
+        vm.tput()
+
+    _map_base(vm, put)
+
+
+def neighbors_filter(vm: VM) -> None:
+    def put(value: int, ret: int) -> None:
+        if to_bool(vm, ret):
+            vm.push(value)
+            vm.tput()
+        else:
+            vm.pop()
+            vm.pop()
+
+    _map_base(vm, put)
+
+
+def neighbors_reduce(vm: VM) -> None:
+    from bbzide.vm.vm import Error
+
+    if not vm.assert_lnum(2):
+        return
+    c = vm.lsym(1)
+    if not vm.assert_type(c, CLOSURE):
+        return
+    vm.op_lload(2)
+
+    def fun(key: int, value: int) -> None:
+        accum = vm.stack[vm.stackptr]
+        vm.pop()
+        ss = vm.stack_depth()
+        vm.op_lload(0)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.push(accum)
+        vm.closure_call(3)
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
+            return
+        vm.gc()
+
+    _neighborlike_foreach(vm, fun)
+    vm.ret1()
+
+
+def neighbors_get(vm: VM) -> None:
+    if not vm.assert_lnum(1):
+        return
+    robot = vm.lsym(1)
+    if not vm.assert_type(robot, INT):
+        return
+    if not vm.profile.xtreme:
+        vm.op_lload(0)
+        vm.push_string(STR_DATA)
+        vm.op_tget()
+        vm.op_lload(1)
+        vm.op_tget()
+        vm.ret1()
+        return
+    wanted = vm.heap.int_value(robot)
+    found = False
+
+    def fun(key: int, value: int) -> None:
+        nonlocal found
+        if not found and vm.heap.int_value(key) == wanted:
+            found = True
+            vm.push(value)
+
+    _neighborlike_foreach(vm, fun)
+    if not found:
+        vm.push_nil()
+    vm.ret1()
+    vm.gc()
+
+
+def neighbors_count(vm: VM) -> None:
+    if not vm.assert_lnum(0):
+        return
+    if not vm.profile.xtreme:
+        vm.op_lload(0)
+        data = _subfield(vm, STR_DATA)
+        vm.pop()
+        vm.push_int(table_size_live(vm, data))
+        vm.ret1()
+        return
+    if _is_neighbors_table(vm, vm.lsym(0)):
+        vm.push_int(vm.neighbors.ring.size())
+    else:
+        vm.op_lload(0)
+        vm.push_string(STR_RESET)
+        vm.op_tget()
+    vm.ret1()
+
+
+# ---- platform side: bbzneighbors_add and the data GC ------------------------------------
+#: ``bbztable_set(t, bbzint_new(0), bbzint_new(0))``: which of the two int 0 objects the
+#: compiler allocates first (argument evaluation order); the corpus decides.
+_MARK_VALUE_FIRST = True
+
+
+def add(vm: VM, entry: NeighborEntry) -> None:
+    """``bbzneighbors_add`` (called by the platform's receive handler)."""
+    n = vm.neighbors
+    p = vm.profile
+    if p.xtreme:
+        ring = n.ring
+        i = ring.size()
+        while i:
+            i -= 1
+            e = ring.at(i)
+            if e.robot == entry.robot:
+                e.distance, e.azimuth, e.elevation = entry.distance, entry.azimuth, \
+                    entry.elevation
+                if n.clear_counter < p.neighbors_mark_time:
+                    e.mark |= MARK
+                size = ring.size()
+                pos = i
+                while pos < size - 1:
+                    ring.swap(pos, pos + 1)
+                    pos += 1
+                return
+        slot = ring.raw_index(ring.makeslot())
+        e = ring.records[slot]
+        e.robot, e.distance, e.azimuth, e.elevation = entry.robot, entry.distance, \
+            entry.azimuth, entry.elevation
+        if n.clear_counter < p.neighbors_mark_time:
+            e.mark |= MARK
+        return
+    vm.push(n.hpos)
+    n.count = (n.count + 1) & 0xFF
+    vm.push_string(STR_DATA)
+    vm.op_tget()
+    vm.push_int(entry.robot)
+    _push_data_table(vm, entry)
+    if n.clear_counter < p.neighbors_mark_time:
+        if _MARK_VALUE_FIRST:
+            v = vm.new_int(0)
+            k = vm.new_int(0)
+        else:
+            k = vm.new_int(0)
+            v = vm.new_int(0)
+        if not table_set_quiet(vm, vm.stack[vm.stackptr], k, v):
+            from bbzide.vm.vm import Error
+
+            vm.seterror(Error.MEM)
+            return
+    vm.tput()
+
+
+def data_gc(vm: VM) -> None:
+    """``bbzneighbors_data_gc``: drop the entries not refreshed since the last one."""
+    n = vm.neighbors
+    if vm.profile.xtreme:
+        ring = n.ring
+        unmarked = 0
+        i = 0
+        while i < ring.size():
+            if not ring.at(i).mark & MARK:
+                pos = i
+                while pos > 0:  # bringToTop: u8 pos counts up until it wraps to 0
+                    ring.swap((pos - 1) & 0xFF, pos)
+                    pos = (pos + 1) & 0xFF
+                unmarked += 1
+            else:
+                ring.at(i).mark &= ~MARK & 0xFF
+            i = (i + 1) & 0xFF
+        for _ in range(unmarked):
+            ring.pop()
+        return
+    from bbzide.vm.vm import Error
+
+    tbl = table_get(vm.heap, n.hpos, vm.new_string_obj(STR_DATA))
+    if tbl is None:
+        vm.seterror(Error.MEM)
+        return
+
+    def fun(key: int, value: int) -> None:
+        if table_get(vm.heap, value, vm.new_int(0)) is None:
+            n.count = (n.count - 1) & 0xFF
+            table_set_quiet(vm, tbl, key, vm.nil)
+        else:
+            table_set_quiet(vm, value, vm.new_int(0), vm.nil)
+
+    foreach_live(vm, tbl, fun)
+
+
+def process_outmsgs(vm: VM) -> None:
+    """``bbzvm_process_outmsgs``: the neighbor-data GC on every 11th call (u8 countdown)."""
+    n = vm.neighbors
+    was = n.clear_counter
+    n.clear_counter = (n.clear_counter - 1) & 0xFF
+    if was == 0:
+        n.clear_counter = vm.profile.neighbors_clr_period
+        data_gc(vm)
 
 
 def register(vm: VM) -> None:
     """``bbzneighbors_register`` in the reference allocation order (spec §E.11 step 9)."""
     p = vm.profile
-    vm.neighbors = NeighborsState(clear_counter=p.neighbors_clr_period)
+    vm.neighbors = NeighborsState(clear_counter=p.neighbors_clr_period,
+                                  ring=_empty_ring(p.neighbors_cap + 1))
     vm.push_string(STR_NEIGHBORS)
     lst = vm.push_table()
-    vm.make_permanent(lst)
-    vm.neighbors.listeners = lst
     vm.pop()
     t = vm.push_table()
-    vm.make_permanent(t)
     vm.neighbors.hpos = t
+    vm.neighbors.listeners = lst
+    vm.make_permanent(t)
+    vm.make_permanent(lst)
     if p.xtreme:
-        vm.table_put_raw(t, vm.new_int(0), vm.new_string_obj(STR_RESET))
-    vm.add_function(t, STR_BROADCAST, "bbzneighbors_broadcast", _notimpl)
-    vm.add_function(t, STR_LISTEN, "bbzneighbors_listen", _notimpl)
-    vm.add_function(t, STR_IGNORE, "bbzneighbors_ignore", _notimpl)
-    if not p.xtreme:
-        vm.table_put_raw(t, vm.new_table_obj(), vm.new_string_obj(STR_DATA))
-        vm.table_put_raw(t, vm.new_int(0), vm.new_string_obj(STR_RESET))
-    vm.add_function(t, STR_FOREACH, "bbzneighbors_foreach", _notimpl)
-    vm.add_function(t, STR_FILTER, "bbzneighbors_filter", _notimpl)
-    vm.add_function(t, STR_MAP, "bbzneighbors_map", _notimpl)
-    vm.add_function(t, STR_GET, "bbzneighbors_get", _notimpl)
-    vm.add_function(t, STR_REDUCE, "bbzneighbors_reduce", _notimpl)
-    vm.add_function(t, STR_COUNT, "bbzneighbors_count", _notimpl)
+        vm.push_int(0)
+        cnt = vm.stack[vm.stackptr]
+        vm.pop()
+        _add_data(vm, STR_RESET, cnt)
+    _add_function(vm, STR_BROADCAST, "bbzneighbors_broadcast", neighbors_broadcast)
+    _add_function(vm, STR_LISTEN, "bbzneighbors_listen", neighbors_listen)
+    _add_function(vm, STR_IGNORE, "bbzneighbors_ignore", neighbors_ignore)
+    _add_neighborlike_fields(vm, 0)
     vm.gstore()

@@ -1,21 +1,175 @@
-"""Global table closures ``foreach filter map reduce size`` (spec §E.6, ``bbztable.c``).
+"""Global table closures ``foreach filter map reduce size`` (``bbztable.c``) and the live
+segment walk they share with the neighbors library.
 
 Registered at the end of construct with ``function_register`` (closure first, then the
-name string). ``size`` is implemented; the others call Buzz closures and are implemented
-through ``VM.closure_call``.
+name string). The walk (``bbztable_foreach``) reads the segments while the callbacks run,
+exactly like the C loop: a callback that changes the table changes what is visited next,
+and a key whose entry is deleted in the current segment is skipped. The walk does not
+check that ``t`` is a table (neither does the C); it stops at a segment index outside the
+heap and after as many segment visits as the heap can hold (a corrupted chain would make
+the firmware loop forever; the model stops instead).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from bbzide.vm.heap import TABLE
-from bbzide.vm.tables import table_items
+from bbzide.vm.heap import CLOSURE, ELEM_INDEX, ELEM_VALID, INT, SEG_NEXT, TABLE, HeapFull
+from bbzide.vm.tables import table_set
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
 
 STR_FOREACH, STR_FILTER, STR_MAP, STR_REDUCE, STR_SIZE = 18, 28, 19, 20, 35
+
+
+def foreach_live(vm: VM, t: int, fun: Callable[[int, int], None]) -> None:
+    """``bbztable_foreach``: call ``fun(key, value)`` for every valid element, live."""
+    h = vm.heap
+    E = h.elems
+    max_segments = h.size // h.seg_size
+    si = h.u16(t)
+    for _ in range(max_segments + 1):
+        if si >= max_segments:
+            return
+        for i in range(E):
+            kw = h.word(si, i)
+            if kw & ELEM_VALID:
+                fun(kw & ELEM_INDEX, h.word(si, i + E) & ELEM_INDEX)
+        si = h.seg_next(si)
+        if si == SEG_NEXT:
+            return
+
+
+def table_size_live(vm: VM, t: int) -> int:
+    """``bbztable_size`` (u8 count of valid keys over the chain, no type check)."""
+    n = 0
+
+    def count(_k: int, _v: int) -> None:
+        nonlocal n
+        n += 1
+
+    foreach_live(vm, t, count)
+    return n & 0xFF
+
+
+def table_set_quiet(vm: VM, t: int, k: int, v: int) -> bool:
+    """``bbztable_set`` called directly by library C code: a full heap is NOT an error."""
+    try:
+        return table_set(vm.heap, t, k, v)
+    except HeapFull:
+        return False
+
+
+def to_bool(vm: VM, o: int) -> bool:
+    """``bbztype_tobool``: only a non-zero int is true."""
+    return vm.heap.obj_type(o) == INT and vm.heap.u16(o) != 0
+
+
+def table_foreach(vm: VM) -> None:
+    from bbzide.vm.vm import Error
+
+    if not vm.assert_lnum(2):
+        return
+    t = vm.lsym(1)
+    if not vm.assert_type(t, TABLE):
+        return
+    c = vm.lsym(2)
+    if not vm.assert_type(c, CLOSURE):
+        return
+
+    def entry(key: int, value: int) -> None:
+        ss = vm.stack_depth()
+        vm.op_lload(1)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.closure_call(2)
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
+            return
+        vm.pop()
+
+    foreach_live(vm, t, entry)
+    vm.ret0()
+
+
+def _map_base(vm: VM, keep: Callable[[int, int, int, int], None]) -> None:
+    from bbzide.vm.vm import Error
+
+    if not vm.assert_lnum(2):
+        return
+    t = vm.lsym(1)
+    if not vm.assert_type(t, TABLE):
+        return
+    c = vm.lsym(2)
+    if not vm.assert_type(c, CLOSURE):
+        return
+    ret_tbl = vm.push_table()
+
+    def entry(key: int, value: int) -> None:
+        ss = vm.stack_depth()
+        vm.op_lload(1)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.closure_call(2)
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
+            return
+        ret = vm.stack[vm.stackptr]
+        vm.pop()
+        keep(ret_tbl, key, value, ret)
+
+    foreach_live(vm, t, entry)
+    vm.ret1()
+
+
+def table_map(vm: VM) -> None:
+    _map_base(vm, lambda t, k, _v, ret: table_set_quiet(vm, t, k, ret) and None)
+
+
+def table_filter(vm: VM) -> None:
+    def keep(t: int, k: int, v: int, ret: int) -> None:
+        if to_bool(vm, ret):
+            table_set_quiet(vm, t, k, v)
+
+    _map_base(vm, keep)
+
+
+def table_reduce(vm: VM) -> None:
+    from bbzide.vm.vm import Error
+
+    if not vm.assert_lnum(3):
+        return
+    t = vm.lsym(1)
+    if not vm.assert_type(t, TABLE):
+        return
+    c = vm.lsym(2)
+    if not vm.assert_type(c, CLOSURE):
+        return
+    accum = vm.lsym(3)
+
+    def entry(key: int, value: int) -> None:
+        nonlocal accum
+        ss = vm.stack_depth()
+        vm.op_lload(1)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.push(accum)
+        vm.closure_call(3)
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
+            return
+        ret = vm.stack[vm.stackptr]
+        vm.pop()
+        accum = ret
+
+    foreach_live(vm, t, entry)
+    vm.push(accum)
+    vm.ret1()
 
 
 def table_size(vm: VM) -> None:
@@ -24,17 +178,13 @@ def table_size(vm: VM) -> None:
     t = vm.lsym(1)
     if not vm.assert_type(t, TABLE):
         return
-    vm.push_int(len(table_items(vm.heap, t)))
+    vm.push_int(table_size_live(vm, t))
     vm.ret1()
 
 
-def _notimpl(vm: VM) -> None:
-    vm.not_implemented()
-
-
 def register(vm: VM) -> None:
-    vm.function_register(STR_FOREACH, "table_foreach", _notimpl)
-    vm.function_register(STR_FILTER, "table_filter", _notimpl)
-    vm.function_register(STR_MAP, "table_map", _notimpl)
-    vm.function_register(STR_REDUCE, "table_reduce", _notimpl)
+    vm.function_register(STR_FOREACH, "table_foreach", table_foreach)
+    vm.function_register(STR_FILTER, "table_filter", table_filter)
+    vm.function_register(STR_MAP, "table_map", table_map)
+    vm.function_register(STR_REDUCE, "table_reduce", table_reduce)
     vm.function_register(STR_SIZE, "table_size", table_size)

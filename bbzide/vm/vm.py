@@ -141,7 +141,7 @@ class VM:
         self.swarm = SwarmState()
         self.vstig = VstigStore()
         self.neighbors = NeighborsState()
-        self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap)
+        self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap, profile.obj_size)
 
     # =================================================================== construct
     def construct(self, robot: int | None = None) -> None:

@@ -1,0 +1,305 @@
+"""``Robot``: the firmware loop around one BittyBuzz VM — what the worlds drive.
+
+It mirrors ``bbzkilo_start`` (spec §F.5; corpus README "Run loop"):
+
+    boot():          construct → set_bcode → register host functions → top-level code
+                     (until ``done``) → state := READY → call ``init``
+    receive(...):    one wire payload (≤ 9 bytes) + situated data: a BROADCAST first feeds
+                     ``bbzneighbors_add`` (as the Kilobot receive handler does), then the
+                     payload is queued (``bbzinmsg_queue_append``)
+    control_step():  ``process_inmsgs`` → call ``step`` → ``process_outmsgs`` → drain the
+                     out-queue; returns the payloads sent, in queue order
+
+Loops: ``loop="pop"`` (default) pops the value ``init``/``step`` return, as BittyBuzz's
+``testswarm.c`` does; ``loop="robot"`` leaves it on the stack exactly like the Kilobot and
+Crazyflie firmware, so the stack grows one slot per step until a STACK error (~step 90 on a
+96-entry stack): the inspector shows that growth.
+
+Errors never escape as Python exceptions: a VM error (and our ``BUDGET``, when one entry
+into Buzz code — the top level, ``init``, ``step``, one listener — exceeds
+``instruction_budget`` instructions) stops the robot and sets ``failure`` (reason, pc,
+source location through the program's debug map, message). A host function that raises is a
+``HOST`` failure; malformed bytecode and garbage messages end in a VM error or are dropped
+like on the robot. Once failed, the robot does nothing more (like the firmware, which stops
+calling ``step`` in state ERROR).
+
+Determinism (for replay): a Robot is a pure function of its program, profile, robot id and
+the sequence of calls made on it. The only inputs from outside are the arguments of
+``receive`` (message bytes, distance, azimuth, elevation) and what host functions return
+(``HostCall.ret``); the VM has no clock, no randomness and no other I/O. So
+``restore(snapshot)`` followed by the same logged ``receive`` calls, the same
+``control_step`` calls and host functions that return the logged values re-executes a
+robot exactly.
+"""
+
+from __future__ import annotations
+
+import pickle
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+from bbzide.compiler import bbzfloat
+from bbzide.compiler.program import BittyBuzzProgram
+from bbzide.diagnostics import SourceLocation
+from bbzide.vm import messages, neighbors
+from bbzide.vm.host import HostCall
+from bbzide.vm.profiles import Profile
+from bbzide.vm.tables import table_get
+from bbzide.vm.vm import VM, Error, State
+
+HostFunction = Callable[[HostCall], None]
+
+#: Instructions one entry into Buzz code may execute. A Kilobot (8 MHz AVR) runs in the
+#: order of 50,000 BittyBuzz instructions per second and steps at about 30 Hz, so a real
+#: step is a few thousand instructions; 100,000 is ~2 s of robot time — a loop that long
+#: is a bug (an infinite loop) rather than a computation.
+DEFAULT_BUDGET = 100_000
+
+STR_INIT, STR_STEP = 4, 5
+
+ERROR_MESSAGES = {
+    "INSTR": "unknown or unsupported instruction",
+    "STACK": "VM stack overflow or underflow",
+    "LNUM": "wrong number of arguments or local symbol",
+    "PC": "program counter out of range",
+    "FLIST": "function list index out of range",
+    "TYPE": "wrong operand type",
+    "OUTOFRANGE": "index out of range",
+    "NOTIMPL": "not implemented",
+    "RET": "wrong return value",
+    "STRING": "unknown string",
+    "SWARM": "swarm id out of range (0..7)",
+    "VSTIG": "virtual stigmergy full",
+    "MEM": "out of heap memory",
+    "MATH": "arithmetic error",
+    "BUDGET": "instruction budget exhausted (infinite loop?)",
+    "HOST": "host function raised an exception",
+}
+
+
+@dataclass(frozen=True)
+class RobotFailure:
+    """Why a robot stopped: ``reason`` is the BittyBuzz error name (``MEM``, ``TYPE``, ...)
+    or ``BUDGET``/``HOST``; ``pc`` is the failing instruction's offset in the ``.bbo``."""
+
+    reason: str
+    pc: int
+    location: SourceLocation | None
+    message: str
+
+    def __str__(self) -> str:
+        where = f"{self.location}: " if self.location else ""
+        return f"{where}{self.reason} at pc {self.pc}: {self.message}"
+
+
+class Robot:
+    """One robot: a VM, its host functions and the firmware loop (ARCHITECTURE.md contract)."""
+
+    def __init__(self, program: BittyBuzzProgram, profile: Profile, robot_id: int,
+                 host_functions: Mapping[str, HostFunction] | None = None, loop: str = "pop",
+                 instruction_budget: int | None = DEFAULT_BUDGET,
+                 host_symbols: Mapping[str, str] | None = None, stress_gc: bool = False) -> None:
+        if loop not in ("pop", "robot"):
+            raise ValueError(f"loop must be 'pop' or 'robot', not {loop!r}")
+        self.program = program
+        self.profile = profile
+        self.robot_id = robot_id
+        self.host_functions = dict(host_functions or {})
+        #: optional C symbol per host-function name (its heap address and ``[cc:NAME]``)
+        self.host_symbols = dict(host_symbols or {})
+        self.loop = loop
+        self.instruction_budget = instruction_budget
+        self.vm = VM(profile, robot=robot_id, stress_gc=stress_gc)
+        self.vm.instruction_budget = instruction_budget
+        self.failure: RobotFailure | None = None
+        self.booted = False
+        self.steps_done = 0
+        #: host-function names not in the program's string table (the script cannot use them)
+        self.skipped_host_functions: list[str] = []
+        #: called with (phase label) after each boot phase; the harness dumps there
+        self.on_phase: Callable[[str], None] | None = None
+
+    # ---- boot --------------------------------------------------------------------------
+    def boot(self) -> None:
+        """construct, set_bcode, host functions, top-level code, ``init``."""
+        self._guard(self._boot)
+
+    def _boot(self) -> None:
+        vm = self.vm
+        self.booted = True
+        vm.construct(self.robot_id)
+        vm.set_bcode(self.program.bbo)
+        self._phase("construct+set_bcode")
+        if self._check():
+            return
+        self.register_host_functions()
+        self._phase("setup")
+        if self._check():
+            return
+        vm.run(self.instruction_budget)
+        self._phase("script")
+        if self._check():
+            return
+        vm.state = State.READY
+        self.call_global(STR_INIT)
+        self._phase("init")
+        self._check()
+
+    def _phase(self, label: str) -> None:
+        if self.on_phase is not None:
+            self.on_phase(label)
+
+    def register_host_functions(self) -> None:
+        """``--reg`` order: plain names as globals; consecutive ``tbl.field`` as one table."""
+        vm = self.vm
+        items = list(self.host_functions.items())
+        i = 0
+        while i < len(items):
+            name, fn = items[i]
+            table, dot, _field = name.partition(".")
+            if not dot:
+                sid = self.program.string_id(name)
+                if sid is None:
+                    self.skipped_host_functions.append(name)
+                else:
+                    vm.function_register(sid, self._symbol(name), self._wrap(fn))
+                i += 1
+                continue
+            group = []
+            while i < len(items) and items[i][0].partition(".")[0] == table \
+                    and "." in items[i][0]:
+                group.append(items[i])
+                i += 1
+            tsid = self.program.string_id(table)
+            if tsid is None:
+                self.skipped_host_functions.extend(n for n, _ in group)
+                continue
+            t = vm.push_table()
+            for full, f in group:
+                fsid = self.program.string_id(full.partition(".")[2])
+                if fsid is None:
+                    self.skipped_host_functions.append(full)
+                    continue
+                vm.add_function(t, fsid, self._symbol(full), self._wrap(f))
+            vm.gsym_register(tsid, t)
+            vm.pop()
+
+    def _symbol(self, name: str) -> str:
+        return self.host_symbols.get(name, name)
+
+    def _wrap(self, fn: HostFunction) -> Callable[[VM], None]:
+        strings = self.program.strings
+
+        def call(vm: VM) -> None:
+            c = HostCall(vm, strings)
+            fn(c)
+            c.finish()
+
+        return call
+
+    def call_global(self, sid: int) -> bool:
+        """``bbzkilo_func_call``: look the global up (pushs, pop) and call it with self nil;
+        in ``pop`` mode the returned value is popped. False when it is not defined."""
+        vm = self.vm
+        vm.push(vm.new_string_obj(sid))
+        name = vm.stack[vm.stackptr] if vm.stackptr >= 0 else vm.nil
+        vm.pop()
+        c = table_get(vm.heap, vm.gsyms, name)
+        if c is None:
+            return False
+        vm.push_nil()
+        vm.push(c)
+        vm.closure_call(0)
+        if self.loop == "pop" and vm.state == State.READY:
+            vm.pop()
+        return True
+
+    # ---- running -----------------------------------------------------------------------
+    def receive(self, message: bytes, distance: float = 0.0, azimuth: float = 0.0,
+                elevation: float = 0.0) -> None:
+        """One received payload (at most 9 bytes are read) with its situated data."""
+        if self.failure is not None or not self.booted:
+            return
+        self._guard(lambda: self._receive(bytes(message[:messages.PAYLOAD_SIZE]), distance,
+                                          azimuth, elevation))
+
+    def _receive(self, payload: bytes, distance: float, azimuth: float,
+                 elevation: float) -> None:
+        if len(payload) >= 3 and payload[0] == messages.BROADCAST:
+            rid = payload[1] | (payload[2] << 8)
+            neighbors.add(self.vm, self.neighbor_entry(rid, distance, azimuth, elevation))
+        messages.inmsg_append(self.vm.queues, payload)
+        self._check()
+
+    def neighbor_entry(self, rid: int, distance: float, azimuth: float,
+                       elevation: float) -> neighbors.NeighborEntry:
+        """Situated data as the build stores it: bbzfloat bits, or u8 (rounded, clamped)."""
+        if self.profile.neighbors_floats:
+            def conv(x: float) -> int:
+                return bbzfloat.from_float(float(x))
+        else:
+            def conv(x: float) -> int:
+                try:
+                    return min(255, max(0, round(x)))
+                except (ValueError, OverflowError):  # NaN, inf
+                    return 255
+        return neighbors.NeighborEntry(rid & 0xFFFF, conv(distance), conv(azimuth),
+                                       conv(elevation))
+
+    def control_step(self) -> list[bytes]:
+        """process_inmsgs, ``step``, process_outmsgs; the payloads sent this step."""
+        if self.failure is not None or not self.booted:
+            return []
+        sent: list[bytes] = []
+
+        def run() -> None:
+            vm = self.vm
+            messages.process_inmsgs(vm)
+            if vm.state != State.ERROR:
+                self.call_global(STR_STEP)
+            neighbors.process_outmsgs(vm)
+            sent.extend(messages.drain_outbox(vm.queues))
+            self.steps_done += 1
+            self._check()
+
+        self._guard(run)
+        return sent
+
+    # ---- failure -------------------------------------------------------------------------
+    def _check(self) -> bool:
+        """Record a failure when the VM is in ERROR; True when failed."""
+        vm = self.vm
+        if self.failure is None and vm.state == State.ERROR:
+            reason = vm.error.name
+            self.failure = RobotFailure(reason, vm.pc, self.program.location_of(vm.pc),
+                                        ERROR_MESSAGES.get(reason, reason))
+        return self.failure is not None
+
+    def _guard(self, action: Callable[[], None]) -> None:
+        """Run ``action``; a Python exception (a host function's, or a model bug on
+        hostile input) becomes a failure instead of escaping."""
+        try:
+            action()
+        except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
+            vm = self.vm
+            vm.state = State.ERROR
+            if self.failure is None:
+                self.failure = RobotFailure("HOST", vm.pc, self.program.location_of(vm.pc),
+                                            f"{ERROR_MESSAGES['HOST']}: {exc!r}")
+
+    # ---- state ---------------------------------------------------------------------------
+    def snapshot(self) -> bytes:
+        """The whole robot state (VM heap and records, loop bookkeeping) as bytes."""
+        return pickle.dumps((self.vm.snapshot(), self.failure, self.steps_done, self.booted))
+
+    def restore(self, snapshot: bytes) -> None:
+        """Restore a snapshot of a robot with the same program, profile and host functions.
+        (A never-booted robot boots first so its host-function registry exists.)"""
+        if not self.booted:
+            self.boot()
+        vm_state, self.failure, self.steps_done, self.booted = pickle.loads(snapshot)
+        self.vm.restore(vm_state)
+
+    @property
+    def error(self) -> Error:
+        return self.vm.error
