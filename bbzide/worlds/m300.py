@@ -31,7 +31,8 @@ ints; 1 dm is finer than the drones' GPS needs and an int16 holds 3.2 km.
   position()           {x, y, z, cell}: where the drone is and the index of the belief cell under it
   arrived()            1 when flying and within 0.3 m of the last goto point, else 0
   flying()             1 when airborne and not landing
-  camera()             index (0..) of the nearest target in the camera footprint, or -1
+  camera()             nil, or {x, y}: the ground position of the nearest target in the camera
+                       footprint (the detection geolocated from the drone's GPS and altitude)
   random_goal()        {x, y, cell}: a uniform random point of the field (the drone's own stream)
   prior(cell)          the prior belief of a cell as an int 0..100 (percent)
   distance(x1, y1, x2, y2)   Euclidean distance, dm (int, rounded)
@@ -41,6 +42,16 @@ ints; 1 dm is finer than the drones' GPS needs and an int16 holds 3.2 km.
   know_target(x, y)    the drone knows a target at (x, y) dm (drawn by the UI)
   relay_link(parent)   the drone relays for robot `parent` (-1: none); drawn as the relay tree
   rand()               0..255
+  clock()              the world's control step number (a GPS time stamp)
+  doze(n)              skip up to n control steps while the flight controller flies on: woken
+                       early when the drone arrives, enters another belief cell or starts
+                       seeing a target
+                       (the onboard code of the paper's drones; messages wait in the in-queue)
+
+Sightings are the world's: a target counts as found (`found_step`) the first step a flying
+drone has it in its camera footprint, whatever the script does with it. `role_steps` counts, per
+drone and role, the steps spent in each role (the relay formation time is the root's auctioneer
+steps, thesis §5.4.2).
 """
 
 from __future__ import annotations
@@ -250,6 +261,11 @@ class M300Field(World):
         self.role_codes = np.full(count, ROLE_NAMES.index("landed"), dtype=np.int64)
         self.known_targets: list[list[tuple[float, float]]] = [[] for _ in range(count)]
         self.parents = np.full(count, -1, dtype=np.int64)
+        self.role_steps = np.zeros((count, len(ROLE_NAMES)), dtype=np.int64)
+        self.asleep_until = np.zeros(count, dtype=np.int64)
+        self.cells_now = np.array([self.cell_of(x, y) for x, y, _ in sim.positions])
+        self.was_seeing = np.zeros(count, dtype=bool)
+        self.was_arrived = np.ones(count, dtype=bool)
         self.step = 0
         for state in sim.robots:
             state.set_label("role", "landed")
@@ -301,7 +317,12 @@ class M300Field(World):
             call.ret(int(world.mode[index] == FLYING))
 
         def camera(call: HostCall) -> None:
-            call.ret(world.seen_target(sim, index))
+            seen = world.seen_target(sim, index)
+            if seen < 0:
+                call.ret(None)
+            else:
+                x, y = world.targets[seen]
+                call.ret({"x": _dm(x), "y": _dm(y)})
 
         def random_goal(call: HostCall) -> None:
             x, y = rng.uniform(0.0, size, 2)
@@ -367,26 +388,42 @@ class M300Field(World):
         def random_byte(call: HostCall) -> None:
             call.ret(int(rng.integers(0, 256)))
 
+        def clock(call: HostCall) -> None:
+            call.ret(int(sim.step_count))
+
+        def doze(call: HostCall) -> None:
+            if not call.expect_args(1):
+                return
+            steps = _number_arg(call, 1)
+            if steps is not None:
+                world.asleep_until[index] = sim.step_count + 1 + max(int(steps), 0)
+
         return {"takeoff": takeoff, "land": land, "goto": goto, "position": position,
                 "arrived": arrived, "flying": flying, "camera": camera,
                 "random_goal": random_goal, "prior": prior, "distance": distance,
                 "mission": mission, "set_role": set_role, "know_target": know_target,
-                "relay_link": relay_link, "rand": random_byte}
+                "relay_link": relay_link, "rand": random_byte, "clock": clock, "doze": doze}
 
     # ---- sensors and physics ------------------------------------------------------------------
     def seen_target(self, sim: Simulation, index: int) -> int:
-        """The nearest target inside robot `index`'s camera footprint (-1: none). The first
-        sighting of each target is recorded in `found_step`."""
+        """The nearest target inside robot `index`'s camera footprint (-1: none)."""
         if self.mode[index] != FLYING or len(self.targets) == 0:
             return -1
         gaps = np.hypot(self.targets[:, 0] - sim.positions[index, 0],
                         self.targets[:, 1] - sim.positions[index, 1])
         nearest = int(np.argmin(gaps))
-        if gaps[nearest] > self.camera_radius:
-            return -1
-        if self.found_step[nearest] < 0:
-            self.found_step[nearest] = sim.step_count
-        return nearest
+        return -1 if gaps[nearest] > self.camera_radius else nearest
+
+    def is_asleep(self, index: int, step: int) -> bool:
+        return bool(self.asleep_until[index] > step)
+
+    def _footprints(self, sim: Simulation) -> np.ndarray:
+        """(drones, targets) bool: target inside the drone's camera footprint, drone flying."""
+        if len(self.targets) == 0:
+            return np.zeros((sim.count, 0), dtype=bool)
+        dx = sim.positions[:, None, 0] - self.targets[None, :, 0]
+        dy = sim.positions[:, None, 1] - self.targets[None, :, 1]
+        return (np.hypot(dx, dy) <= self.camera_radius) & (self.mode == FLYING)[:, None]
 
     def advance(self, sim: Simulation, dt: float) -> None:
         positions = sim.positions
@@ -404,7 +441,23 @@ class M300Field(World):
         landed_now = (self.mode == LANDING) & (positions[:, 2] <= 1e-6)
         positions[landed_now, 2] = 0.0
         self.mode[landed_now] = LANDED
-        self.step = sim.step_count + 1
+        now = sim.step_count + 1
+        self.step = now
+        self.role_steps[np.arange(sim.count), self.role_codes] += 1
+        seen = self._footprints(sim)
+        first = seen.any(axis=0) & (self.found_step < 0)
+        self.found_step[first] = now
+        # Wake dozing drones that arrived, changed cell or see a target.
+        cells = (np.clip((positions[:, 1] / self.field_size * self.cells).astype(np.int64), 0,
+                         self.cells - 1) * self.cells
+                 + np.clip((positions[:, 0] / self.field_size * self.cells).astype(np.int64), 0,
+                           self.cells - 1))
+        arrived = np.linalg.norm(self.goals - positions, axis=1) <= ARRIVAL_TOLERANCE
+        sees = seen.any(axis=1)
+        wake = ((cells != self.cells_now) | (sees & ~self.was_seeing)
+                | (arrived & ~self.was_arrived))
+        self.cells_now, self.was_seeing, self.was_arrived = cells, sees, arrived
+        self.asleep_until[wake] = 0
 
     # ---- what the UI and the experiments read -------------------------------------------------
     def relay_links(self) -> list[tuple[int, int]]:

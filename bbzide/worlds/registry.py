@@ -40,7 +40,8 @@ CRAZYFLIE_HOST_NAMES = (
 #: Host names of the M300 field: its host functions, then the keys of the tables they return.
 M300_HOST_NAMES = (
     "takeoff", "land", "goto", "position", "arrived", "flying", "camera", "random_goal",
-    "prior", "distance", "mission", "set_role", "know_target", "relay_link", "rand",
+    "prior", "distance", "mission", "set_role", "know_target", "relay_link", "rand", "clock",
+    "doze",
     "x", "y", "z", "cell", "search", "steps", "size", "rx", "ry", "range", "cells", "threshold",
 )
 
