@@ -465,25 +465,32 @@ class M300Field(World):
         return [(i, int(p)) for i, p in enumerate(self.parents) if p >= 0]
 
     def relay_complete(self, sim: Simulation) -> bool:
-        """True when every target has a networker over it (within the camera footprint) and
-        every relay link is no longer than the communication range (the tree is connected)."""
+        """True when every target has a networker over it (within the camera footprint) whose
+        chain of relay links reaches the root, every networker on it flying and every link no
+        longer than the communication range (the tree connects the base to each target)."""
         if len(self.targets) == 0:
             return True
         positions = sim.positions[:, :2]
-        networkers = np.array([r == "networker" for r in self.roles])
-        if not networkers.any():
+        count = len(positions)
+        roots = {i for i, r in enumerate(self.roles) if r in ("root", "auctioneer")}
+
+        def reaches_root(child: int) -> bool:
+            for _ in range(count):                 # a chain longer than the swarm is a cycle
+                if child in roots:
+                    return True
+                parent = int(self.parents[child])
+                if (self.roles[child] != "networker" or self.mode[child] != FLYING
+                        or not 0 <= parent < count or np.hypot(
+                            *(positions[child] - positions[parent])) > self.comm_range + 1e-6):
+                    return False
+                child = parent
             return False
-        settled = networkers & (self.mode == FLYING)
+
         for t in self.targets:
             gaps = np.hypot(positions[:, 0] - t[0], positions[:, 1] - t[1])
-            if not np.any(settled & (gaps <= self.camera_radius)):
-                return False
-        for child, parent in self.relay_links():
-            if not 0 <= parent < len(positions):
-                return False
-            if not settled[child]:
-                return False
-            if np.hypot(*(positions[child] - positions[parent])) > self.comm_range + 1e-6:
+            over = [i for i in np.nonzero(gaps <= self.camera_radius)[0]
+                    if self.roles[i] == "networker"]
+            if not any(reaches_root(int(i)) for i in over):
                 return False
         return True
 
