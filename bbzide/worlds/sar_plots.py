@@ -48,7 +48,8 @@ def box_plot(results: Sequence[dict[str, Any]], arena: float, key: str, ylabel: 
     ax.set_xlabel("drones")
     ax.set_ylabel(ylabel)
     ax.set_title(f"{arena:g} m x {arena:g} m arena")
-    ax.legend()
+    if searches:
+        ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
