@@ -40,7 +40,8 @@ def box_plot(results: Sequence[dict[str, Any]], arena: float, key: str, ylabel: 
                 for d in drones]
         positions = [i + (k - (len(searches) - 1) / 2) * width for i in range(len(drones))]
         parts = ax.boxplot([d if d else [float("nan")] for d in data], positions=positions,
-                           widths=width * 0.9, patch_artist=True)
+                           widths=width * 0.9, patch_artist=True,
+                           medianprops={"color": "black"})
         for box in parts["boxes"]:
             box.set_facecolor(colours[search])
         ax.plot([], [], color=colours[search], linewidth=8, label=search)
