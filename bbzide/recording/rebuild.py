@@ -182,8 +182,9 @@ class RobotRebuilder:
         decoded = self._decoded.get(step)
         if decoded is None:
             try:
-                decoded = decode_step(self.recording.inputs[self.recording.row(step)])
-            except InputLogError as error:
+                blob = self.recording.inputs[self.recording.row(step)]
+                decoded = decode_step(zlib.decompress(blob)) if blob else {}
+            except (InputLogError, zlib.error) as error:
                 raise RecordingError(f"corrupt inputs at step {step}: {error}") from None
             if len(self._decoded) > 4096:  # a bounded memo: seeks revisit nearby steps
                 self._decoded.clear()

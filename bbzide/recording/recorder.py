@@ -56,6 +56,12 @@ OVERLAY_EVERY = 10
 #: zlib level for snapshots: level 6 is as fast as 1 on 3 KB Kilobot snapshots (40-80 us)
 #: and 15 % smaller against a preset dictionary.
 SNAPSHOT_COMPRESSION = 6
+#: zlib level for each step's input blob: level 1 halves it (a broadcast reaches several
+#: robots, so payloads repeat; bearings of 0 and distance exponents are alike) for ~20 us.
+INPUT_COMPRESSION = 1
+#: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
+#: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
+LINK_ARROWS_EVERY = 5
 #: Every 16th keyframe of a robot is full; the others are compressed against it (190 B instead
 #: of 1,060 B for a Kilobot running gradient.bzz); decoding one needs at most two inflates.
 FULL_KEYFRAME_EVERY = 16
@@ -367,7 +373,7 @@ class MissionRecorder:
             inputs = robot.take_inputs()
             if not inputs.empty:
                 records.append((index, inputs))
-        blob = encode_step(records)
+        blob = zlib.compress(encode_step(records), INPUT_COMPRESSION)
         self._buffer_frame(step, blob)
         due = []
         for i, robot in self._capturing.items():
@@ -502,14 +508,18 @@ class MissionRecorder:
             origins=positions, vectors=(vectors * reach).astype(np.float32)).partition(per_robot))
         links = b["links"]
         link_counts = [len(x) for x in links]
-        if sum(link_counts):
-            ends = np.concatenate([p[k] for p, k in zip(b["positions"], links, strict=True)])
-            send(layout.LINKS, indexes=indexes, columns=rr.Arrows3D.columns(
-                origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0]).partition(link_counts))
+        sampled = [r for r in range(rows) if steps[r] % LINK_ARROWS_EVERY == 0 and link_counts[r]]
+        if sampled:
+            ends = np.concatenate([b["positions"][r][links[r]] for r in sampled])
+            at = steps[sampled]
+            send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
+                                        rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
+                 columns=rr.Arrows3D.columns(origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0])
+                 .partition([link_counts[r] for r in sampled]))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
-                      else np.zeros(0, np.int32)).astype(np.int32)
+                      else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
-            pairs=pa.array(flat_pairs, type=pa.int32())).partition([2 * c for c in link_counts]))
+            pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
         messages = np.stack(b["messages"])  # rows, 3, n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
             sent=messages[:, 0].reshape(-1), received=messages[:, 1].reshape(-1),
