@@ -48,8 +48,13 @@ KEYFRAME_EVERY = 25
 KEYFRAME_BUDGET_SECONDS = 0.040
 #: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
 FLUSH_EVERY = 50
-#: ...or after one wall-clock second, so a slow swarm loses at most ~1 s if killed.
-FLUSH_SECONDS = 1.0
+#: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
+#: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
+#: swarm made that framing most of the file.)
+FLUSH_SECONDS = 10.0
+#: Rare rows (keyframes, events, overlays) wait in Rerun's batcher until our flush, so they too
+#: leave in one chunk per entity and flush instead of one per row.
+BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: World overlays (light field, targets, belief map) are polled every 10 steps: they change
 #: slowly and some are costly to build (the Kilobot light raster is 32 x 32 evaluations).
 OVERLAY_EVERY = 10
@@ -213,7 +218,12 @@ class MissionRecorder:
                 raise RecordingError("this swarm was not built for recording (its robots have "
                                      "no input capture); restart it, then record")
         self.rr = rr
-        self.rec = rr.RecordingStream(layout.APPLICATION_ID, recording_id=str(uuid.uuid4()))
+        import datetime
+
+        batching = rr.ChunkBatcherConfig(flush_tick=datetime.timedelta(hours=1),
+                                         flush_num_bytes=BATCHER_FLUSH_BYTES)
+        self.rec = rr.RecordingStream(layout.APPLICATION_ID, recording_id=str(uuid.uuid4()),
+                                      batcher_config=batching)
         try:
             self.rec.save(str(self.path), default_blueprint=mission_blueprint())
         except Exception as error:  # noqa: BLE001 - any sink failure is the user's file system
