@@ -1,10 +1,20 @@
-"""Instruction rate of the BittyBuzz VM model (vm-core).
+"""Instruction and control-step rate of the BittyBuzz VM model, per profile and GC mode.
 
-Runs the corpus script ``loops_locals`` (loop-heavy: locals, arithmetic, tables) with the
-``init``/``step`` functions called repeatedly, per profile and GC mode, and prints
-instructions/s and steps/s. Reference: the C BittyBuzz -O2 on this machine ≈ 1.2 M instr/s.
+Scripts (ours, beside this file):
+* ``vm_loop.bzz`` — loop-heavy, ~3,400 instructions per control step (the size of the
+  reference measurement);
+* ``vm_neighbors.bzz`` — neighbor-heavy: ``neighbors.foreach/reduce/filter`` over 15
+  neighbors (needs the runtime neighbors library; reported as skipped while it is absent).
 
-    PYTHONPATH=. /work/venv/bin/python benchmarks/vm_bench.py
+Each run: construct, ``set_bcode``, the top-level code, then ``step`` called repeatedly
+(the firmware's loop, ``pop`` variant) for a fixed wall time. Modes: ``stress`` collects
+before every instruction (the reference ``bbzvm_step``), ``fast`` is the default fast VM
+(compiled collector, provably changeless collections skipped — ARCHITECTURE.md "vm speed").
+Printed: instructions/s, steps/s, fast/stress ratio, and the ratio to the C BittyBuzz built
+with -O2 on this machine (≈ 1.2 M instructions/s on a 3,400-instruction loop step; the
+reference runs its GC before every instruction).
+
+    PYTHONPATH=. python benchmarks/vm_bench.py [seconds per run, default 2]
 """
 
 from __future__ import annotations
@@ -13,33 +23,44 @@ import sys
 import time
 from pathlib import Path
 
-from bbzide.vm.profiles import KILOBOT, PC, Profile
+from bbzide.compiler import compile_file
+from bbzide.vm.profiles import PROFILES, Profile
 from bbzide.vm.vm import VM, State
 
-BBZ = Path("/work/shared/conformance/bbz")
+HERE = Path(__file__).resolve().parent
+#: instructions/s of the reference C BittyBuzz (-O2) on the loop script, this machine
 C_REFERENCE_RATE = 1.2e6
+#: neighbors the neighbor-heavy script sees (the Kilobot neighbors capacity)
+NEIGHBORS = 15
 
 
-def _sid(name: str, script: str) -> int:
-    return (BBZ / f"{script}.bst").read_text().splitlines().index(name)
+def _load(script: str) -> tuple[bytes, list[str]]:
+    program = compile_file(HERE / script).to_bbo()
+    return program.bbo, program.strings
 
 
-def bench(profile: Profile, stress_gc: bool, script: str = "loops_locals",
-          seconds: float = 2.0) -> tuple[float, float]:
+def bench(profile: Profile, stress_gc: bool, script: str, seconds: float,
+          setup=None) -> tuple[float, float] | str:  # noqa: ANN001 - optional world hook
+    """(instructions/s, steps/s), or a reason string when the script cannot run."""
+    bbo, strings = _load(script)
     vm = VM(profile, stress_gc=stress_gc)
     vm.construct()
-    vm.set_bcode((BBZ / f"{script}.bbo").read_bytes())
-    log = _sid("log", script)
-    vm.function_register(log, "h_print", lambda v: v.ret0())
-    vm.run(max_instructions=10_000_000)
+    vm.set_bcode(bbo)
+    vm.run(max_instructions=1_000_000)
+    if vm.state == State.ERROR:
+        return f"top level: {vm.error.name}"
     vm.state = State.READY
-    step_sid = _sid("step", script)
+    step_sid = strings.index("step")
     steps = 0
     start_instr = vm.instructions_executed
     t0 = time.perf_counter()
-    while time.perf_counter() - t0 < seconds and vm.state == State.READY:
+    while time.perf_counter() - t0 < seconds:
+        if setup is not None:
+            setup(vm)
         vm.push_nil()  # self: bbzvm_function_call consumes the entry below the closure
         vm.function_call(step_sid, 0)
+        if vm.state == State.ERROR:
+            return f"step: {vm.error.name} at pc {vm.pc}"
         vm.pop()
         steps += 1
     dt = time.perf_counter() - t0
@@ -48,12 +69,27 @@ def bench(profile: Profile, stress_gc: bool, script: str = "loops_locals",
 
 def main() -> None:
     seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 2.0
-    for profile in (PC, KILOBOT):
-        for stress in (True, False):
-            ips, sps = bench(profile, stress, seconds=seconds)
-            mode = "stress_gc" if stress else "fast"
-            print(f"{profile.name:8s} {mode:9s} {ips:12,.0f} instr/s {sps:9,.0f} steps/s "
-                  f"({ips / C_REFERENCE_RATE:.2f}x the C reference)")
+    print(f"{'script':14s} {'profile':9s} {'mode':6s} {'instr/s':>10s} {'steps/s':>9s} "
+          f"{'fast/stress':>11s} {'vs C -O2':>8s}")
+    for script in ("vm_loop.bzz", "vm_neighbors.bzz"):
+        if not (HERE / script).exists():
+            print(f"{script:14s} (not written yet)")
+            continue
+        for profile in PROFILES.values():
+            rates: dict[str, float] = {}
+            for mode in ("stress", "fast"):
+                # stress mode is ~20x slower: a shorter window keeps `make bench` short
+                window = seconds / 4 if mode == "stress" else seconds
+                result = bench(profile, mode == "stress", script, window)
+                if isinstance(result, str):
+                    print(f"{script:14s} {profile.name:9s} {mode:6s} skipped ({result})")
+                    continue
+                ips, sps = result
+                rates[mode] = ips
+                ratio = f"{ips / rates['stress']:10.1f}x" if mode == "fast" and \
+                    "stress" in rates else ""
+                print(f"{script:14s} {profile.name:9s} {mode:6s} {ips:10,.0f} {sps:9,.1f} "
+                      f"{ratio:>11s} {ips / C_REFERENCE_RATE:7.2f}x")
 
 
 if __name__ == "__main__":

@@ -33,3 +33,13 @@ COMPILER_DIR = CORPUS / "compiler"
 COMPILER_ERRORS_DIR = COMPILER_DIR / "errors"
 BBZ_DIR = CORPUS / "bbz"
 BBZCONF = CORPUS / "tools" / "bbzconf.py"
+
+#: Pass counts that loop-style corpus tests report (label -> (passed, run)); the terminal
+#: summary of `tests/conftest.py` prints them beside the per-case tallies.
+REPORTED: dict[str, tuple[int, int]] = {}
+
+
+def report(label: str, passed: int, run: int) -> None:
+    """Record a corpus pass count for the end-of-run summary (and print it for `-s` runs)."""
+    REPORTED[label] = (passed, run)
+    print(f"{label}: {passed}/{run}")

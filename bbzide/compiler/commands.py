@@ -14,6 +14,7 @@ no `--host` is given), so that string ids match what the firmware expects. Every
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -84,6 +85,12 @@ def _write(path: Path, data: bytes) -> None:
         raise UserError(f"cannot write {path}: {error.strerror}") from None
 
 
+def include_path_from_environment() -> list[str]:
+    """The folders of `$BUZZ_INCLUDE_PATH` (colon-separated, as bzzparse reads it)."""
+    folders = os.environ.get("BUZZ_INCLUDE_PATH", "").split(os.pathsep)
+    return [folder for folder in folders if folder]
+
+
 def run_compile(args: argparse.Namespace) -> int:
     script = Path(args.script)
     if not script.is_file():
@@ -95,7 +102,8 @@ def run_compile(args: argparse.Namespace) -> int:
         strings = bittybuzz_string_table(hosts)
     else:
         strings = None
-    program = compile_file(script, args.include, strings, args.reference_quirks)
+    program = compile_file(script, [*args.include, *include_path_from_environment()], strings,
+                           args.reference_quirks)
     bo_path = Path(args.bo) if args.bo else script.with_suffix(".bo")
     bdb_path = Path(args.bdb) if args.bdb else bo_path.with_suffix(".bdb")
     bbo = program.to_bbo()

@@ -369,12 +369,7 @@ class Parser:
             self.condition()
             self.emit("lnot")
             return
-        self.comparison()
-        while self.tok.kind == T.LANDOR:
-            op = self.tok.text
-            self.advance()
-            self.comparison()
-            self.emit(BINARY_OPS[op])
+        self.binary_level(self.comparison, T.LANDOR)
 
     def comparison(self) -> None:
         self.expression()
@@ -388,27 +383,13 @@ class Parser:
         if self.tok.kind == T.BLOCKOPEN:
             self.tabledef()
             return
-        self.product()
-        while self.tok.kind == T.ADDSUB:
-            op = self.tok.text
-            self.advance()
-            self.product()
-            self.emit(BINARY_OPS[op])
+        self.binary_level(self.product, T.ADDSUB)
 
     def product(self) -> None:
-        self.modulo()
-        while self.tok.kind == T.MULDIV:
-            op = self.tok.text
-            self.advance()
-            self.modulo()
-            self.emit(BINARY_OPS[op])
+        self.binary_level(self.modulo, T.MULDIV)
 
     def modulo(self) -> None:
-        self.power()
-        while self.tok.kind == T.MOD:
-            self.advance()
-            self.power()
-            self.emit("mod")
+        self.binary_level(self.power, T.MOD)
 
     def power(self) -> None:
         self.bitshift()
@@ -418,19 +399,19 @@ class Parser:
             self.emit("pow")
 
     def bitshift(self) -> None:
-        self.bandor()
-        while self.tok.kind == T.LRSHIFT:
-            op = self.tok.text
-            self.advance()
-            self.bandor()
-            self.emit(BINARY_OPS[op])
+        self.binary_level(self.bandor, T.LRSHIFT)
 
     def bandor(self) -> None:
-        self.bnot()
-        while self.tok.kind == T.BANDOR:
+        self.binary_level(self.bnot, T.BANDOR)
+
+    def binary_level(self, operand: Callable[[], None], operator_kind: str) -> None:
+        """One left-associative precedence level: `operand (OP operand)*`, each OP emitted
+        after its right operand (bzzparse's order, which fixes the `.basm` annotations)."""
+        operand()
+        while self.tok.kind == operator_kind:
             op = self.tok.text
             self.advance()
-            self.bnot()
+            operand()
             self.emit(BINARY_OPS[op])
 
     def bnot(self) -> None:

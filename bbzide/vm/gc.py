@@ -7,6 +7,11 @@ is marked only while the counter is ≤ ``gcmark_depth``, so roots sit at level 
 ``depth - 1`` levels are traversed — deeper reachable objects ARE freed, as on the robot.
 Traversal order matters (first visit wins), so the order below is the reference order.
 Mark bits stay set after a collection (they are visible in the heap bytes).
+
+Where C would read outside the heap (a stale table payload, a corrupt or cyclic chain) this
+model stops instead: a segment whose bytes fall outside the heap ends its chain, an object
+index past the heap is ignored, and a chain stops after as many segments as the heap holds
+(the firmware would loop forever). :mod:`bbzide.vm.fastgc` does exactly the same.
 """
 
 from __future__ import annotations
@@ -45,6 +50,8 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
     mo = 4 * heap.elems          # offset of the mdata word inside a segment
     nwords = 2 * heap.elems
     depth_limit = heap.profile.gcmark_depth
+    nobj = size // s
+    max_chain = size // g + 1
     heap.gc_runs += 1
 
     # 1. clear marks
@@ -58,13 +65,15 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
         nonlocal depth
         depth += 1
         o = x * s
-        if depth <= depth_limit and not d[o] & GC_MARK:
+        if 0 <= x < nobj and depth <= depth_limit and not d[o] & GC_MARK:
             d[o] |= GC_MARK
             m = d[o]
             t = m & TYPE_MASK
             if t == TABLE:
                 seg = d[o + 1] | (d[o + 2] << 8)
-                while True:
+                walked = 0
+                while (seg + 1) * g <= size and walked < max_chain:
+                    walked += 1
                     base = size - (seg + 1) * g
                     d[base + mo + 1] |= SEG_MARK >> 8
                     for w in range(nwords):
@@ -72,12 +81,12 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
                         # Calling mark on an already-marked object, or beyond the depth
                         # limit, has no effect: skip the call (hot path).
                         if word & ELEM_VALID and depth < depth_limit and \
+                                (word & ELEM_INDEX) < nobj and \
                                 not d[(word & ELEM_INDEX) * s] & GC_MARK:
                             mark(word & ELEM_INDEX)
-                    nxt = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
-                    if nxt == SEG_NEXT:
+                    seg = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
+                    if seg == SEG_NEXT:
                         break
-                    seg = nxt
             elif t == CLOSURE and m & FLAG2 and d[o + 2] != NO_ACTREC:
                 mark(d[o + 2])
         depth -= 1
@@ -97,7 +106,7 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
             d[o] = m & ~VALID & 0xFF
             if m & TYPE_MASK == TABLE:
                 seg = d[o + 1] | (d[o + 2] << 8)
-                if not heap.seg_mdata(seg) & SEG_MARK:
+                if (seg + 1) * g <= size and not heap.seg_mdata(seg) & SEG_MARK:
                     for sj in heap.segment_chain(seg):
                         heap.set_seg_mdata(sj, heap.seg_mdata(sj) & ~SEG_VALID)
 

@@ -16,6 +16,10 @@ Object byte 0 is the metadata (type bits 0-2, valid 3, permanent 4, GC mark 5, t
 
 from __future__ import annotations
 
+import numpy as np
+
+from bbzide.vm.fastgc import first_free as _first_free
+from bbzide.vm.fastgc import first_free_segment as _first_free_segment
 from bbzide.vm.profiles import Profile
 
 # Object types (bits 0-2 of the metadata byte).
@@ -56,6 +60,10 @@ class Heap:
         self.ltseg = self.size
         self.peak_used = 0
         self.gc_runs = 0
+        #: how the last compiled collection marked (fastgc.collect's info/traversed)
+        nobj = self.objects = self.size // self.obj_size  # object slots the heap can hold
+        self.gc_info = np.zeros(nobj, np.uint8)
+        self.gc_traversed = np.zeros(nobj + 1, np.int32)
 
     # ---- whole-heap operations -------------------------------------------------------
     def clear(self) -> None:
@@ -131,28 +139,14 @@ class Heap:
         """
         d = self.data
         s = self.obj_size
-        n = self.rtobj // s
-        found = -1
-        if typ == STRING:
-            lo = string_id & 0xFF
-            hi = (string_id >> 8) & 0xFF
-            for i in range(self.reserved, n):
-                o = i * s
-                m = d[o]
-                if not m & VALID:
-                    found = i
-                    break
-                if m & TYPE_MASK == STRING and d[o + 1] == lo and d[o + 2] == hi:
-                    return i
-        else:
-            for i in range(self.reserved, n):
-                if not d[i * s] & VALID:
-                    found = i
-                    break
+        # the first-fit scan (and string dedupe) runs compiled: see fastgc.first_free
+        found = _first_free(d, self.rtobj, s, self.reserved, typ, string_id)
+        if found < -1:
+            return -2 - found
         if found < 0:
             if self.rtobj + s > self.ltseg:
                 raise HeapFull
-            found = n
+            found = self.rtobj // s
             self.rtobj += s
             self._note_usage()
         o = found * s
@@ -225,16 +219,12 @@ class Heap:
 
     def seg_alloc(self) -> int:
         """``bbzheap_tseg_alloc``: first invalid segment slot, else grow left."""
-        k = (self.size - self.ltseg) // self.seg_size
-        found = -1
-        for j in range(k):
-            if not self.seg_mdata(j) & SEG_VALID:
-                found = j
-                break
+        found = _first_free_segment(self.data, self.ltseg, self.size, self.seg_size,
+                                    self.elems)
         if found < 0:
             if self.ltseg - self.seg_size < self.rtobj:
                 raise HeapFull
-            found = k
+            found = (self.size - self.ltseg) // self.seg_size
             self.ltseg -= self.seg_size
             self._note_usage()
         o = self.seg_offset(found)
@@ -248,7 +238,10 @@ class Heap:
         """Segment indices of a table chain starting at ``first``."""
         chain = [first]
         nxt = self.seg_next(first)
-        while nxt != SEG_NEXT and len(chain) <= self.size // self.seg_size:
+        limit = self.size // self.seg_size
+        # a next index whose bytes lie outside the heap ends the chain (see gc.py)
+        while nxt != SEG_NEXT and (nxt + 1) * self.seg_size <= self.size \
+                and len(chain) <= limit:
             chain.append(nxt)
             nxt = self.seg_next(nxt)
         return chain

@@ -114,6 +114,7 @@ class Robot:
         self.failure: RobotFailure | None = None
         self.booted = False
         self.steps_done = 0
+        self.init_defined = False
         #: host-function names not in the program's string table (the script cannot use them)
         self.skipped_host_functions: list[str] = []
         #: called with (phase label) after each boot phase; the harness dumps there
@@ -141,7 +142,7 @@ class Robot:
         if self._check():
             return
         vm.state = State.READY
-        self.call_global(STR_INIT)
+        self.init_defined = self.call_global(STR_INIT)
         self._phase("init")
         self._check()
 

@@ -6,10 +6,16 @@ words; a darray segment uses the same 2E words as values. Element words carry bi
 valid, bits 0-14 = heap index. Every function here mirrors one ``bbztable_*``/
 ``bbzdarray_*`` routine, including its quirks (darray ``size`` unlinks trailing segments,
 ``pop`` leaves an empty trailing segment until the next pop).
+The four hottest readers (``table_get``, ``darray_get/set/size``) run as compiled loops in
+:mod:`bbzide.vm.fasttables`.
 """
 
 from __future__ import annotations
 
+from bbzide.vm.fasttables import darray_get as _darray_get
+from bbzide.vm.fasttables import darray_set as _darray_set
+from bbzide.vm.fasttables import darray_size as _darray_size
+from bbzide.vm.fasttables import table_lookup as _table_lookup
 from bbzide.vm.heap import (
     CLOSURE,
     ELEM_INDEX,
@@ -55,19 +61,8 @@ def compare(heap: Heap, a: int, b: int) -> int:
 # ---- tables ---------------------------------------------------------------------------
 def table_get(heap: Heap, t: int, k: int) -> int | None:
     """The value index stored under key object ``k``, or None (absent or not a table)."""
-    if heap.obj_type(t) != TABLE:
-        return None
-    E = heap.elems
-    seg = heap.u16(t)
-    while True:
-        for s in range(E):
-            kw = heap.word(seg, s)
-            if kw & ELEM_VALID and compare(heap, kw & ELEM_INDEX, k) == 0:
-                return heap.word(seg, s + E) & ELEM_INDEX
-        nxt = heap.seg_next(seg)
-        if nxt == SEG_NEXT:
-            return None
-        seg = nxt
+    v = _table_lookup(heap.data, t, k, heap.obj_size, heap.elems)
+    return None if v < 0 else v
 
 
 def table_set(heap: Heap, t: int, k: int, v: int) -> bool:
@@ -193,50 +188,17 @@ def darray_pop(heap: Heap, d: int) -> bool:
 
 
 def darray_get(heap: Heap, d: int, i: int) -> int | None:
-    if not is_darray(heap, d) or i < 0:
-        return None
-    n = 2 * heap.elems
-    seg = heap.u16(d)
-    for _ in range(i // n):
-        nxt = heap.seg_next(seg)
-        if nxt == SEG_NEXT:
-            return None
-        seg = nxt
-    w = heap.word(seg, i % n)
-    return w & ELEM_INDEX if w & ELEM_VALID else None
+    v = _darray_get(heap.data, d, i, heap.obj_size, heap.elems)
+    return None if v < 0 else v
 
 
 def darray_set(heap: Heap, d: int, i: int, v: int) -> bool:
-    if not is_darray(heap, d) or i < 0:
-        return False
-    n = 2 * heap.elems
-    seg = heap.u16(d)
-    for _ in range(i // n):
-        nxt = heap.seg_next(seg)
-        if nxt == SEG_NEXT:
-            return False
-        seg = nxt
-    if not heap.word(seg, i % n) & ELEM_VALID:
-        return False
-    heap.set_word(seg, i % n, v | ELEM_VALID)
-    return True
+    return _darray_set(heap.data, d, i, v, heap.obj_size, heap.elems)
 
 
 def darray_size(heap: Heap, d: int) -> int:
     """Count valid elements up to the first invalid one; unlinks what follows (quirk)."""
-    n = 2 * heap.elems
-    seg = heap.u16(d)
-    count = 0
-    while True:
-        for p in range(n):
-            if not heap.word(seg, p) & ELEM_VALID:
-                heap.set_seg_next(seg, SEG_NEXT)
-                return count
-            count += 1
-        nxt = heap.seg_next(seg)
-        if nxt == SEG_NEXT:
-            return count
-        seg = nxt
+    return _darray_size(heap.data, d, heap.obj_size, heap.elems)
 
 
 def darray_elements(heap: Heap, d: int) -> list[int]:
@@ -256,10 +218,40 @@ def darray_elements(heap: Heap, d: int) -> list[int]:
         seg = nxt
 
 
+class CloneFailed(HeapFull):
+    """``bbzdarray_clone`` ran out of memory after choosing the new object's slot: the C
+    has already written that index to its output (``vm->lsyms`` in ``callc``)."""
+
+    def __init__(self, index: int) -> None:
+        super().__init__(index)
+        self.index = index
+
+
+#: mdata of a table object whose first segment could not be allocated (valid, unmarked)
+_FRESH_TABLE = TABLE | VALID
+
+
 def darray_clone(heap: Heap, d: int) -> int:
-    c = darray_new(heap)
+    """``bbzdarray_clone``; raises CloneFailed(index) when the slot was taken but a segment
+    was missing, HeapFull when not even an object slot was free."""
+    rtobj = heap.rtobj
+    try:
+        c = darray_new(heap)
+    except HeapFull:
+        if heap.rtobj != rtobj:
+            raise CloneFailed(rtobj // heap.obj_size) from None
+        # first fit took the first free slot, now marked valid with no segment: right after
+        # a collection it is the first valid, unmarked, non-permanent table slot
+        s = heap.obj_size
+        for i in range(heap.reserved, heap.rtobj // s):
+            if heap.data[i * s] == _FRESH_TABLE:
+                raise CloneFailed(i) from None
+        raise
     for e in darray_elements(heap, d):
-        darray_push(heap, c, e)
+        try:
+            darray_push(heap, c, e)
+        except HeapFull:
+            raise CloneFailed(c) from None
     return c
 
 

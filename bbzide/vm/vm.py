@@ -22,16 +22,20 @@ Our additions (not in BittyBuzz), documented in ARCHITECTURE.md:
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Callable
 from enum import IntEnum
 
 from bbzide.compiler import bbzfloat
 from bbzide.vm import gc as gcmod
+from bbzide.vm.fastgc import PERMANENT_PHASE
+from bbzide.vm.fastgc import collect as _collect
 from bbzide.vm.heap import (
     CLOSURE,
     FLAG1,
     FLAG2,
     FLOAT,
+    GC_MARK,
     INT,
     NIL,
     NO_ACTREC,
@@ -50,9 +54,7 @@ from bbzide.vm.neighbors import NeighborsState
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (
-    compare as type_compare,
-)
-from bbzide.vm.tables import (
+    CloneFailed,
     darray_clone,
     darray_destroy,
     darray_find,
@@ -65,6 +67,9 @@ from bbzide.vm.tables import (
     lambda_alloc,
     table_get,
     table_set,
+)
+from bbzide.vm.tables import (
+    compare as type_compare,
 )
 from bbzide.vm.vstig import VstigStore
 
@@ -136,8 +141,9 @@ class VM:
         self.error_events: list[tuple[str, int]] = []
         self.error_receiver: Callable[[VM, Error], None] | None = None
         self.instructions_executed = 0
-        #: fast mode: True while heap and stack are unchanged since the last collection
-        self._gc_clean = False
+        #: heap geometry passed to the compiled collector (fastgc.collect)
+        self._geometry = (self.heap.size, self.heap.obj_size, self.heap.seg_size,
+                          self.heap.elems, self.heap.reserved, profile.gcmark_depth)
         self.swarm = SwarmState()
         self.vstig = VstigStore()
         self.neighbors = NeighborsState()
@@ -218,9 +224,21 @@ class VM:
         self.heap.set_mdata(i, self.heap.mdata(i) & ~PERMANENT & 0xFF)
 
     def gc(self) -> None:
-        """``bbzvm_gc``."""
-        self._gc_clean = False
+        """``bbzvm_gc`` (the reference collector in stress mode, the compiled one else)."""
+        if not self.stress_gc:
+            self.collect_fast()
+            return
         gcmod.collect(self.heap, self.stack, self.stackptr)
+
+    def collect_fast(self) -> None:
+        """The same collection as :meth:`gc`, by the compiled kernel (:mod:`fastgc`)."""
+        h = self.heap
+        h.gc_runs += 1
+        sp = self.stackptr
+        r = _collect(h.data, array("H", self.stack[:sp + 1]), sp, h.rtobj, h.ltseg,
+                     h.gc_info, h.gc_traversed, *self._geometry)
+        h.rtobj = r >> 16
+        h.ltseg = r & 0xFFFF
 
     def alloc_or_mem(self, fn: Callable[[Heap], int]) -> int:
         """Run an allocating heap function; MEM error and nil on failure."""
@@ -300,7 +318,6 @@ class VM:
         return self.stack[self.stackptr - i]
 
     def push(self, v: int) -> None:
-        self._gc_clean = False
         if self.stackptr + 1 >= self.stack_size:
             self.seterror(Error.STACK)
             return
@@ -308,7 +325,6 @@ class VM:
         self.stack[self.stackptr] = v
 
     def pop(self) -> None:
-        self._gc_clean = False
         if self.stackptr < 0:
             self.seterror(Error.STACK)
             return
@@ -419,7 +435,6 @@ class VM:
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
          events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
         self.heap.restore(hs)
-        self._gc_clean = False
         self.stack[:] = stack
         self.error_events = list(events)
         self.swarm, self.vstig, self.neighbors, self.queues = copy.deepcopy(recs)
@@ -428,20 +443,19 @@ class VM:
 
     # =================================================================== execution
     def step(self) -> None:
-        """``bbzvm_step``: GC, then one instruction."""
+        """``bbzvm_step``: GC, then one instruction.
+
+        A single step always collects (reference collector in stress mode, the compiled
+        one in fast mode): code outside the VM may have changed the heap since the last
+        instruction. The loops of :meth:`run` and :meth:`closure_call` skip collections
+        they can prove changeless (see ``_SKIP_RULES``).
+        """
         if self.state == State.READY:
-            # Fast mode skips the collection only before instructions that change nothing
-            # but pc (nop, calls, jump): the previous collection already left exactly the
-            # state this one would produce (a collection on an unchanged heap and stack is
-            # idempotent), so every observable state is identical to stress mode.
-            if self.stress_gc or not self._gc_clean:
+            if self.stress_gc:
                 gcmod.collect(self.heap, self.stack, self.stackptr)
-            pc = self.pc
+            else:
+                self.collect_fast()
             self.exec_instr()
-            # Clean = nothing changed since the last collection: true only right after a
-            # pc-only instruction that itself followed a (real or skipped) collection.
-            self._gc_clean = (pc < self.bcode_size and self.bcode[pc] in _PC_ONLY_OPCODES
-                              and self.state == State.READY)
 
     def exec_instr(self) -> None:
         offset = self.pc
@@ -562,13 +576,14 @@ class VM:
             if tl == FLOAT or tr == FLOAT:
                 self.seterror(Error.TYPE)
                 return
-            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)))
+            self._int_arith(kind, _s16(h.u16(lhs)), _s16(h.u16(rhs)), float_ops=False)
             return
         if tl == INT and tr == INT:
             self._int_arith(kind, h.int_value(lhs), h.int_value(rhs))
             return
         if tl not in (INT, FLOAT) or tr not in (INT, FLOAT):
             self.seterror(Error.MATH)
+            self.push(self.nil)  # the C pushes the operator's nil result anyway
             return
         a = float(h.int_value(lhs)) if tl == INT else bbzfloat.to_float(h.u16(lhs))
         b = float(h.int_value(rhs)) if tr == INT else bbzfloat.to_float(h.u16(rhs))
@@ -589,12 +604,13 @@ class VM:
                 r = a - float(_s16(int(q))) * b if math.isfinite(q) else math.nan
             else:
                 self.seterror(Error.MATH)
+                self.push(self.nil)  # float '^': MATH, then push(nil) as the C does
                 return
         except OverflowError:
             r = math.inf
         self.push_float(bbzfloat.from_float(r))
 
-    def _int_arith(self, kind: int, a: int, b: int) -> None:
+    def _int_arith(self, kind: int, a: int, b: int, float_ops: bool = True) -> None:
         if kind == 0:
             r = a + b
         elif kind == 1:
@@ -620,6 +636,9 @@ class VM:
                 r = -1
             else:
                 self.seterror(Error.MATH)
+                if float_ops:  # the float build returns nil and pushes it; the int build 0
+                    self.push(self.nil)
+                    return
                 r = 0
         self.push_int(r)
 
@@ -789,6 +808,8 @@ class VM:
         if not self.assert_type(t, TABLE):
             return
         self.stackptr -= 3
+        if self.state == State.ERROR:  # bbzvm_assert_state() after the pops
+            return
         m = h.mdata(v)
         if (m & TYPE_MASK == CLOSURE and m & FLAG2 and h.data[v * h.obj_size + 2] != NO_ACTREC
                 and not h.mdata(h.data[v * h.obj_size + 2]) & FLAG2):
@@ -888,6 +909,10 @@ class VM:
         src = self.dflt_actrec if (not is_lambda or actrec == NO_ACTREC) else actrec
         try:
             self.lsyms = darray_clone(h, src)
+        except CloneFailed as failed:  # the C has already stored the new index in lsyms
+            self.lsyms = failed.index
+            self.seterror(Error.MEM)
+            return
         except HeapFull:
             self.seterror(Error.MEM)
             return
@@ -1037,16 +1062,7 @@ class VM:
         self.push_int(argc)
         saved = self.blockptr
         self.callc()
-        budget = self.instruction_budget
-        n = 0
-        while saved < self.blockptr:
-            if self.state != State.READY:
-                return
-            self.step()
-            n += 1
-            if budget is not None and n > budget:
-                self.seterror(Error.BUDGET)
-                return
+        self._loop(saved, self.instruction_budget)
 
     def function_call(self, sid: int, argc: int) -> None:
         """``bbzvm_function_call``: call the global ``sid`` with ``argc`` args on the stack."""
@@ -1070,12 +1086,80 @@ class VM:
     def run(self, max_instructions: int | None = None) -> None:
         """Step until the VM is no longer READY (or the budget is exhausted)."""
         budget = max_instructions if max_instructions is not None else self.instruction_budget
+        self._loop(None, budget)
+
+    def _loop(self, saved: int | None, budget: int | None) -> None:
+        """The step loop of ``run`` (``saved`` None: until not READY) and of
+        ``closure_call`` (until blockptr drops to ``saved``), with the instruction budget.
+
+        Stress mode steps exactly as ``bbzvm_step``. Fast mode skips the collections that
+        ``_SKIP_RULES`` proves changeless (counted in ``gc_runs`` all the same); the
+        first step of a loop always collects, since code outside it may have changed the
+        heap.
+        """
+        ready = State.READY
         n = 0
-        while self.state == State.READY:
-            self.step()
+        if self.stress_gc:
+            while saved is None or saved < self.blockptr:
+                if self.state != ready:
+                    return
+                self.step()
+                n += 1
+                if budget is not None:
+                    if saved is None:
+                        if n >= budget and self.state == ready:
+                            self.seterror(Error.BUDGET)
+                    elif n > budget:
+                        self.seterror(Error.BUDGET)
+                        return
+            return
+        heap = self.heap
+        data = heap.data
+        s = heap.obj_size
+        info = heap.gc_info
+        collect = self.collect_fast
+        execute = self.exec_instr
+        bcode = self.bcode
+        size = len(bcode)
+        stack = self.stack
+        rules = _SKIP_RULES
+        fixed = False
+        while saved is None or saved < self.blockptr:
+            if self.state != ready:
+                return
+            if fixed:
+                heap.gc_runs += 1
+            else:
+                collect()
+            pc = self.pc
+            execute()
+            # Is the heap still a fixed point of the collector? (see _SKIP_RULES)
+            rule = rules[bcode[pc]] if pc < size and self.state == ready else 0
+            if rule == _PUSHED_NEW:
+                top = stack[self.stackptr]
+                m = data[top * s]
+                t = m & TYPE_MASK
+                fixed = t != TABLE and (t != CLOSURE or not m & FLAG2)
+                if fixed:
+                    data[top * s] = m | GC_MARK
+            elif rule == _PUSHED_OLD:
+                top = stack[self.stackptr]
+                m = data[top * s]
+                t = m & TYPE_MASK
+                if t != TABLE and (t != CLOSURE or not m & FLAG2):
+                    fixed = bool(m & GC_MARK)
+                else:
+                    fixed = bool(info[top] & PERMANENT_PHASE)
+            else:
+                fixed = rule == _PC_ONLY
             n += 1
-            if budget is not None and n >= budget and self.state == State.READY:
-                self.seterror(Error.BUDGET)
+            if budget is not None:
+                if saved is None:
+                    if n >= budget and self.state == ready:
+                        self.seterror(Error.BUDGET)
+                elif n > budget:
+                    self.seterror(Error.BUDGET)
+                    return
 
 
 def _s32(v: int) -> int:
@@ -1085,6 +1169,27 @@ def _s32(v: int) -> int:
 
 #: Opcodes that change nothing but pc: nop, calls, jump.
 _PC_ONLY_OPCODES = frozenset({0, 34, 44})
+# Fast-mode skip rules (VM._loop). An instruction that starts on a fixed point of the
+# collector (a heap a collection would leave unchanged: right after one, or after an
+# instruction accepted here) keeps it — so the next collection may be skipped — when:
+# * _PC_ONLY: it changed nothing but pc (nop, calls, jump);
+# * _PUSHED_OLD: it pushed an existing object (pushnil, lload) that is a marked *leaf*
+#   (anything but a table or a lambda closure: the marker never looks inside it, so its
+#   new stack root changes no other mark), or a non-leaf the last collection first marked
+#   from the permanent roots (``gc_info``): its stack root then finds it marked, a no-op;
+# * _PUSHED_NEW: it pushed a new leaf (pushf, pushi, pushs — or a deduplicated, hence
+#   marked, string —, pushcn, pushcc, dup of a leaf): the next collection would only set
+#   its mark bit, which the loop sets.
+# None of these changes how non-leaves are traversed, so ``gc_info`` stays true. Every
+# other instruction (pops, stores, calls, tables, lambdas) is followed by a collection.
+_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW = 1, 2, 3
+_SKIP_RULES: list[int] = [0] * 256
+for _op in _PC_ONLY_OPCODES:
+    _SKIP_RULES[_op] = _PC_ONLY
+for _op in (2, 41):
+    _SKIP_RULES[_op] = _PUSHED_OLD
+for _op in (3, 35, 36, 37, 38, 39):
+    _SKIP_RULES[_op] = _PUSHED_NEW
 
 _SIMPLE_OPS: list[Callable[[VM], None]] = [
     VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,

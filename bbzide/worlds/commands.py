@@ -132,19 +132,29 @@ def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> st
         lines.append(f"time: {shares}")
     failures = sim.failures
     lines.append(f"errors: {len(failures)} robot(s)" if failures else "errors: none")
+    # Robots that fail the same way (same error at the same place) are listed together, so
+    # a script error in a 1,000-robot swarm prints one entry, not 1,000.
+    groups: dict[tuple[str, str, str], list[Any]] = {}
     for state in failures:
-        lines.append("  " + describe_failure(state))
+        f = state.failure
+        key = (str(getattr(f, "reason", f)), str(getattr(f, "location", "")),
+               str(getattr(f, "message", "")))
+        groups.setdefault(key, []).append(state)
+    for states in groups.values():
+        lines.append("  " + describe_failure(states[0], others=len(states) - 1))
     return "\n".join(lines)
 
 
-def describe_failure(state: Any) -> str:
-    """`robot 3 (step 12): MEM at gradient.bzz:14:2, pc 37: <message>` plus the source line."""
+def describe_failure(state: Any, others: int = 0) -> str:
+    """`robot 3 (step 12): MEM at gradient.bzz:14:2, pc 37: <message>` plus the source line
+    (`robot 3 and 4 others ...` when `others` robots failed the same way)."""
     failure = state.failure
     reason = getattr(failure, "reason", str(failure))
     location = getattr(failure, "location", None)
     pc = getattr(failure, "pc", None)
     message = getattr(failure, "message", "")
-    text = f"robot {state.robot_id} (step {state.failure_step}): {reason}"
+    who = f"robot {state.robot_id}" + (f" and {others} other(s)" if others else "")
+    text = f"{who} (step {state.failure_step}): {reason}"
     if location is not None:
         text += f" at {location}"
     if pc is not None:

@@ -264,6 +264,7 @@ class Simulation:
             for _ in range(group.count):
                 self.robots.append(RobotState(self, index, index, group, profile))
                 index += 1
+        self._ids = np.array([s.robot_id for s in self.robots], dtype=np.int64)
         self.world.attach(self)
 
     def _boot_all(self) -> None:
@@ -309,10 +310,13 @@ class Simulation:
                 counters.dropped[receiver] += len(deliveries)
                 continue
             robot = state.robot
-            for d in deliveries:
-                robot.receive(d.message, d.distance, d.azimuth, d.elevation)
-                counters.received[receiver] += 1
-                counters.bytes_received[receiver] += len(d.message)
+            receive = robot.receive
+            size = 0
+            for _, message, distance, azimuth, elevation in deliveries:
+                receive(message, distance, azimuth, elevation)
+                size += len(message)
+            counters.received[receiver] += len(deliveries)
+            counters.bytes_received[receiver] += size
         world = self.world
         radio = self.radio
         for state in robots:
@@ -326,8 +330,9 @@ class Simulation:
                 radio.enqueue(state.index, outgoing, counters)
         t2 = clock()
         listening = np.fromiter((s.alive for s in robots), dtype=bool, count=self.count)
-        self.links = [(robots[a].robot_id, robots[b].robot_id) for a, b in
-                      radio.transmit(step, self.positions, self.headings, listening, counters)]
+        used = radio.transmit(step, self.positions, self.headings, listening, counters)
+        self.links = list(zip(self._ids[used[:, 0]].tolist(), self._ids[used[:, 1]].tolist(),
+                              strict=True))
         t3 = clock()
         world.advance(self, world.step_seconds)
         t4 = clock()

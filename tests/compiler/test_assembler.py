@@ -5,7 +5,7 @@ from __future__ import annotations
 import struct
 
 import pytest
-from corpus import BBZ_DIR, COMPILER_DIR, COMPILER_ERRORS_DIR
+from corpus import BBZ_DIR, COMPILER_DIR, COMPILER_ERRORS_DIR, report
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,7 +28,7 @@ def test_every_corpus_basm_assembles_byte_identical() -> None:
         elif assembly.bdb != path.with_suffix(".bdb").read_bytes():
             failures.append(f"{path.name}: .bdb")
         assert all(b"$DIR" in r.file or r.file == b"(null)" for r in assembly.debug_records)
-    print(f"assembler corpus: {len(files) - len(failures)}/{len(files)} identical (.bo and .bdb)")
+    report("assembler .basm -> .bo+.bdb identical", len(files) - len(failures), len(files))
     assert len(files) == 81
     assert not failures, failures
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import struct
 
-from corpus import BBZ_DIR
+from corpus import BBZ_DIR, report
 
 from bbzide.compiler.bo2bbo import bo_to_bbo
 
@@ -16,7 +16,7 @@ def test_every_bbz_bo_converts_byte_identical() -> None:
         for p in files
         if bo_to_bbo(p.read_bytes(), p.name).bbo != p.with_suffix(".bbo").read_bytes()
     ]
-    print(f"bo2bbo corpus: {len(files) - len(failures)}/{len(files)} identical")
+    report("bo2bbo .bo -> .bbo identical", len(files) - len(failures), len(files))
     assert len(files) == 33
     assert not failures, failures
 

@@ -117,3 +117,17 @@ def test_disasm_of_a_lone_bbo_names_the_base_strings(tmp_path, capsys) -> None:
     assert main(["disasm", str(lone)]) == 0
     out = capsys.readouterr().out
     assert "pushs    4  ; 'init'" in out and "pushs    47\n" in out
+
+
+def test_compile_searches_buzz_include_path(tmp_path, monkeypatch):
+    library = tmp_path / "lib"
+    library.mkdir()
+    (library / "helpers.bzz").write_text("function twice(x) { return 2 * x }\n")
+    script = tmp_path / "main.bzz"
+    script.write_text('include "helpers.bzz"\ny = twice(4)\n')
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("BUZZ_INCLUDE_PATH", str(library))
+    assert main(["compile", str(script), "--platform", "pc"]) == 0
+    assert b"twice" in (tmp_path / "main.bo").read_bytes()
+    monkeypatch.setenv("BUZZ_INCLUDE_PATH", "")
+    assert main(["compile", str(script), "--platform", "pc"]) == 1

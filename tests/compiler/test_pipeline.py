@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import struct
 
-from corpus import BBZ_DIR, COMPILER_DIR
+from corpus import BBZ_DIR, COMPILER_DIR, report
 
 from bbzide.compiler import compile_file, load_program
 from bbzide.compiler.bytecode import read_bo
@@ -45,7 +45,7 @@ def test_compiler_corpus_bo_and_bdb_identical(monkeypatch) -> None:
             failures.append(f"{script.name}: .bdb differs")
         offsets = [i.offset for i in read_bo(program.bo).instructions]
         assert set(offsets) <= set(program.debug_map), script.name
-    print(f"compiler corpus pipeline: {len(scripts) - len(failures)}/{len(scripts)} identical")
+    report("compiler .bo+.bdb identical", len(scripts) - len(failures), len(scripts))
     assert len(scripts) >= 40
     assert not failures, failures
 
@@ -67,7 +67,7 @@ def test_bbz_corpus_bo_bdb_bbo_identical(monkeypatch) -> None:
             failures.append(f"{script.name}: .bbo differs")
         assert set(bbo.bo_to_bbo.values()) <= set(bbo.debug_map), script.name
         assert bbo.location_of(2) is not None
-    print(f"bbz corpus pipeline: {len(scripts) - len(failures)}/{len(scripts)} identical")
+    report("bbz .bo+.bdb+.bbo identical", len(scripts) - len(failures), len(scripts))
     assert len(scripts) >= 30
     assert not failures, failures
 

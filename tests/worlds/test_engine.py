@@ -152,3 +152,13 @@ def test_registry_names_what_the_ui_reads():
         world = spec.create()
         assert world.host_names == spec.host_names and world.profile_name == spec.profile
         assert len(world.bounds) == 4 and world.comm_range > 0 and world.robot_radius > 0
+
+
+def test_receive_cap_per_step_drops_the_rest():
+    ring = [[0.0, 0, 0]] + [[0.05 * np.cos(a), 0.05 * np.sin(a), 0] for a in np.arange(6)]
+    sim = kilobots(ring, radio={"loss_probability": 0.0, "receive_cap_per_step": 2})
+    sim.run(2)
+    centre = sim.robots[0].robot
+    assert len(centre.inbox) == 2                      # 6 neighbours sent, 2 taken
+    assert sim.stats.dropped[0] == 4                  # counted at the receiver
+    assert [m[0] for m, *_ in centre.inbox] == sorted(m[0] for m, *_ in centre.inbox)

@@ -44,3 +44,15 @@ def test_worlds_lists_every_world(capsys):
     assert main(["worlds"]) == 0
     out = capsys.readouterr().out
     assert "kilobot" in out and "crazyflie" in out and "set_motor" in out
+
+
+def test_a_run_prints_speed_traffic_and_errors_with_source_lines(tmp_path, capsys):
+    script = tmp_path / "crash.bzz"
+    script.write_text("var n = 0\nfunction step() {\n  neighbors.broadcast(\"n\", n)\n"
+                      "  n = n + 1\n  if (n == 3) {\n    n = n / 0\n  }\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "3", "--steps", "5"]) == 0
+    out = capsys.readouterr().out
+    assert "world kilobot: 3 robots, 5 steps" in out and "steps/s" in out
+    assert "messages: 6 sent" in out                  # 2 steps x 3 robots before the crash
+    assert "errors: 3 robot(s)" in out
+    assert "robot 0 and 2 other(s) (step 2): MATH" in out and "crash.bzz:" in out

@@ -1,0 +1,219 @@
+"""Compiled heap kernels for the fast VM mode: the collector and the first-fit scans.
+
+The reference collector (:mod:`bbzide.vm.gc`) is a line-by-line transcription of
+``bbzheap_gc``: a recursive ``mark`` with a depth counter, run before every instruction.
+Written in Python it costs ~80 µs a run, so it is the whole cost of the VM. This module
+runs *the same algorithm* (same roots, same order, same depth rule, same sweep and pointer
+retreat) as flat loops over the heap ``bytearray`` with no per-object Python objects, so
+that numba can compile it to machine code (~1 µs a run). The recursion becomes an explicit
+frame stack: one frame per table being marked (its current segment and word), at most
+``gcmark_depth`` deep, which reproduces the reference's first-visit-wins order exactly
+(a frame resumes its word loop after the child returns, as the C ``for`` loop does).
+
+Equality with the reference is by test, not by argument alone:
+``tests/vm/test_fast_vm_equivalence.py`` runs the corpus and generated programs in both
+modes and compares every observable state. Without numba (import failure) the same
+functions run as plain Python — correct, only slower.
+
+Out-of-range indices (a stale table payload, a corrupt chain) would be undefined behaviour
+in C; both collectors treat a segment whose bytes fall outside the heap as the end of its
+chain and ignore an object index past the heap, and stop a chain after as many segments as
+the heap can hold (a cyclic chain would hang the firmware).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+try:  # numba is optional: the kernels are plain Python that numba compiles when present
+    from numba import njit as _njit
+
+    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+        return _njit(cache=True, nogil=True)(fn)
+
+    import numpy as np
+
+    _i = np.int64  # numba's int() of a uint8 is unsigned: mixing it with int64 gives floats
+    COMPILED = True
+except ImportError:  # pragma: no cover - exercised only on machines without numba
+    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+        return fn
+
+    _i = int
+    COMPILED = False
+
+# Metadata bits (heap.py), repeated as literals so the compiled code sees constants.
+_TYPE_MASK = 0x07
+_TABLE = 4
+_CLOSURE = 5
+_STRING = 3
+_VALID = 0x08
+_PERMANENT = 0x10
+_GC_MARK = 0x20
+_FLAG2 = 0x80
+_NO_ACTREC = 0xFF
+_SEG_MARK_HI = 0x40   # SEG_MARK (bit 14) in the high byte of the segment mdata word
+_SEG_VALID_HI = 0x80  # SEG_VALID (bit 15) in the high byte
+_SEG_NEXT = 0x3FFF
+#: flag in a collect() ``info`` entry: first marked from a permanent root (depth < 64)
+PERMANENT_PHASE = 64
+
+
+@_compile
+def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, info: Any,
+            traversed: Any, size: int, s: int, g: int, elems: int, reserved: int,
+            limit: int) -> int:
+    """One ``bbzheap_gc`` on ``d``; ``stack[0..top]`` are the roots (an int buffer).
+
+    Also records how it marked, for the VM's skip rules: ``info[x]`` =
+    the depth at which x was first marked (0: not marked) plus ``PERMANENT_PHASE`` if that
+    happened while marking from the permanent roots; ``traversed[1..traversed[0]]`` = the
+    tables whose elements were visited (first marked at a depth below the limit).
+    Returns the new ``rtobj * 65536 + ltseg`` (numba returns one int fastest).
+    """
+    n = rtobj // s
+    k = (size - ltseg) // g
+    mo = 4 * elems
+    nwords = 2 * elems
+    max_chain = size // g + 1
+    # 1. clear marks (segments k-1..0, objects n-1..0)
+    for j in range(k):
+        d[size - (j + 1) * g + mo + 1] &= 0xFF ^ _SEG_MARK_HI
+    for i in range(n):
+        d[i * s] &= 0xFF ^ _GC_MARK
+    for i in range(size // s):
+        info[i] = 0
+    traversed[0] = 0
+    phase = PERMANENT_PHASE
+    # frames of the explicit mark stack: segment, next word, depth, segments walked
+    f_seg = [0] * (limit + 2)
+    f_word = [0] * (limit + 2)
+    f_depth = [0] * (limit + 2)
+    f_walk = [0] * (limit + 2)
+    nobj = size // s
+    nroots = n + top + 1
+    for r in range(nroots):
+        # 2. permanent objects from n-1 down, 3. stack from top down
+        if r < n:
+            x = n - 1 - r
+            if not _i(d[x * s]) & _PERMANENT:
+                continue
+        else:
+            x = _i(stack[top - (r - n)])
+            phase = 0
+        # mark(x) at depth 2, then run frames until this root is done
+        depth = 2
+        fp = -1
+        while True:
+            # enter mark(x) at `depth` (a lambda's actrec is entered in this same loop)
+            if 0 <= x < nobj and depth <= limit and not _i(d[x * s]) & _GC_MARK:
+                o = x * s
+                d[o] |= _GC_MARK
+                info[x] = depth + phase
+                m = _i(d[o])
+                t = m & _TYPE_MASK
+                if t == _TABLE:
+                    if depth < limit:
+                        traversed[0] += 1
+                        traversed[traversed[0]] = x
+                    seg = _i(d[o + 1]) | (_i(d[o + 2]) << 8)
+                    if 0 <= seg and (seg + 1) * g <= size:
+                        fp += 1
+                        f_seg[fp] = seg
+                        f_word[fp] = 0
+                        f_depth[fp] = depth
+                        f_walk[fp] = 1
+                        d[size - (seg + 1) * g + mo + 1] |= _SEG_MARK_HI
+                elif t == _CLOSURE and m & _FLAG2 and _i(d[o + 2]) != _NO_ACTREC:
+                    x = _i(d[o + 2])
+                    depth += 1
+                    continue
+            # resume the innermost frame: next valid word to mark, or next segment
+            x = -1
+            while fp >= 0:
+                seg = f_seg[fp]
+                base = size - (seg + 1) * g
+                w = f_word[fp]
+                fd = f_depth[fp]
+                while w < nwords:
+                    word = _i(d[base + 2 * w]) | (_i(d[base + 2 * w + 1]) << 8)
+                    w += 1
+                    if word & 0x8000 and fd < limit:
+                        y = word & 0x7FFF
+                        if y < nobj and not _i(d[y * s]) & _GC_MARK:
+                            x = y
+                            break
+                f_word[fp] = w
+                if x >= 0:
+                    depth = fd + 1
+                    break
+                nxt = (_i(d[base + mo]) | (_i(d[base + mo + 1]) << 8)) & _SEG_NEXT
+                if nxt == _SEG_NEXT or (nxt + 1) * g > size or f_walk[fp] >= max_chain:
+                    fp -= 1
+                    continue
+                f_seg[fp] = nxt
+                f_word[fp] = 0
+                f_walk[fp] += 1
+                d[size - (nxt + 1) * g + mo + 1] |= _SEG_MARK_HI
+            if x < 0:
+                break
+    # 4. sweep n-1 down to 0
+    for i in range(n - 1, -1, -1):
+        o = i * s
+        m = _i(d[o])
+        if not m & _GC_MARK and m & _VALID:
+            d[o] = m & (0xFF ^ _VALID)
+            if m & _TYPE_MASK == _TABLE:
+                seg = _i(d[o + 1]) | (_i(d[o + 2]) << 8)
+                if (seg + 1) * g <= size and \
+                        not _i(d[size - (seg + 1) * g + mo + 1]) & _SEG_MARK_HI:
+                    walked = 0
+                    while True:
+                        mb = size - (seg + 1) * g + mo
+                        d[mb + 1] &= 0xFF ^ _SEG_VALID_HI
+                        walked += 1
+                        nxt = (_i(d[mb]) | (_i(d[mb + 1]) << 8)) & _SEG_NEXT
+                        if nxt == _SEG_NEXT or (nxt + 1) * g > size or walked >= max_chain:
+                            break
+                        seg = nxt
+    # 5-6. retreat both pointers over invalid slots
+    low = reserved * s
+    while rtobj > low and not _i(d[rtobj - s]) & _VALID:
+        rtobj -= s
+    while ltseg < size and not _i(d[ltseg + mo + 1]) & _SEG_VALID_HI:
+        ltseg += g
+    return rtobj * 65536 + ltseg
+
+
+@_compile
+def first_free(d: bytearray, rtobj: int, s: int, reserved: int, typ: int, sid: int) -> int:
+    """``bbzheap_obj_alloc``'s scan: the first invalid slot from R, or -1 if none below rtobj.
+
+    For a STRING, a valid string with id ``sid`` met before the first free slot is returned
+    as ``-2 - index`` (deduplication).
+    """
+    n = rtobj // s
+    lo = sid & 0xFF
+    hi = (sid >> 8) & 0xFF
+    for i in range(reserved, n):
+        o = i * s
+        m = _i(d[o])
+        if not m & _VALID:
+            return i
+        if typ == _STRING and m & _TYPE_MASK == _STRING and _i(d[o + 1]) == lo \
+                and _i(d[o + 2]) == hi:
+            return -2 - i
+    return -1
+
+
+@_compile
+def first_free_segment(d: bytearray, ltseg: int, size: int, g: int, elems: int) -> int:
+    """``bbzheap_tseg_alloc``'s scan: the first invalid segment slot, or -1."""
+    k = (size - ltseg) // g
+    mo = 4 * elems
+    for j in range(k):
+        if not _i(d[size - (j + 1) * g + mo + 1]) & _SEG_VALID_HI:
+            return j
+    return -1
+

@@ -1,0 +1,79 @@
+"""Control steps per second of whole swarms, and where the time goes (VM, radio, physics).
+
+Cases (issue #4): the Kilobot table with 100 and 1,000 robots running the gradient example,
+the Crazyflie lab with 10 drones running the consensus example, and the M300 field with 25
+drones when a world called "m300" is registered (the sar room). Each case boots the swarm,
+runs a few warm-up steps, then times `seconds` of steps and prints steps/s next to the goal
+(100 Kilobots >= 60 steps/s, 1,000 >= 10) and the share of step time spent in the engine's
+phases (`Simulation.timings`: sense, vm = receive + control_step, radio, physics).
+
+    PYTHONPATH=. python benchmarks/world_bench.py [seconds per case, default 5]
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from bbzide.worlds.commands import load_script
+from bbzide.worlds.engine import Simulation
+from bbzide.worlds.registry import WORLDS
+
+REPO = Path(__file__).resolve().parents[1]
+
+#: (world, robots, script, world options, goal in steps/s or None)
+CASES = [
+    ("kilobot", 100, "examples/kilobot/gradient.bzz", {"width": 1.0, "height": 1.0}, 60.0),
+    ("kilobot", 1000, "examples/kilobot/gradient.bzz", {"width": 2.0, "height": 2.0}, 10.0),
+    ("crazyflie", 10, "examples/crazyflie/consensus.bzz", {}, None),
+    ("m300", 25, None, {}, None),
+]
+WARM_UP_STEPS = 3
+
+
+def bench(world: str, robots: int, script: str | None, options: dict, seconds: float) -> dict:
+    spec = WORLDS[world]
+    path = REPO / (script or spec.example)
+    program = load_script(path, spec.host_names, [])
+    started = time.perf_counter()
+    sim = Simulation(world, program, robots=robots, seed=1, world_options=options, watch=())
+    boot = time.perf_counter() - started
+    sim.run(WARM_UP_STEPS)
+    for key in sim.timings:
+        sim.timings[key] = 0.0
+    steps = 0
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < seconds or steps < 2:
+        sim.step()
+        steps += 1
+    elapsed = time.perf_counter() - t0
+    spent = sum(sim.timings.values()) or 1.0
+    return {
+        "steps_per_s": steps / elapsed, "steps": steps, "boot_s": boot,
+        "shares": {k: v / spent for k, v in sim.timings.items()},
+        "failures": len(sim.failures),
+        "messages_per_step": sim.totals["sent"] / max(sim.step_count, 1),
+    }
+
+
+def main() -> None:
+    seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 5.0
+    print(f"{'case':28} {'steps/s':>9} {'goal':>6} {'vm':>5} {'radio':>6} {'physics':>8} "
+          f"{'sense':>6} {'msg/step':>9} {'boot s':>7} errors")
+    for world, robots, script, options, goal in CASES:
+        label = f"{world} x {robots}"
+        if world not in WORLDS:
+            print(f"{label:28} (world not registered in this build)")
+            continue
+        r = bench(world, robots, script, options, seconds)
+        s = r["shares"]
+        verdict = "" if goal is None else f"{goal:6.0f}"
+        ratio = "" if goal is None else f"  ({r['steps_per_s'] / goal:.2f} x goal)"
+        print(f"{label:28} {r['steps_per_s']:9.2f} {verdict:>6} {100 * s['vm']:4.0f}% "
+              f"{100 * s['radio']:5.0f}% {100 * s['physics']:7.0f}% {100 * s['sense']:5.0f}% "
+              f"{r['messages_per_step']:9.1f} {r['boot_s']:7.2f} {r['failures']}{ratio}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,69 @@
+"""Shared helpers of the experiment scripts: compile an example (with constants replaced),
+run it in a world, read script globals, and print a Markdown table.
+
+The experiments reproduce the Crazyflie experiments of the BittyBuzz thesis (ch. 4, §4.6-4.7)
+in the simulator; each script prints its table next to the paper's figures (README.md).
+"""
+
+from __future__ import annotations
+
+import re
+import statistics
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from bbzide.worlds.commands import load_script
+from bbzide.worlds.engine import Simulation
+from bbzide.worlds.registry import WORLDS
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def compile_example(world: str, example: str, constants: dict[str, int] | None = None) -> Any:
+    """The example compiled for `world`, with `var NAME = value` lines replaced."""
+    text = (REPO / example).read_text(encoding="utf-8")
+    for name, value in (constants or {}).items():
+        text, count = re.subn(rf"^var {name} = .*$", f"var {name} = {value}", text,
+                              flags=re.MULTILINE)
+        if count != 1:
+            raise ValueError(f"{example} has no line 'var {name} = ...'")
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / Path(example).name
+        path.write_text(text, encoding="utf-8")
+        return load_script(path, WORLDS[world].host_names, [str((REPO / example).parent)])
+
+
+def run(world: str, program: Any, robots: int, seed: int, steps: int,
+        options: dict[str, Any] | None = None, until: Any = None) -> Simulation:
+    """Run `steps` control steps (or stop early when `until(sim)` is true)."""
+    sim = Simulation(world, program, robots=robots, seed=seed, world_options=options or {},
+                     watch=())
+    for _ in range(steps):
+        sim.step()
+        if until is not None and until(sim):
+            break
+    failures = sim.failures
+    if failures:
+        first = failures[0]
+        raise RuntimeError(f"robot {first.robot_id} failed: {first.failure}")
+    return sim
+
+
+def globals_of(sim: Simulation, name: str) -> list[Any]:
+    return [state.global_value(name) for state in sim.robots]
+
+
+def mean_sd(values: Sequence[float]) -> str:
+    if not values:
+        return "-"
+    if len(values) == 1:
+        return f"{values[0]:.1f}"
+    return f"{statistics.mean(values):.1f} ± {statistics.stdev(values):.1f}"
+
+
+def table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
