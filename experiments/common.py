@@ -36,10 +36,15 @@ def compile_example(world: str, example: str, constants: dict[str, int] | None =
 
 
 def run(world: str, program: Any, robots: int, seed: int, steps: int,
-        options: dict[str, Any] | None = None, until: Any = None) -> Simulation:
-    """Run `steps` control steps (or stop early when `until(sim)` is true)."""
+        options: dict[str, Any] | None = None, until: Any = None,
+        asynchronous: bool = True) -> Simulation:
+    """Run `steps` control steps (or stop early when `until(sim)` is true).
+
+    Robots are asynchronous by default (each its own phase within the 50 ms step), as the
+    paper's drones were: event times are then `step + phase` steps.
+    """
     sim = Simulation(world, program, robots=robots, seed=seed, world_options=options or {},
-                     watch=())
+                     watch=(), asynchronous=asynchronous)
     for _ in range(steps):
         sim.step()
         if until is not None and until(sim):

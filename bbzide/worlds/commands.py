@@ -1,7 +1,7 @@
 """The worlds room's command line: `bbzide run X.bzz --world W ...` and `bbzide worlds`.
 
     bbzide run X.bzz|X.bbo --world kilobot|crazyflie|... [--robots N] [--steps S] [--seed K]
-               [--comm-range M] [--loss P] [--set KEY=VALUE]... [-I DIR]...
+               [--comm-range M] [--loss P] [--set KEY=VALUE]... [--asynchronous] [-I DIR]...
     bbzide worlds               list the worlds, their platform, host functions and example
 
 `run` is shared with the VM room (single robot): `bbzide/cli.py` builds one parser from both
@@ -49,6 +49,8 @@ def add_world_run_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--comm-range", type=float, default=None, help="radio range, metres")
     group.add_argument("--loss", type=float, default=None,
                        help="message loss probability (replaces the world's loss model)")
+    group.add_argument("--asynchronous", action="store_true",
+                       help="robots step at their own phase within the step (not in lockstep)")
     group.add_argument("--set", dest="world_options", action="append", default=[],
                        metavar="KEY=VALUE", help="world option, e.g. width=2.0 (repeatable)")
     if not _has_option(parser, "-I"):
@@ -106,7 +108,8 @@ def run_world(args: argparse.Namespace) -> int:
         radio["loss_by_rate"] = ()
     started = time.perf_counter()
     sim = Simulation(spec.name, program, robots=robots, seed=int(args.seed or 0),
-                     world_options=parse_world_options(args.world_options), radio=radio)
+                     world_options=parse_world_options(args.world_options), radio=radio,
+                     asynchronous=bool(args.asynchronous))
     booted = time.perf_counter()
     sim.run(steps)
     finished = time.perf_counter()

@@ -15,8 +15,15 @@ same fixed order, whatever the world:
 Randomness comes from one `numpy.random.Generator` per purpose (placement, radio loss, radio
 noise, world, one per robot for its `rand` host function), all spawned from the run seed, so the
 same seed gives the same trajectories and heaps, and adding a noise source does not change the
-others' draws. Robots may differ (`RobotGroup`: program, profile, labels); a group without a
-program is a passive body (a target) that the radio and the physics still see.
+others' draws.
+
+`asynchronous=True` gives each robot a random phase within the control period (real robots
+are not synchronised): robots then run in phase order, each transmits right after its own
+control step, and a message reaches a robot whose phase is later within the same step (the
+others at the next step). Sensing and physics stay once per step.
+
+Robots may differ (`RobotGroup`: program, profile, labels); a group without a program is a
+passive body (a target) that the radio and the physics still see.
 
 The UI reads `robots` (`RobotState`: pose, heading, led, failure, robot, robot_id, labels),
 `links`, `step_count`, `world` (bounds, walls, robot_radius, comm_range) and `stats`; the names
@@ -202,6 +209,7 @@ class Simulation:
         instruction_budget: int | None = None,
         loop: str = "pop",
         watch: Sequence[str] = ("role",),
+        asynchronous: bool = False,
     ) -> None:
         self.world: World = (create_world(world, **dict(world_options or {}))
                              if isinstance(world, str) else world)
@@ -218,6 +226,7 @@ class Simulation:
         self.seed = seed
         #: Script globals shown as labels (read only when `labels` is read).
         self.watch = tuple(watch)
+        self.asynchronous = asynchronous
         self._initial_positions = None if positions is None else np.asarray(positions, float)
         self._initial_headings = None if headings is None else np.asarray(headings, float)
         self._factory = robot_factory or _default_robot_factory(instruction_budget, loop)
@@ -237,12 +246,16 @@ class Simulation:
                 f"({width:g} m x {height:g} m holds at most {fit})")
 
     def _reset_world(self) -> None:
-        streams = np.random.SeedSequence(self.seed).spawn(5)
+        streams = np.random.SeedSequence(self.seed).spawn(6)
         self.rng: dict[str, np.random.Generator] = {
             name: np.random.default_rng(s)
             for name, s in zip(("placement", "loss", "noise", "world"), streams[:4], strict=True)
         }
         self.robot_rngs = [np.random.default_rng(s) for s in streams[4].spawn(self.count)]
+        #: Phase of each robot within a control step (0 in lockstep): its control step runs
+        #: at time step_count + phase (in steps).
+        self.phases = (np.random.default_rng(streams[5]).random(self.count)
+                       if self.asynchronous else np.zeros(self.count))
         placed, turned = self.world.place(self.count, self.rng["placement"])
         if self._initial_positions is not None:
             placed = _checked_array(self._initial_positions, (self.count, 3), "positions")
@@ -295,6 +308,8 @@ class Simulation:
     # ---- running ----------------------------------------------------------------------------
     def step(self) -> StepStats:
         """One control step of every robot, the radio and the physics."""
+        if self.asynchronous:
+            return self._step_asynchronous()
         step = self.step_count
         counters = TrafficCounters.zeros(self.count)
         clock = time.perf_counter
@@ -341,6 +356,55 @@ class Simulation:
         timings["vm"] += t2 - t1
         timings["radio"] += t3 - t2
         timings["physics"] += t4 - t3
+        return self._finish_step(step, counters)
+
+    def _step_asynchronous(self) -> StepStats:
+        """One control step with robots in phase order (see the module docstring)."""
+        step = self.step_count
+        counters = TrafficCounters.zeros(self.count)
+        clock = time.perf_counter
+        world, radio, robots = self.world, self.radio, self.robots
+        t0 = clock()
+        world.sense(self)
+        t1 = clock()
+        listening = np.fromiter((s.alive for s in robots), dtype=bool, count=self.count)
+        radio.begin_step(step, self.positions, self.headings, listening)
+        vm_time = 0.0
+        for index in np.argsort(self.phases, kind="stable").tolist():
+            state = robots[index]
+            now = step + float(self.phases[index])
+            deliveries = radio.take_due(index, now)
+            started = clock()
+            if deliveries:
+                if state.alive:
+                    for _, message, distance, azimuth, elevation in deliveries:
+                        state.robot.receive(message, distance, azimuth, elevation)
+                        counters.bytes_received[index] += len(message)
+                    counters.received[index] += len(deliveries)
+                else:
+                    counters.dropped[index] += len(deliveries)
+            if state.alive and not world.is_asleep(index, step):
+                outgoing = state.robot.control_step()
+                if state.robot.failure is not None:
+                    self._check_failure(state)
+                elif outgoing:
+                    radio.enqueue(index, outgoing, counters)
+            vm_time += clock() - started
+            radio.send_from(index, now, counters)
+        used = radio.step_links()
+        self.links = list(zip(self._ids[used[:, 0]].tolist(), self._ids[used[:, 1]].tolist(),
+                              strict=True))
+        t2 = clock()
+        world.advance(self, world.step_seconds)
+        t3 = clock()
+        timings = self.timings
+        timings["sense"] += t1 - t0
+        timings["vm"] += vm_time
+        timings["radio"] += (t2 - t1) - vm_time
+        timings["physics"] += t3 - t2
+        return self._finish_step(step, counters)
+
+    def _finish_step(self, step: int, counters: TrafficCounters) -> StepStats:
         self.stats = StepStats(step, counters.sent, counters.received, counters.dropped,
                                counters.bytes_sent, counters.bytes_received)
         self.totals["sent"] += self.stats.total_sent

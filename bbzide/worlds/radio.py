@@ -14,6 +14,13 @@ sender's broadcast rate over the last second, the Crazyflie's BLE); the situated
 azimuth, elevation, with Gaussian noise) are fixed at transmission time from the geometry and the
 message arrives `latency_steps` later. Deliveries are ordered by receiver, then sender, then
 message, so the order a VM sees is reproducible.
+
+Asynchronous robots (the engine's `asynchronous=True`): real robots do not step in lockstep;
+each has its own phase within the control period. Then the engine calls `begin_step` (the
+step's links and situated data, computed once), `send_from(sender, time)` right after each
+robot's control step, in phase order, and `take_due(receiver, time)` before each; a message
+sent at time t (in steps, phase included) reaches a receiver at its first control step after
+t + latency_steps - 1, i.e. within the same step when the receiver's phase is later.
 """
 
 from __future__ import annotations
@@ -140,6 +147,7 @@ class Radio:
     send_queues: list[deque[bytes]] = field(init=False)
     in_flight: dict[int, list[list[Delivery]]] = field(init=False)
     history: np.ndarray = field(init=False)
+    pending: list[list[tuple[float, Delivery]]] = field(init=False)   # asynchronous mode
 
     def __post_init__(self) -> None:
         settings = self.settings
@@ -154,6 +162,7 @@ class Radio:
             raise WorldConfigError("latency must be at least 1 step (sent after the VMs ran)")
         self.send_queues = [deque() for _ in range(self.count)]
         self.in_flight = {}
+        self.pending = [[] for _ in range(self.count)]
         # Transmissions per sender over the last second (ring of steps), for the rate-dependent
         # loss: one second because the paper states its rates per second (2, 10, 20 Hz).
         window = max(1, round(1.0 / self.step_seconds))
@@ -283,3 +292,74 @@ class Radio:
                                                           len(elevation))
         azimuth = np.pi - np.mod(np.pi - azimuth, 2 * np.pi)   # wrap to (-pi, pi]
         return distance, azimuth, elevation
+
+    # ---- asynchronous robots ---------------------------------------------------------------
+    def begin_step(self, step: int, positions: np.ndarray, headings: np.ndarray,
+                   listening: np.ndarray) -> None:
+        """Links and situated data of this step, grouped by sender (asynchronous mode)."""
+        links = pairs_within_range(positions, self.settings.comm_range)
+        keep = listening[links.receivers]
+        s_idx, r_idx = links.senders[keep], links.receivers[keep]
+        order = np.lexsort((r_idx, s_idx))
+        s_idx, r_idx = s_idx[order], r_idx[order]
+        distance, azimuth, elevation = self._situation(positions, headings, s_idx, r_idx)
+        self._step = step
+        self._starts = np.searchsorted(s_idx, np.arange(self.count + 1))
+        self._receivers = r_idx.tolist()
+        self._distance = (distance * self.settings.distance_unit).tolist()
+        self._azimuth = azimuth.tolist()
+        self._elevation = elevation.tolist()
+        self._taken = np.zeros(self.count, dtype=np.int64)
+        self._used: set[tuple[int, int]] = set()
+        self.history[step % len(self.history)] = 0
+
+    def send_from(self, sender: int, time: float, counters: TrafficCounters) -> None:
+        """Transmit what `sender`'s queue allows now; receivers get it at their next step."""
+        settings = self.settings
+        queue = self.send_queues[sender]
+        if not queue:
+            return
+        batch = [queue.popleft() for _ in range(min(settings.messages_per_step, len(queue)))]
+        counters.sent[sender] += len(batch)
+        counters.bytes_sent[sender] += sum(len(m) for m in batch)
+        self.history[self._step % len(self.history), sender] += len(batch)
+        first, last = int(self._starts[sender]), int(self._starts[sender + 1])
+        if first == last:
+            return
+        if settings.loss_by_rate:
+            rate = self.rates()[sender:sender + 1]
+            loss = float(interpolate_loss(settings.loss_by_rate, rate)[0])
+        else:
+            loss = settings.loss_probability
+        lost = (self.loss_rng.random((last - first) * len(batch)) < loss).tolist()
+        arrival = time + settings.latency_steps - 1
+        cap = settings.receive_cap_per_step
+        k = 0
+        for link in range(first, last):
+            receiver = self._receivers[link]
+            for message in batch:
+                if lost[k] or (cap is not None and self._taken[receiver] >= cap):
+                    counters.dropped[receiver] += 1
+                else:
+                    self._taken[receiver] += 1
+                    self.pending[receiver].append((arrival, (
+                        sender, message, self._distance[link], self._azimuth[link],
+                        self._elevation[link])))
+                    self._used.add((sender, receiver))
+                k += 1
+
+    def take_due(self, receiver: int, time: float) -> list[Delivery]:
+        """Deliveries that reached `receiver` before `time`, in order of arrival."""
+        pending = self.pending[receiver]
+        if not pending:
+            return []
+        due = [d for t, d in pending if t < time]
+        if due:
+            self.pending[receiver] = [(t, d) for t, d in pending if t >= time]
+        return due
+
+    def step_links(self) -> np.ndarray:
+        """(sender, receiver) pairs that carried a message in this asynchronous step."""
+        if not self._used:
+            return np.empty((0, 2), dtype=np.int64)
+        return np.array(sorted(self._used), dtype=np.int64)

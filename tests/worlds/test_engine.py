@@ -162,3 +162,30 @@ def test_receive_cap_per_step_drops_the_rest():
     assert len(centre.inbox) == 2                      # 6 neighbours sent, 2 taken
     assert sim.stats.dropped[0] == 4                  # counted at the receiver
     assert [m[0] for m, *_ in centre.inbox] == sorted(m[0] for m, *_ in centre.inbox)
+
+
+def test_asynchronous_robots_hear_later_phases_in_the_same_step():
+    sim = kilobots([[0, 0, 0], [0.05, 0, 0]], radio={"loss_probability": 0.0},
+                   asynchronous=True)
+    early, late = np.argsort(sim.phases)
+    sim.step()
+    # the late robot already heard the early one's step-0 message; the early one hears the
+    # late one's only at its step 1
+    assert [m for m, *_ in sim.robots[late].robot.inbox] == [bytes([early, 0])]
+    assert sim.robots[early].robot.inbox == []
+    sim.step()
+    assert [m for m, *_ in sim.robots[early].robot.inbox] == [bytes([late, 0])]
+    assert sim.totals["sent"] == 4 and sim.totals["received"] == 3
+
+
+def test_asynchronous_runs_are_deterministic_and_lose_at_the_set_rate():
+    def run():
+        sim = kilobots([[0, 0, 0], [0.05, 0, 0], [0.0, 0.05, 0]],
+                       radio={"loss_probability": 0.25}, asynchronous=True)
+        sim.run(300)
+        return sim.totals, [list(s.robot.inbox) for s in sim.robots]
+
+    totals, inboxes = run()
+    assert (totals, inboxes) == run()
+    delivered = totals["received"] / (totals["received"] + totals["dropped"])
+    assert abs(delivered - 0.75) < 0.05
