@@ -29,6 +29,9 @@ DEFAULT_STEPS = 100
 def register(subparsers: argparse._SubParsersAction) -> None:
     worlds = subparsers.add_parser("worlds", help="list the simulated worlds")
     worlds.set_defaults(handler=run_list_worlds)
+    from bbzide.worlds import sar_experiment  # `bbzide experiment sar` (thesis §5.4)
+
+    sar_experiment.register(subparsers)
 
 
 def _has_option(parser: argparse.ArgumentParser, option: str) -> bool:

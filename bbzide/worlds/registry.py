@@ -37,6 +37,14 @@ CRAZYFLIE_HOST_NAMES = (
     "flying", "front", "back", "left", "right", "up", "x", "y", "z",
 )
 
+#: Host names of the M300 field: its host functions, then the keys of the tables they return.
+M300_HOST_NAMES = (
+    "takeoff", "land", "goto", "position", "arrived", "flying", "camera", "random_goal",
+    "prior", "distance", "mission", "set_role", "know_target", "relay_link", "rand", "clock",
+    "doze",
+    "x", "y", "z", "cell", "search", "steps", "size", "rx", "ry", "range", "cells", "threshold",
+)
+
 WORLDS: dict[str, WorldSpec] = {
     "kilobot": WorldSpec(
         name="kilobot",
@@ -57,6 +65,17 @@ WORLDS: dict[str, WorldSpec] = {
         default_robots=10,
         factory=_lazy("bbzide.worlds.crazyflie", "CrazyflieLab"),
         options={"width": 6.0, "depth": 6.0, "height": 3.0},
+    ),
+    "m300": WorldSpec(
+        name="m300",
+        title="M300 field",
+        example="examples/m300/flocking.bzz",
+        profile="m300",
+        host_names=M300_HOST_NAMES,
+        default_robots=6,
+        factory=_lazy("bbzide.worlds.m300", "M300Field"),
+        options={"size": 36.0, "comm_range": 10.0, "speed": 2.0, "altitude": 5.0,
+                 "targets": 3, "cells": 10, "search": "belief"},
     ),
 }
 

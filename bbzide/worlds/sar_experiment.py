@@ -1,0 +1,448 @@
+"""`bbzide experiment sar`: the search-and-rescue simulation study of thesis §5.4 (and the field
+test of §5.5) on the M300 field world running `examples/sar/sar.bzz`.
+
+Design: a sweep is a list of `RunSpec`s, one per (drones, arena, search, trial). The run seed
+depends on (sweep seed, drones, arena, trial) but not on the search, so the two searches of a
+pair start from the same drone positions, belief map and targets (the world draws them from the
+run seed) and differ only in how goals are chosen. Each run is independent and reproducible from
+its spec alone, so runs go to a `multiprocessing` pool (one worker per `--jobs`) and each
+finished run is written at once, atomically, as `runs/<id>.json` in the output folder: an
+interrupted sweep keeps every finished run and a rerun of the same command skips them
+(resume). When the pool is done, the JSON files are summarised into `runs.csv`, the paired
+belief-vs-random comparison `comparison.csv` (and on screen), and the plots (`sar_plots.py`).
+
+A run ends when every target has been seen and the relay tree is complete (`M300Field.
+relay_complete`, checked every CHECK_PERIOD steps), or after `max_steps` (a timeout, reported).
+Measured per run (thesis §5.4.2): the step at which the last target was first seen ("timesteps
+to find all targets"), the steps the root spent as auctioneer ("relay formation time"), the
+step at which the tree was complete, messages and bytes sent per drone, and the bytes each
+drone sent per simulated second (the bandwidth plot, Fig. 5.12).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import multiprocessing
+import os
+import statistics
+import sys
+import time
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bbzide.diagnostics import UserError
+
+#: The paper's fixed parameters (thesis §5.4.2): 3 targets, 10 m range, 20 search steps.
+TARGETS = 3
+COMM_RANGE = 10.0
+SEARCH_STEPS = 20
+SEARCHES = ("random", "belief")
+#: Steps between two relay-completion checks (1 s: the check walks every drone and target).
+CHECK_PERIOD = 10
+#: Bandwidth samples are bytes per drone per simulated second (10 steps of 0.1 s).
+SAMPLE_STEPS = 10
+#: A run that has not found every target and formed the tree by then is a timeout: 10,000
+#: steps = 1,000 s simulated, several times the slowest 40 m random-walk runs we measured.
+DEFAULT_MAX_STEPS = 10_000
+SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "sar" / "sar.bzz"
+FIELD_BELIEF = Path(__file__).resolve().parents[2] / "examples" / "sar" / "field_belief.csv"
+#: The field test (thesis §5.5): a 36 m football field, 3 drones, 1 target, a fixed belief map.
+#: The target sits 24.7 m from the meeting point; with a 15 m range the relay is the root and two
+#: networkers, which is what three drones can form (at the simulations' 10 m, three drones
+#: cannot span 24.7 m: the paper does not give its field range, Wi-Fi reaches further).
+FIELD_TARGET = (26.0, 24.0)
+FIELD_COMM_RANGE = 15.0
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One run of the sweep; everything the run depends on."""
+
+    drones: int
+    arena: float
+    search: str
+    trial: int
+    seed: int
+    max_steps: int = DEFAULT_MAX_STEPS
+    comm_range: float = COMM_RANGE
+    targets: int | tuple[tuple[float, float], ...] = TARGETS
+    belief_map: str | None = None
+    search_steps: int = SEARCH_STEPS
+
+    @property
+    def run_id(self) -> str:
+        return f"d{self.drones}_a{self.arena:g}_{self.search}_t{self.trial:03d}"
+
+    def world_options(self) -> dict[str, Any]:
+        options: dict[str, Any] = {"size": self.arena, "comm_range": self.comm_range,
+                                   "search": self.search, "search_steps": self.search_steps,
+                                   "targets": (self.targets if isinstance(self.targets, int)
+                                               else [list(t) for t in self.targets])}
+        if self.belief_map is not None:
+            options["belief_map"] = self.belief_map
+        return options
+
+
+@dataclass
+class SweepSettings:
+    drones: list[int]
+    arenas: list[float]
+    searches: list[str]
+    trials: int
+    seed: int
+    jobs: int
+    out: Path
+    max_steps: int = DEFAULT_MAX_STEPS
+    preset: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def _int_list(text: str, what: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise UserError(f"--{what} wants integers separated by commas, got {text!r}") from None
+    if not values:
+        raise UserError(f"--{what} is empty")
+    return values
+
+
+def _float_list(text: str, what: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise UserError(f"--{what} wants numbers separated by commas, got {text!r}") from None
+    if not values:
+        raise UserError(f"--{what} is empty")
+    return values
+
+
+def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
+    """Every parameter problem as one clear `UserError` before anything runs."""
+    if any(d < 1 for d in settings.drones):
+        raise UserError(f"every run needs at least 1 drone (--drones {settings.drones})")
+    small = [a for a in settings.arenas if a < comm_range]
+    if small:
+        raise UserError(f"arena {small[0]:g} m is smaller than the {comm_range:g} m "
+                        "communication range: the swarm would never be sparse")
+    unknown = [s for s in settings.searches if s not in SEARCHES]
+    if unknown:
+        raise UserError(f"unknown search {unknown[0]!r}; choose from {', '.join(SEARCHES)}")
+    if settings.trials < 1:
+        raise UserError("--trials must be at least 1")
+    if settings.jobs < 1:
+        raise UserError("--jobs must be at least 1")
+    if settings.max_steps < 1:
+        raise UserError("--max-steps must be at least 1")
+
+
+def run_seed(seed: int, drones: int, arena: float, trial: int) -> int:
+    """The seed of a trial, shared by its two searches (a pair)."""
+    sequence = np.random.SeedSequence(seed, spawn_key=(drones, int(round(arena * 10)), trial))
+    return int(sequence.generate_state(1)[0])
+
+
+def plan_runs(settings: SweepSettings) -> list[RunSpec]:
+    runs = []
+    for arena in settings.arenas:
+        for drones in settings.drones:
+            for trial in range(settings.trials):
+                seed = run_seed(settings.seed, drones, arena, trial)
+                for search in settings.searches:
+                    runs.append(RunSpec(drones, arena, search, trial, seed,
+                                        max_steps=settings.max_steps, **settings.extra))
+    return runs
+
+
+# ---- one run (in a worker process) -------------------------------------------------------------
+_PROGRAM: Any = None
+
+
+def _program() -> Any:
+    global _PROGRAM
+    if _PROGRAM is None:
+        from bbzide.compiler import bittybuzz_string_table, compile_file
+        from bbzide.worlds.registry import M300_HOST_NAMES
+
+        strings = bittybuzz_string_table(list(M300_HOST_NAMES))
+        _PROGRAM = compile_file(SCRIPT, string_table=strings).to_bbo()
+    return _PROGRAM
+
+
+def run_one(spec: RunSpec) -> dict[str, Any]:
+    """Run one mission to completion (or timeout) and return its measurements."""
+    from bbzide.worlds.engine import Simulation
+    from bbzide.worlds.m300 import ROLE_NAMES
+
+    started = time.perf_counter()
+    sim = Simulation("m300", _program(), robots=spec.drones, seed=spec.seed,
+                     world_options=spec.world_options())
+    world = sim.world
+    sent = np.zeros(spec.drones, dtype=np.int64)
+    sent_bytes = np.zeros(spec.drones, dtype=np.int64)
+    window = np.zeros(spec.drones, dtype=np.int64)
+    bandwidth: list[list[int]] = []
+    complete_step = -1
+    while sim.step_count < spec.max_steps:
+        stats = sim.step()
+        sent += stats.sent
+        sent_bytes += stats.bytes_sent
+        window += stats.bytes_sent
+        if sim.step_count % SAMPLE_STEPS == 0:
+            bandwidth.append(window.tolist())
+            window[:] = 0
+        if (sim.step_count % CHECK_PERIOD == 0 and (world.found_step >= 0).all()
+                and world.relay_complete(sim)):
+            complete_step = sim.step_count
+            break
+    found = world.found_step
+    auctioneer = ROLE_NAMES.index("auctioneer")
+    return {
+        **{k: v for k, v in asdict(spec).items() if k not in ("targets", "belief_map")},
+        "run_id": spec.run_id,
+        "targets": len(world.targets),
+        "found_all_step": int(found.max()) if len(found) and (found >= 0).all() else -1,
+        "targets_found": int((found >= 0).sum()),
+        "relay_formation_steps": int(world.role_steps[:, auctioneer].sum()),
+        "complete_step": complete_step,
+        "steps": sim.step_count,
+        "networkers": sum(r == "networker" for r in world.roles),
+        "roots": sum(r in ("root", "auctioneer") for r in world.roles),
+        "messages_per_drone": float(sent.mean()),
+        "bytes_per_drone": float(sent_bytes.mean()),
+        "errors": len(sim.failures),
+        "error_reasons": sorted({str(getattr(s.failure, "reason", s.failure))
+                                 for s in sim.failures}),
+        "wall_seconds": round(time.perf_counter() - started, 2),
+        "bandwidth": bandwidth,
+    }
+
+
+# ---- results on disk ---------------------------------------------------------------------------
+def result_path(out: Path, spec: RunSpec) -> Path:
+    return out / "runs" / f"{spec.run_id}.json"
+
+
+def write_result(out: Path, result: dict[str, Any]) -> None:
+    """Atomic: a killed sweep leaves either the whole file or none."""
+    path = out / "runs" / f"{result['run_id']}.json"
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(result))
+    os.replace(tmp, path)
+
+
+def load_result(path: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None   # torn or foreign: run it again
+
+
+CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
+              "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
+              "steps", "max_steps", "networkers", "roots", "messages_per_drone",
+              "bytes_per_drone", "errors", "wall_seconds")
+
+
+def write_csv(path: Path, results: Sequence[dict[str, Any]]) -> None:
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=CSV_FIELDS, extrasaction="ignore")
+        writer.writeheader()
+        for r in sorted(results, key=lambda r: (r["arena"], r["drones"], r["trial"],
+                                                r["search"])):
+            writer.writerow(r)
+
+
+def sign_test(wins: int, losses: int) -> float:
+    """Two-sided exact sign test p-value (ties dropped): a paired test without scipy."""
+    n = wins + losses
+    if n == 0:
+        return 1.0
+    k = min(wins, losses)
+    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2 ** n
+    return min(1.0, 2 * tail)
+
+
+def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per (arena, drones): belief vs random on the pairs where both found every target."""
+    by_pair: dict[tuple[float, int, int], dict[str, dict[str, Any]]] = {}
+    for r in results:
+        by_pair.setdefault((r["arena"], r["drones"], r["trial"]), {})[r["search"]] = r
+    rows = []
+    for arena, drones in sorted({(a, d) for a, d, _ in by_pair}):
+        pairs = [p for (a, d, _), p in sorted(by_pair.items())
+                 if a == arena and d == drones and "belief" in p and "random" in p]
+        ok = [p for p in pairs
+              if p["belief"]["found_all_step"] >= 0 and p["random"]["found_all_step"] >= 0]
+        diffs = [p["random"]["found_all_step"] - p["belief"]["found_all_step"] for p in ok]
+        wins = sum(d > 0 for d in diffs)
+        losses = sum(d < 0 for d in diffs)
+
+        def med(search: str, key: str, rows: list = pairs) -> float | None:
+            values = [p[search][key] for p in rows if p[search][key] >= 0]
+            return statistics.median(values) if values else None
+
+        rows.append({
+            "arena": arena, "drones": drones, "pairs": len(pairs), "complete_pairs": len(ok),
+            "median_find_random": med("random", "found_all_step"),
+            "median_find_belief": med("belief", "found_all_step"),
+            "median_paired_saving": statistics.median(diffs) if diffs else None,
+            "belief_faster": wins, "random_faster": losses,
+            "sign_test_p": round(sign_test(wins, losses), 4),
+            "median_relay_random": med("random", "relay_formation_steps"),
+            "median_relay_belief": med("belief", "relay_formation_steps"),
+            "incomplete_trees": sum(p[s]["complete_step"] < 0 for p in pairs for s in p),
+        })
+    return rows
+
+
+def write_comparison(path: Path, rows: Sequence[dict[str, Any]]) -> None:
+    if not rows:
+        return
+    with path.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def format_comparison(rows: Iterable[dict[str, Any]]) -> str:
+    lines = ["arena drones pairs  find(random) find(belief) saving  belief/random faster  p"
+             "      relay(random) relay(belief) incomplete"]
+    for r in rows:
+        def f(v: Any) -> str:
+            return "-" if v is None else f"{v:g}"
+        lines.append(
+            f"{r['arena']:>5g} {r['drones']:>6} {r['pairs']:>5}  {f(r['median_find_random']):>12}"
+            f" {f(r['median_find_belief']):>12} {f(r['median_paired_saving']):>6}  "
+            f"{r['belief_faster']:>6}/{r['random_faster']:<6}        {r['sign_test_p']:<6} "
+            f"{f(r['median_relay_random']):>13} {f(r['median_relay_belief']):>13} "
+            f"{r['incomplete_trees']:>10}")
+    return "\n".join(lines)
+
+
+# ---- the sweep ---------------------------------------------------------------------------------
+class Progress:
+    """A one-line progress bar on stderr (runs done, elapsed, estimated time left)."""
+
+    def __init__(self, total: int, done: int) -> None:
+        self.total, self.done, self.new = total, done, 0
+        self.started = time.monotonic()
+        self.draw()
+
+    def advance(self) -> None:
+        self.done += 1
+        self.new += 1
+        self.draw()
+
+    def draw(self) -> None:
+        width = 30
+        filled = int(width * self.done / max(self.total, 1))
+        elapsed = time.monotonic() - self.started
+        left = self.total - self.done
+        eta = (f"{elapsed / self.new * left / 60:.1f} min left" if self.new else "")
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}"
+                         f" runs, {elapsed / 60:.1f} min {eta}   ")
+        sys.stderr.flush()
+        if self.done == self.total:
+            sys.stderr.write("\n")
+
+
+def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
+    validate(settings, settings.extra.get("comm_range", COMM_RANGE))
+    out = settings.out
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    specs = plan_runs(settings)
+    results: dict[str, dict[str, Any]] = {}
+    todo = []
+    for spec in specs:
+        previous = load_result(result_path(out, spec))
+        if previous is not None:
+            results[spec.run_id] = previous
+        else:
+            todo.append(spec)
+    if results:
+        print(f"resuming: {len(results)} of {len(specs)} runs already in {out / 'runs'}")
+    progress = Progress(len(specs), len(results))
+    started = time.monotonic()
+    if todo:
+        # Longest runs first (big arenas, few drones) so the pool does not end on one straggler.
+        todo.sort(key=lambda s: (-s.arena, s.drones))
+        if settings.jobs == 1:
+            for spec in todo:
+                result = run_one(spec)
+                write_result(out, result)
+                results[spec.run_id] = result
+                progress.advance()
+        else:
+            context = multiprocessing.get_context("spawn" if sys.platform == "darwin"
+                                                  else "fork")
+            with context.Pool(settings.jobs) as pool:
+                for result in pool.imap_unordered(run_one, todo):
+                    write_result(out, result)
+                    results[result["run_id"]] = result
+                    progress.advance()
+    wall = time.monotonic() - started
+    finished = [results[s.run_id] for s in specs]
+    write_csv(out / "runs.csv", finished)
+    rows = paired_comparison(finished)
+    write_comparison(out / "comparison.csv", rows)
+    print(format_comparison(rows))
+    from bbzide.worlds import sar_plots
+
+    written = sar_plots.write_all(out, finished)
+    timeouts = sum(r["complete_step"] < 0 for r in finished)
+    print(f"{len(todo)} runs in {wall / 60:.1f} min with {settings.jobs} jobs "
+          f"({len(finished)} in {out}); {timeouts} without a complete relay tree; "
+          f"plots: {', '.join(p.name for p in written)}")
+    return finished
+
+
+# ---- command line ------------------------------------------------------------------------------
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "experiment", help="reproduce a paper experiment (sar: thesis §5.4 / §5.5)")
+    parser.add_argument("name", choices=["sar"], help="the experiment")
+    parser.add_argument("--drones", default="15,20,25", help="drone counts (comma-separated)")
+    parser.add_argument("--arena", default="20,30,40", help="arena sides in metres")
+    parser.add_argument("--search", default="random,belief", help="random and/or belief")
+    parser.add_argument("--trials", type=int, default=30, help="trials per configuration")
+    parser.add_argument("--seed", type=int, default=0, help="sweep seed")
+    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                        help="parallel worker processes (default: all cores)")
+    parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
+    parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
+                        help="steps before a run counts as a timeout")
+    parser.add_argument("--preset", choices=["field"], default=None,
+                        help="field: the paper's field test (36 m, 3 drones, 1 target, "
+                             "fixed belief map; 3 trials unless --trials is given)")
+    parser.set_defaults(handler=run_command)
+
+
+def settings_from_args(args: argparse.Namespace) -> SweepSettings:
+    searches = [s.strip() for s in args.search.split(",") if s.strip()]
+    settings = SweepSettings(
+        drones=_int_list(args.drones, "drones"), arenas=_float_list(args.arena, "arena"),
+        searches=searches, trials=args.trials, seed=args.seed, jobs=args.jobs,
+        out=Path(args.out), max_steps=args.max_steps, preset=args.preset)
+    if args.preset == "field":
+        settings.drones, settings.arenas = [3], [36.0]
+        if "--trials" not in sys.argv:
+            settings.trials = 3
+        settings.extra = {"targets": (FIELD_TARGET,), "belief_map": str(FIELD_BELIEF),
+                          "comm_range": FIELD_COMM_RANGE}
+    return settings
+
+
+def run_command(args: argparse.Namespace) -> int:
+    finished = run_sweep(settings_from_args(args))
+    if args.preset == "field":
+        formed = sum(r["complete_step"] >= 0 for r in finished)
+        print(f"field test: the relay line formed in {formed} of {len(finished)} runs")
+    return 0

@@ -1,0 +1,127 @@
+"""The search-and-rescue mission (examples/sar/sar.bzz on the M300 field, real VMs) and the
+`bbzide experiment sar` runner (pairs, CSV, resume, plots, bad parameters)."""
+
+import csv
+import json
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from bbzide.cli import main
+from bbzide.worlds import sar_experiment as sx
+from bbzide.worlds.engine import Simulation
+
+
+def mission(search: str, drones: int = 10, seed: int = 11, max_steps: int = 2500):
+    """Run the mission like the experiment runner does; returns (simulation, bytes sent)."""
+    spec = sx.RunSpec(drones=drones, arena=20.0, search=search, trial=0, seed=seed)
+    sim = Simulation("m300", sx._program(), robots=drones, seed=seed,
+                     world_options=spec.world_options())
+    sent = 0
+    while sim.step_count < max_steps:
+        sent += sim.step().total_bytes
+        if (sim.step_count % 10 == 0 and (sim.world.found_step >= 0).all()
+                and sim.world.relay_complete(sim)):
+            break
+    return sim, sent
+
+
+@pytest.fixture(scope="module")
+def belief_run():
+    return mission("belief")
+
+
+def test_belief_mission_finds_every_target_and_forms_the_relay_tree(belief_run):
+    sim, _ = belief_run
+    world = sim.world
+    assert not sim.failures
+    assert (world.found_step >= 0).all()
+    assert world.relay_complete(sim)
+    roles = Counter(world.roles)
+    assert roles["root"] + roles["auctioneer"] == 1           # exactly one root was elected
+    root = next(i for i, r in enumerate(world.roles) if r in ("root", "auctioneer"))
+    assert np.hypot(*(sim.positions[root, :2] - world.rendezvous)) < 1.0
+    # The root knows the three targets (as positions within the camera footprint of each).
+    known = np.array(world.known_targets[root])
+    assert len(known) == 3
+    for target in world.targets:
+        assert np.hypot(*(known - target).T).min() <= world.camera_radius
+    # Every relay link is a networker whose chain reaches the root, links within range.
+    links = world.relay_links()
+    assert links and all(world.roles[c] == "networker" for c, _ in links)
+    assert world.role_steps[root, 3] > 0                      # it spent time as auctioneer
+
+
+def test_random_walk_variant_also_completes_without_stigmergy_traffic(belief_run):
+    sim, sent = mission("random")
+    assert not sim.failures and sim.world.relay_complete(sim)
+    _, belief_sent = belief_run
+    # Same starts, map and targets; the random walk sends no belief-map gossip.
+    assert np.array_equal(sim.world.targets, belief_run[0].world.targets)
+    assert sent < belief_sent / 3
+
+
+def settings(tmp_path, **changes):
+    values = {"drones": [3], "arenas": [20.0], "searches": ["random", "belief"], "trials": 2,
+              "seed": 5, "jobs": 1, "out": tmp_path / "out", "max_steps": 30}
+    values.update(changes)
+    return sx.SweepSettings(**values)
+
+
+def test_pairs_share_their_seed_and_trials_differ(tmp_path):
+    runs = sx.plan_runs(settings(tmp_path, drones=[3, 4]))
+    assert len(runs) == 2 * 2 * 2
+    by_trial = {}
+    for r in runs:
+        by_trial.setdefault((r.drones, r.trial), set()).add(r.seed)
+    assert all(len(seeds) == 1 for seeds in by_trial.values())
+    assert len({next(iter(s)) for s in by_trial.values()}) == 4
+
+
+def test_sweep_writes_csv_and_plots_and_resumes(tmp_path, capsys):
+    s = settings(tmp_path)
+    results = sx.run_sweep(s)
+    out = s.out
+    assert len(results) == 4
+    rows = list(csv.DictReader((out / "runs.csv").open()))
+    assert [(r["search"], r["trial"]) for r in rows] == [
+        ("belief", "0"), ("random", "0"), ("belief", "1"), ("random", "1")]
+    assert all(r["complete_step"] == "-1" and r["steps"] == "30" for r in rows)  # timeouts
+    assert (out / "comparison.csv").exists()
+    for name in ("find_time_arena20.png", "relay_time_arena20.png", "bandwidth.png"):
+        assert (out / name).read_bytes()[:4] == b"\x89PNG"
+    # Resume: a finished run is not run again; a torn one is.
+    kept = out / "runs" / "d3_a20_belief_t000.json"
+    torn = out / "runs" / "d3_a20_random_t001.json"
+    before = kept.stat().st_mtime_ns
+    torn.write_text("{not json")
+    capsys.readouterr()
+    again = sx.run_sweep(s)
+    assert "resuming: 3 of 4" in capsys.readouterr().out
+    assert kept.stat().st_mtime_ns == before
+    assert json.loads(torn.read_text())["run_id"] == "d3_a20_random_t001"
+    # Reproducible: the rerun of the torn run gives the same measurements.
+    old = {r["run_id"]: r for r in results}["d3_a20_random_t001"]
+    new = {r["run_id"]: r for r in again}["d3_a20_random_t001"]
+    assert {k: v for k, v in old.items() if k != "wall_seconds"} == {
+        k: v for k, v in new.items() if k != "wall_seconds"}
+
+
+def test_sign_test():
+    assert sx.sign_test(0, 0) == 1.0
+    assert sx.sign_test(10, 0) == pytest.approx(2 / 2 ** 10)
+    assert sx.sign_test(5, 5) == 1.0
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--drones", "0,15"], "at least 1 drone"),
+    (["--arena", "8"], "smaller than the 10 m communication range"),
+    (["--search", "belief,spiral"], "unknown search 'spiral'"),
+    (["--drones", "a"], "integers"),
+    (["--trials", "0"], "--trials"),
+])
+def test_bad_parameters_are_clear_errors(extra, words, tmp_path, capsys):
+    assert main(["experiment", "sar", "--out", str(tmp_path), *extra]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
