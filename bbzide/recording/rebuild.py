@@ -84,6 +84,44 @@ def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
             stack.extend(item.values())
 
 
+#: A Buzz script that makes a VM register every library C closure that scripts create at run
+#: time (`stigmergy.create` and `swarm.create` register their methods when first called).
+_LIBRARY_PROBE = "s = stigmergy.create(1)\nw = swarm.create(1)\n"
+_library_cache: dict[str, dict[str, Any]] = {}
+
+
+def library_closures(profile: Any) -> dict[str, Any]:
+    """symbol -> host function of the BittyBuzz library closures with fixed addresses, taken
+    from a probe robot that created one stigmergy and one swarm."""
+    found = _library_cache.get(profile.name)
+    if found is None:
+        from bbzide import compiler
+        from bbzide.vm.host import LIBRARY_ADDRESSES
+        from bbzide.vm.robot import Robot
+
+        probe = compiler.compile_source(
+            _LIBRARY_PROBE, "<library probe>",
+            string_table=compiler.bittybuzz_string_table([])).to_bbo()
+        robot = Robot(probe, profile, 0)
+        robot.boot()
+        found = {symbol: entry.function for symbol, entry in robot.vm.host.by_symbol.items()
+                 if symbol in LIBRARY_ADDRESSES}
+        _library_cache[profile.name] = found
+    return found
+
+
+def _register_library(robot: Any, profile: Any) -> None:
+    """`Robot.restore` brings back the heap, whose C closures hold addresses, but not the VM's
+    address -> function registry. Closures a script created after boot (its stigmergy's
+    `get`/`put`, a swarm's methods) were registered in the live VM when created; the rebuilt
+    VM, booted with other host answers, may never have created them. Library closures always
+    sit at their fixed addresses, so registering any missing one makes the registry match."""
+    registry = robot.vm.host
+    for symbol, function in library_closures(profile).items():
+        if symbol not in registry.by_symbol:
+            registry.register(symbol, function)
+
+
 class RobotRebuilder:
     def __init__(self, recording: Recording, build: Builder | None = None) -> None:
         self.recording = recording
@@ -157,6 +195,7 @@ class RobotRebuilder:
                             int(meta["robot_ids"][index]), host.functions())
         robot.boot()
         robot.restore(self.snapshot(index, keyframe))
+        _register_library(robot, profile)
         return robot, host
 
     def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
