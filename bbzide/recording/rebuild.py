@@ -24,7 +24,7 @@ from typing import Any
 
 from bbzide.diagnostics import SourceLocation
 from bbzide.recording.reader import Keyframe, Recording
-from bbzide.recording.recorder import RecordingError, build_robot
+from bbzide.recording.recorder import RecordingError, build_robot, xor_bytes
 from bbzide.vm.input_log import (
     InputLogError,
     ReplayDivergence,
@@ -116,7 +116,11 @@ def _register_library(robot: Any, profile: Any) -> None:
     `get`/`put`, a swarm's methods) were registered in the live VM when created; the rebuilt
     VM, booted with other host answers, may never have created them. Library closures always
     sit at their fixed addresses, so registering any missing one makes the registry match."""
-    registry = robot.vm.host
+    from bbzide.vm.host import HostRegistry
+
+    registry = getattr(robot.vm, "host", None)
+    if not isinstance(registry, HostRegistry):
+        return  # not a BittyBuzz VM (a test double)
     for symbol, function in library_closures(profile).items():
         if symbol not in registry.by_symbol:
             registry.register(symbol, function)
@@ -209,8 +213,8 @@ class RobotRebuilder:
                 if base is None:
                     raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
                                          f"needs a full keyframe at step {keyframe.base}")
-                unpacker = zlib.decompressobj(zdict=zlib.decompress(base.snapshot))
-                snapshot = unpacker.decompress(keyframe.snapshot) + unpacker.flush()
+                snapshot = xor_bytes(zlib.decompress(keyframe.snapshot),
+                                     zlib.decompress(base.snapshot))
         except zlib.error as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None

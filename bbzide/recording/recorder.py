@@ -46,6 +46,11 @@ KEYFRAME_EVERY = 25
 #: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
 #: whatever the script costs per step (the issue's seek goal).
 KEYFRAME_BUDGET_SECONDS = 0.040
+#: ...unless keyframing that robot costs more than 1/12 of that (snapshot + compression: ~7 ms
+#: for an M300 with its 60 KB heap): then the budget grows to 12x the keyframe's cost, which
+#: keeps keyframes under ~8 % of the VM time (the recording goal is <= 10 %) at the price of
+#: longer seeks for such robots (measured in benchmarks/record_bench.py).
+KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
 FLUSH_EVERY = 50
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
@@ -69,8 +74,8 @@ INPUT_COMPRESSION = 1
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
-#: Every 16th keyframe of a robot is full; the others are compressed against it (190 B instead
-#: of 1,060 B for a Kilobot running gradient.bzz); decoding one needs at most two inflates.
+#: Every 16th keyframe of a robot is full; the others are XOR deltas against it; decoding one
+#: needs at most two inflates.
 FULL_KEYFRAME_EVERY = 16
 
 
@@ -112,6 +117,13 @@ class Recordable:
     def _booted(self, robot: CapturingRobot) -> None:
         if self.listener is not None:
             self.listener(robot)
+
+
+def xor_bytes(data: bytes, base: bytes) -> bytes:
+    """`data` XOR `base` (cut or zero-padded to len(data)); XOR with `base` again undoes it."""
+    n = len(data)
+    padded = base[:n].ljust(n, b"\0")
+    return (np.frombuffer(data, np.uint8) ^ np.frombuffer(padded, np.uint8)).tobytes()
 
 
 def check_output_path(path: Path, force: bool) -> Path:
@@ -216,6 +228,7 @@ class MissionRecorder:
         self._capturing: dict[int, CapturingRobot] = {}
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         self._keyframe_counts: dict[int, int] = {}
+        self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its last full keyframe
         for state in sim.robots:
             if isinstance(state.robot, CapturingRobot):
@@ -244,6 +257,7 @@ class MissionRecorder:
         self._known_failures: set[int] = {s.index for s in sim.robots if s.failure is not None}
         self._last_overlays: str | None = None
         self._targets_found = 0
+        self._watch_in_program: dict[int, bool] = {}
         self._has_targets = False  # a world with targets is polled every step (found events)
         self.closed = False
         self.steps_recorded = 0
@@ -340,8 +354,10 @@ class MissionRecorder:
 
     def _keyframe(self, indexes: list[int], step: int, full: bool = False) -> None:
         """Snapshot robots `indexes` now. A robot's first keyframe after (re)boot and every
-        `FULL_KEYFRAME_EVERY`-th are full; the others are zlib-compressed with the last full
-        one as preset dictionary (`bases` = its step), which makes them ~5x smaller."""
+        `FULL_KEYFRAME_EVERY`-th are full; the others store the XOR with the last full one
+        (`bases` = its step), zlib-compressed: the heap sits at a fixed offset of the pickle
+        and changes little, so the XOR is mostly zeros (Kilobot 1,050 -> 100 B, M300 60 KB
+        heap 5,550 -> 260 B; a zlib preset dictionary only reaches back 32 KB)."""
         if not indexes:
             return
         snapshots, programs, bases = [], [], []
@@ -349,6 +365,7 @@ class MissionRecorder:
             state = self.sim.robots[index]
             self._keyframed[index] = step
             self._capturing[index].busy_seconds = 0.0
+            started = time.perf_counter()
             snapshot = state.robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
             base = self._bases.get(index)
@@ -357,10 +374,11 @@ class MissionRecorder:
                 bases.append(-1)
                 self._bases[index] = (step, snapshot)
             else:
-                packer = zlib.compressobj(SNAPSHOT_COMPRESSION, zdict=base[1])
-                snapshots.append(packer.compress(snapshot) + packer.flush())
+                snapshots.append(zlib.compress(xor_bytes(snapshot, base[1]),
+                                               SNAPSHOT_COMPRESSION))
                 bases.append(base[0])
             self._keyframe_counts[index] = count + 1
+            self._snapshot_seconds[index] = time.perf_counter() - started
             programs.append(self._program_id(state.program, step))
         import pyarrow as pa
 
@@ -397,8 +415,10 @@ class MissionRecorder:
             state = sim.robots[i]
             if state.robot is not robot or state.failure is not None:
                 continue
+            budget = max(KEYFRAME_BUDGET_SECONDS,
+                         KEYFRAME_COST_FACTOR * self._snapshot_seconds.get(i, 0.0))
             if (step - self._keyframed.get(i, self.start_step) >= self.keyframe_every
-                    or robot.busy_seconds >= KEYFRAME_BUDGET_SECONDS):
+                    or robot.busy_seconds >= budget):
                 due.append(i)
         self._keyframe(due, step)
         self._watch_events(step)
@@ -424,7 +444,7 @@ class MissionRecorder:
                 used = h.rtobj + (h.size - h.ltseg)
                 heap[:, i] = (used, h.size - used, h.peak_used, h.rtobj, h.ltseg, h.gc_runs)
             if labels:
-                current = state.labels
+                current = self._labels_of(state)
                 for name in labels:
                     value = current.get(name)
                     labels[name][i] = "" if value is None else str(value)
@@ -445,6 +465,22 @@ class MissionRecorder:
         buffer.setdefault("links", []).append(np.array(
             [(index_of[a], index_of[c]) for a, c in sim.links], dtype=np.int32).reshape(-1, 2))
         buffer.setdefault("inputs", []).append(inputs_of_previous_step)
+
+    def _labels_of(self, state: Any) -> dict[str, Any]:
+        """The robot's labels. Reading them makes the engine look each watched name up in the
+        VM's globals (0.6 ms for a 60 KB M300 heap); when the program's string table lacks
+        every watched name, no such global can exist and the world's own labels (`set_label`)
+        are all there is."""
+        program = state.program
+        key = id(program)
+        can_have = self._watch_in_program.get(key)
+        if can_have is None:
+            strings = set(getattr(_bbo(program), "strings", []) or [])
+            can_have = any(name in strings for name in self.sim.watch)
+            self._watch_in_program[key] = can_have
+        if can_have or not hasattr(state, "_labels"):
+            return state.labels
+        return dict(state._labels)  # the world's labels, without the global look-ups
 
     def _watch_events(self, step: int) -> None:
         sim = self.sim
@@ -574,6 +610,11 @@ class MissionRecorder:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _bbo(program: Any) -> Any:
+    return program.to_bbo() if hasattr(program, "to_bbo") and not hasattr(program, "bbo") \
+        else program
 
 
 def _failure_text(failure: Any) -> str:
