@@ -24,7 +24,12 @@ from typing import Any
 
 from bbzide.diagnostics import SourceLocation
 from bbzide.recording.reader import Keyframe, Recording
-from bbzide.recording.recorder import RecordingError, build_robot, xor_bytes
+from bbzide.recording.recorder import (
+    FULL_KEYFRAME_EVERY,
+    RecordingError,
+    build_robot,
+    xor_bytes,
+)
 from bbzide.vm.input_log import (
     InputLogError,
     ReplayDivergence,
@@ -203,18 +208,20 @@ class RobotRebuilder:
         return robot, host
 
     def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
-        """The keyframe's `Robot.snapshot()` bytes, inflated (with its full base) and checked."""
+        """The keyframe's `Robot.snapshot()` bytes (a delta chain is undone from its last full
+        keyframe), checked against the allow-list."""
+        chain = [keyframe]
+        by_step = {k.step: k for k in self.recording.keyframes[index]}
+        while chain[-1].base >= 0:
+            base = by_step.get(chain[-1].base)
+            if base is None or base.step >= chain[-1].step or len(chain) > 4 * FULL_KEYFRAME_EVERY:
+                raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
+                                     f"refers to a missing keyframe (step {chain[-1].base})")
+            chain.append(base)
         try:
-            if keyframe.base < 0:
-                snapshot = zlib.decompress(keyframe.snapshot)
-            else:
-                base = next((k for k in self.recording.keyframes[index]
-                             if k.step == keyframe.base and k.base < 0), None)
-                if base is None:
-                    raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
-                                         f"needs a full keyframe at step {keyframe.base}")
-                snapshot = xor_bytes(zlib.decompress(keyframe.snapshot),
-                                     zlib.decompress(base.snapshot))
+            snapshot = zlib.decompress(chain[-1].snapshot)
+            for delta in reversed(chain[:-1]):
+                snapshot = xor_bytes(zlib.decompress(delta.snapshot), snapshot)
         except zlib.error as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None
