@@ -9,7 +9,8 @@ live robot's state byte for byte (tests/recording compare snapshots at random st
 
 Stepping forward one step at a time (the replay's play button with a robot selected) reuses
 the last rebuilt robot when no newer keyframe lies in between, so each frame re-executes one
-step, not up to `keyframe_every`.
+step, not up to `keyframe_every`. The rebuilt Robot of each robot is booted once and then only
+restored: a returned robot is valid until the next `robot_at` call for the same index.
 """
 
 from __future__ import annotations
@@ -141,6 +142,7 @@ class RobotRebuilder:
         self._programs: dict[int, Any] = {}
         self._cache: dict[int, tuple[int, Any, ReplayHostFunctions, int]] = {}
         self._decoded: dict[int, dict[int, Any]] = {}
+        self._booted: dict[tuple[int, int], tuple[Any, ReplayHostFunctions]] = {}
 
     def program(self, program_id: int) -> Any:
         if program_id not in self._programs:
@@ -191,6 +193,9 @@ class RobotRebuilder:
         return self.program(self.keyframe(index, step).program)
 
     def _restore(self, index: int, keyframe: Keyframe) -> tuple[Any, ReplayHostFunctions]:
+        """Robot `index` at `keyframe`. One booted Robot per (robot, program) is kept and
+        restored again for every seek: booting runs the script's top level and `init` (tens
+        of ms for the SAR script), restoring only unpickles."""
         from bbzide.vm.profiles import PROFILES
 
         meta = self.recording.meta
@@ -199,10 +204,15 @@ class RobotRebuilder:
         except KeyError:
             raise RecordingError(f"unknown platform profile {meta['profiles'][index]!r}"
                                  ) from None
-        host = ReplayHostFunctions(meta["host_names"][index])
-        robot = self._build(self.program(keyframe.program), profile,
-                            int(meta["robot_ids"][index]), host.functions())
-        robot.boot()
+        key = (index, keyframe.program)
+        booted = self._booted.get(key)
+        if booted is None:
+            host = ReplayHostFunctions(meta["host_names"][index])
+            robot = self._build(self.program(keyframe.program), profile,
+                                int(meta["robot_ids"][index]), host.functions())
+            robot.boot()
+            booted = self._booted[key] = (robot, host)
+        robot, host = booted
         robot.restore(self.snapshot(index, keyframe))
         _register_library(robot, profile)
         return robot, host
