@@ -9,7 +9,8 @@ live robot's state byte for byte (tests/recording compare snapshots at random st
 
 Stepping forward one step at a time (the replay's play button with a robot selected) reuses
 the last rebuilt robot when no newer keyframe lies in between, so each frame re-executes one
-step, not up to `keyframe_every`.
+step, not up to `keyframe_every`. The rebuilt Robot of each robot is booted once and then only
+restored: a returned robot is valid until the next `robot_at` call for the same index.
 """
 
 from __future__ import annotations
@@ -24,7 +25,12 @@ from typing import Any
 
 from bbzide.diagnostics import SourceLocation
 from bbzide.recording.reader import Keyframe, Recording
-from bbzide.recording.recorder import RecordingError, build_robot
+from bbzide.recording.recorder import (
+    FULL_KEYFRAME_EVERY,
+    RecordingError,
+    build_robot,
+    xor_bytes,
+)
 from bbzide.vm.input_log import (
     InputLogError,
     ReplayDivergence,
@@ -84,6 +90,48 @@ def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
             stack.extend(item.values())
 
 
+#: A Buzz script that makes a VM register every library C closure that scripts create at run
+#: time (`stigmergy.create` and `swarm.create` register their methods when first called).
+_LIBRARY_PROBE = "s = stigmergy.create(1)\nw = swarm.create(1)\n"
+_library_cache: dict[str, dict[str, Any]] = {}
+
+
+def library_closures(profile: Any) -> dict[str, Any]:
+    """symbol -> host function of the BittyBuzz library closures with fixed addresses, taken
+    from a probe robot that created one stigmergy and one swarm."""
+    found = _library_cache.get(profile.name)
+    if found is None:
+        from bbzide import compiler
+        from bbzide.vm.host import LIBRARY_ADDRESSES
+        from bbzide.vm.robot import Robot
+
+        probe = compiler.compile_source(
+            _LIBRARY_PROBE, "<library probe>",
+            string_table=compiler.bittybuzz_string_table([])).to_bbo()
+        robot = Robot(probe, profile, 0)
+        robot.boot()
+        found = {symbol: entry.function for symbol, entry in robot.vm.host.by_symbol.items()
+                 if symbol in LIBRARY_ADDRESSES}
+        _library_cache[profile.name] = found
+    return found
+
+
+def _register_library(robot: Any, profile: Any) -> None:
+    """`Robot.restore` brings back the heap, whose C closures hold addresses, but not the VM's
+    address -> function registry. Closures a script created after boot (its stigmergy's
+    `get`/`put`, a swarm's methods) were registered in the live VM when created; the rebuilt
+    VM, booted with other host answers, may never have created them. Library closures always
+    sit at their fixed addresses, so registering any missing one makes the registry match."""
+    from bbzide.vm.host import HostRegistry
+
+    registry = getattr(robot.vm, "host", None)
+    if not isinstance(registry, HostRegistry):
+        return  # not a BittyBuzz VM (a test double)
+    for symbol, function in library_closures(profile).items():
+        if symbol not in registry.by_symbol:
+            registry.register(symbol, function)
+
+
 class RobotRebuilder:
     def __init__(self, recording: Recording, build: Builder | None = None) -> None:
         self.recording = recording
@@ -94,6 +142,7 @@ class RobotRebuilder:
         self._programs: dict[int, Any] = {}
         self._cache: dict[int, tuple[int, Any, ReplayHostFunctions, int]] = {}
         self._decoded: dict[int, dict[int, Any]] = {}
+        self._booted: dict[tuple[int, int], tuple[Any, ReplayHostFunctions]] = {}
 
     def program(self, program_id: int) -> Any:
         if program_id not in self._programs:
@@ -144,6 +193,9 @@ class RobotRebuilder:
         return self.program(self.keyframe(index, step).program)
 
     def _restore(self, index: int, keyframe: Keyframe) -> tuple[Any, ReplayHostFunctions]:
+        """Robot `index` at `keyframe`. One booted Robot per (robot, program) is kept and
+        restored again for every seek: booting runs the script's top level and `init` (tens
+        of ms for the SAR script), restoring only unpickles."""
         from bbzide.vm.profiles import PROFILES
 
         meta = self.recording.meta
@@ -152,26 +204,34 @@ class RobotRebuilder:
         except KeyError:
             raise RecordingError(f"unknown platform profile {meta['profiles'][index]!r}"
                                  ) from None
-        host = ReplayHostFunctions(meta["host_names"][index])
-        robot = self._build(self.program(keyframe.program), profile,
-                            int(meta["robot_ids"][index]), host.functions())
-        robot.boot()
+        key = (index, keyframe.program)
+        booted = self._booted.get(key)
+        if booted is None:
+            host = ReplayHostFunctions(meta["host_names"][index])
+            robot = self._build(self.program(keyframe.program), profile,
+                                int(meta["robot_ids"][index]), host.functions())
+            robot.boot()
+            booted = self._booted[key] = (robot, host)
+        robot, host = booted
         robot.restore(self.snapshot(index, keyframe))
+        _register_library(robot, profile)
         return robot, host
 
     def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
-        """The keyframe's `Robot.snapshot()` bytes, inflated (with its full base) and checked."""
+        """The keyframe's `Robot.snapshot()` bytes (a delta chain is undone from its last full
+        keyframe), checked against the allow-list."""
+        chain = [keyframe]
+        by_step = {k.step: k for k in self.recording.keyframes[index]}
+        while chain[-1].base >= 0:
+            base = by_step.get(chain[-1].base)
+            if base is None or base.step >= chain[-1].step or len(chain) > 4 * FULL_KEYFRAME_EVERY:
+                raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
+                                     f"refers to a missing keyframe (step {chain[-1].base})")
+            chain.append(base)
         try:
-            if keyframe.base < 0:
-                snapshot = zlib.decompress(keyframe.snapshot)
-            else:
-                base = next((k for k in self.recording.keyframes[index]
-                             if k.step == keyframe.base and k.base < 0), None)
-                if base is None:
-                    raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
-                                         f"needs a full keyframe at step {keyframe.base}")
-                unpacker = zlib.decompressobj(zdict=zlib.decompress(base.snapshot))
-                snapshot = unpacker.decompress(keyframe.snapshot) + unpacker.flush()
+            snapshot = zlib.decompress(chain[-1].snapshot)
+            for delta in reversed(chain[:-1]):
+                snapshot = xor_bytes(zlib.decompress(delta.snapshot), snapshot)
         except zlib.error as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None
@@ -182,8 +242,9 @@ class RobotRebuilder:
         decoded = self._decoded.get(step)
         if decoded is None:
             try:
-                decoded = decode_step(self.recording.inputs[self.recording.row(step)])
-            except InputLogError as error:
+                blob = self.recording.inputs[self.recording.row(step)]
+                decoded = decode_step(zlib.decompress(blob)) if blob else {}
+            except (InputLogError, zlib.error) as error:
                 raise RecordingError(f"corrupt inputs at step {step}: {error}") from None
             if len(self._decoded) > 4096:  # a bounded memo: seeks revisit nearby steps
                 self._decoded.clear()

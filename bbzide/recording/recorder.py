@@ -46,18 +46,36 @@ KEYFRAME_EVERY = 25
 #: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
 #: whatever the script costs per step (the issue's seek goal).
 KEYFRAME_BUDGET_SECONDS = 0.040
+#: ...unless keyframing that robot costs more than 1/12 of that (snapshot + compression: ~7 ms
+#: for an M300 with its 60 KB heap): then the budget grows to 12x the keyframe's cost, which
+#: keeps keyframes under ~8 % of the VM time (the recording goal is <= 10 %) at the price of
+#: longer seeks for such robots (measured in benchmarks/record_bench.py).
+KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
 FLUSH_EVERY = 50
-#: ...or after one wall-clock second, so a slow swarm loses at most ~1 s if killed.
-FLUSH_SECONDS = 1.0
+#: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
+#: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
+#: swarm made that framing most of the file.)
+FLUSH_SECONDS = 10.0
+#: Rare rows (keyframes, events, overlays) wait in Rerun's batcher until our flush, so they too
+#: leave in one chunk per entity and flush instead of one per row.
+BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: World overlays (light field, targets, belief map) are polled every 10 steps: they change
-#: slowly and some are costly to build (the Kilobot light raster is 32 x 32 evaluations).
+#: slowly and some are costly to build (the Kilobot light raster is 32 x 32 evaluations). A
+#: world whose overlays have `targets` is polled every step, so "target found" events land on
+#: their step (the M300 overlays cost ~0.1 ms against a search-and-rescue step's tens of ms).
 OVERLAY_EVERY = 10
 #: zlib level for snapshots: level 6 is as fast as 1 on 3 KB Kilobot snapshots (40-80 us)
 #: and 15 % smaller against a preset dictionary.
 SNAPSHOT_COMPRESSION = 6
-#: Every 16th keyframe of a robot is full; the others are compressed against it (190 B instead
-#: of 1,060 B for a Kilobot running gradient.bzz); decoding one needs at most two inflates.
+#: zlib level for each step's input blob: level 1 halves it (a broadcast reaches several
+#: robots, so payloads repeat; bearings of 0 and distance exponents are alike) for ~20 us.
+INPUT_COMPRESSION = 1
+#: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
+#: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
+LINK_ARROWS_EVERY = 5
+#: Every 16th keyframe of a robot is full; the others are XOR deltas against the previous one;
+#: decoding one needs at most 16 inflates + XORs (~0.3 ms each for an M300's 69 KB snapshot).
 FULL_KEYFRAME_EVERY = 16
 
 
@@ -99,6 +117,13 @@ class Recordable:
     def _booted(self, robot: CapturingRobot) -> None:
         if self.listener is not None:
             self.listener(robot)
+
+
+def xor_bytes(data: bytes, base: bytes) -> bytes:
+    """`data` XOR `base` (cut or zero-padded to len(data)); XOR with `base` again undoes it."""
+    n = len(data)
+    padded = base[:n].ljust(n, b"\0")
+    return (np.frombuffer(data, np.uint8) ^ np.frombuffer(padded, np.uint8)).tobytes()
 
 
 def check_output_path(path: Path, force: bool) -> Path:
@@ -145,7 +170,11 @@ def _jsonable(value: Any) -> Any:
 
 
 def found_targets(overlays: dict[str, Any]) -> int:
-    """How many overlay targets say they are found (`{"targets": [{"found": true}, ...]}`)."""
+    """How many overlay targets are found: `targets_found` flags (the M300 field) or
+    `{"targets": [{"found": true}, ...]}`."""
+    flags = overlays.get("targets_found")
+    if isinstance(flags, list):
+        return sum(1 for f in flags if f)
     targets = overlays.get("targets")
     if not isinstance(targets, list):
         return 0
@@ -199,7 +228,8 @@ class MissionRecorder:
         self._capturing: dict[int, CapturingRobot] = {}
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         self._keyframe_counts: dict[int, int] = {}
-        self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its last full keyframe
+        self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
+        self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
         for state in sim.robots:
             if isinstance(state.robot, CapturingRobot):
                 self._capturing[state.index] = state.robot
@@ -207,7 +237,12 @@ class MissionRecorder:
                 raise RecordingError("this swarm was not built for recording (its robots have "
                                      "no input capture); restart it, then record")
         self.rr = rr
-        self.rec = rr.RecordingStream(layout.APPLICATION_ID, recording_id=str(uuid.uuid4()))
+        import datetime
+
+        batching = rr.ChunkBatcherConfig(flush_tick=datetime.timedelta(hours=1),
+                                         flush_num_bytes=BATCHER_FLUSH_BYTES)
+        self.rec = rr.RecordingStream(layout.APPLICATION_ID, recording_id=str(uuid.uuid4()),
+                                      batcher_config=batching)
         try:
             self.rec.save(str(self.path), default_blueprint=mission_blueprint())
         except Exception as error:  # noqa: BLE001 - any sink failure is the user's file system
@@ -222,6 +257,8 @@ class MissionRecorder:
         self._known_failures: set[int] = {s.index for s in sim.robots if s.failure is not None}
         self._last_overlays: str | None = None
         self._targets_found = 0
+        self._watch_in_program: dict[int, bool] = {}
+        self._has_targets = False  # a world with targets is polled every step (found events)
         self.closed = False
         self.steps_recorded = 0
         self.seconds_spent = 0.0
@@ -317,8 +354,11 @@ class MissionRecorder:
 
     def _keyframe(self, indexes: list[int], step: int, full: bool = False) -> None:
         """Snapshot robots `indexes` now. A robot's first keyframe after (re)boot and every
-        `FULL_KEYFRAME_EVERY`-th are full; the others are zlib-compressed with the last full
-        one as preset dictionary (`bases` = its step), which makes them ~5x smaller."""
+        `FULL_KEYFRAME_EVERY`-th are full; the others store the XOR with the robot's previous
+        keyframe (`bases` = its step), zlib-compressed: the heap sits at a fixed offset of the
+        pickle and changes little between keyframes, so the XOR is mostly zeros (Kilobot
+        1,050 -> 100 B; a zlib preset dictionary would only reach back 32 KB of an M300's
+        60 KB heap)."""
         if not indexes:
             return
         snapshots, programs, bases = [], [], []
@@ -326,18 +366,20 @@ class MissionRecorder:
             state = self.sim.robots[index]
             self._keyframed[index] = step
             self._capturing[index].busy_seconds = 0.0
+            started = time.perf_counter()
             snapshot = state.robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
-            base = self._bases.get(index)
-            if full or base is None or count % FULL_KEYFRAME_EVERY == 0:
+            previous = self._bases.get(index)
+            if full or previous is None or count % FULL_KEYFRAME_EVERY == 0:
                 snapshots.append(zlib.compress(snapshot, SNAPSHOT_COMPRESSION))
                 bases.append(-1)
-                self._bases[index] = (step, snapshot)
             else:
-                packer = zlib.compressobj(SNAPSHOT_COMPRESSION, zdict=base[1])
-                snapshots.append(packer.compress(snapshot) + packer.flush())
-                bases.append(base[0])
+                snapshots.append(zlib.compress(xor_bytes(snapshot, previous[1]),
+                                               SNAPSHOT_COMPRESSION))
+                bases.append(previous[0])
+            self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
+            self._snapshot_seconds[index] = time.perf_counter() - started
             programs.append(self._program_id(state.program, step))
         import pyarrow as pa
 
@@ -367,15 +409,17 @@ class MissionRecorder:
             inputs = robot.take_inputs()
             if not inputs.empty:
                 records.append((index, inputs))
-        blob = encode_step(records)
+        blob = zlib.compress(encode_step(records), INPUT_COMPRESSION)
         self._buffer_frame(step, blob)
         due = []
         for i, robot in self._capturing.items():
             state = sim.robots[i]
             if state.robot is not robot or state.failure is not None:
                 continue
+            budget = max(KEYFRAME_BUDGET_SECONDS,
+                         KEYFRAME_COST_FACTOR * self._snapshot_seconds.get(i, 0.0))
             if (step - self._keyframed.get(i, self.start_step) >= self.keyframe_every
-                    or robot.busy_seconds >= KEYFRAME_BUDGET_SECONDS):
+                    or robot.busy_seconds >= budget):
                 due.append(i)
         self._keyframe(due, step)
         self._watch_events(step)
@@ -401,7 +445,7 @@ class MissionRecorder:
                 used = h.rtobj + (h.size - h.ltseg)
                 heap[:, i] = (used, h.size - used, h.peak_used, h.rtobj, h.ltseg, h.gc_runs)
             if labels:
-                current = state.labels
+                current = self._labels_of(state)
                 for name in labels:
                     value = current.get(name)
                     labels[name][i] = "" if value is None else str(value)
@@ -423,6 +467,22 @@ class MissionRecorder:
             [(index_of[a], index_of[c]) for a, c in sim.links], dtype=np.int32).reshape(-1, 2))
         buffer.setdefault("inputs", []).append(inputs_of_previous_step)
 
+    def _labels_of(self, state: Any) -> dict[str, Any]:
+        """The robot's labels. Reading them makes the engine look each watched name up in the
+        VM's globals (0.6 ms for a 60 KB M300 heap); when the program's string table lacks
+        every watched name, no such global can exist and the world's own labels (`set_label`)
+        are all there is."""
+        program = state.program
+        key = id(program)
+        can_have = self._watch_in_program.get(key)
+        if can_have is None:
+            strings = set(getattr(_bbo(program), "strings", []) or [])
+            can_have = any(name in strings for name in self.sim.watch)
+            self._watch_in_program[key] = can_have
+        if can_have or not hasattr(state, "_labels"):
+            return state.labels
+        return dict(state._labels)  # the world's labels, without the global look-ups
+
     def _watch_events(self, step: int) -> None:
         sim = self.sim
         for state in sim.robots:
@@ -438,13 +498,14 @@ class MissionRecorder:
                     self._event(step, layout.EVENT_ROLE, i,
                                 f"robot {sim.robots[i].robot_id} {name}: {before} -> {value}")
                 self._last_labels[i][name] = value
-        if (step - self.start_step) % OVERLAY_EVERY == 0:
+        if self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0:
             self._record_overlays(step)
 
     def _record_overlays(self, step: int) -> None:
         overlays = self.sim.world.overlays()
         if not overlays:
             return
+        self._has_targets = "targets" in overlays
         text = json.dumps(_jsonable(overlays))
         if text == self._last_overlays:
             return
@@ -502,14 +563,18 @@ class MissionRecorder:
             origins=positions, vectors=(vectors * reach).astype(np.float32)).partition(per_robot))
         links = b["links"]
         link_counts = [len(x) for x in links]
-        if sum(link_counts):
-            ends = np.concatenate([p[k] for p, k in zip(b["positions"], links, strict=True)])
-            send(layout.LINKS, indexes=indexes, columns=rr.Arrows3D.columns(
-                origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0]).partition(link_counts))
+        sampled = [r for r in range(rows) if steps[r] % LINK_ARROWS_EVERY == 0 and link_counts[r]]
+        if sampled:
+            ends = np.concatenate([b["positions"][r][links[r]] for r in sampled])
+            at = steps[sampled]
+            send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
+                                        rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
+                 columns=rr.Arrows3D.columns(origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0])
+                 .partition([link_counts[r] for r in sampled]))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
-                      else np.zeros(0, np.int32)).astype(np.int32)
+                      else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
-            pairs=pa.array(flat_pairs, type=pa.int32())).partition([2 * c for c in link_counts]))
+            pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
         messages = np.stack(b["messages"])  # rows, 3, n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
             sent=messages[:, 0].reshape(-1), received=messages[:, 1].reshape(-1),
@@ -546,6 +611,11 @@ class MissionRecorder:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _bbo(program: Any) -> Any:
+    return program.to_bbo() if hasattr(program, "to_bbo") and not hasattr(program, "bbo") \
+        else program
 
 
 def _failure_text(failure: Any) -> str:

@@ -236,7 +236,8 @@ class IdeApp:
                 overlays = read() if read is not None else None
         except StepInProgress:
             return
-        self.overlays.show(overlays)
+        frame = self.controller.last_frame
+        self.overlays.show(overlays, positions=None if frame is None else frame.positions)
 
     def _program_warnings(self) -> list[str]:
         """The running program's compiler warnings and pitfalls, as `line:col: message`."""

@@ -142,8 +142,10 @@ class ReplayApp:
         started = time.perf_counter()
         with self._lock:
             self.step = step
-            self.scene.draw(session.frame(step))
-            self.overlays.show(session.recording.overlays_at(step) or None)
+            frame = session.frame(step)
+            self.scene.draw(frame)
+            self.overlays.show(session.recording.overlays_at(step) or None,
+                               positions=frame.positions)
             if int(self.slider.value) != step:
                 self.slider.value = step
             for inspector in list(self._inspectors.values()):

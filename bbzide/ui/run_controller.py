@@ -99,6 +99,9 @@ class RunController:
         self._send("play")
 
     def pause(self) -> None:
+        """Stop starting steps at once (a long step or program load in progress finishes)."""
+        self._running = False
+        self.status.running = False
         self._send("pause")
 
     def single_step(self) -> None:
@@ -178,12 +181,16 @@ class RunController:
         elif command == "program":
             self._program = argument
             self.status.program_generation += 1
-            if self._sim is None or not self.settings.keep_state_on_reload:
-                self._rebuild()
-            else:
-                with self._sim_lock:
-                    self._sim.load_program(argument, keep_state=True)
-                self._publish(force=True)
+            self.status.step_started_at = time.monotonic()  # booting runs Buzz code too
+            try:
+                if self._sim is None or not self.settings.keep_state_on_reload:
+                    self._rebuild()
+                else:
+                    with self._sim_lock:
+                        self._sim.load_program(argument, keep_state=True)
+                    self._publish(force=True)
+            finally:
+                self.status.step_started_at = None
         elif command == "record":
             path, source = argument
             if path is None:

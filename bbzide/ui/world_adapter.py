@@ -40,6 +40,13 @@ DEFAULT_WORLD_HINT = "kilobot"
 DEFAULT_ROBOTS = 25
 
 
+#: Instructions one entry into Buzz code (top level, init, step, a listener) may run in the
+#: IDE before the robot stops with BUDGET. The example steps run 35-55 instructions; 5,000 is
+#: ~100 such steps (on a Kilobot, ~0.1 s of CPU). The VM model runs ~10,000 instructions/s
+#: on a loaded machine, so a script stuck in a loop costs each robot 0.5 s, not the 10 s of
+#: the Robot's default budget: the swarm reloads in seconds after the fix.
+IDE_INSTRUCTION_BUDGET = 5_000
+
 #: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
 #: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash).
 PLATFORM_MEMORY = {"kilobot": (2048, 32768)}
@@ -105,7 +112,7 @@ class WorldsBackend:
         return compiled, compiled.to_bbo()
 
     def create(self, world: str, program: Any, robots: int, seed: int) -> WorldsSimulation:
-        recordable = self._recording.Recordable()
+        recordable = self._recording.Recordable(instruction_budget=IDE_INSTRUCTION_BUDGET)
         simulation = self._engine.Simulation(
             world, program, robots=robots, seed=seed, robot_factory=recordable.factory
         )

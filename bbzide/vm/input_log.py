@@ -249,13 +249,13 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
 # Layout of one step (all little-endian):
 #   u16 robot records
 #   per record: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
-#     message: u16 length, bytes, f64 distance, f64 azimuth, f64 elevation
+#     message: u16 length, bytes, u8 which (1 = azimuth, 2 = elevation follow), f64 distance,
+#              [f64 azimuth], [f64 elevation]   (a Kilobot has no bearing: both are 0.0)
 #     host call: u8 name length, name (UTF-8), u8 effects
 #       effect: b"E" u8 n | b"F" u8 length, kind | b"R" value
 #       value:  b"N" | b"I" i64 | b"D" f64 | b"T" u8 entries, (u8 length, key, value)*
 _U16 = struct.Struct("<H")
 _HEAD = struct.Struct("<HBHH")
-_MESSAGE_TAIL = struct.Struct("<ddd")
 _I64 = struct.Struct("<q")
 _F64 = struct.Struct("<d")
 
@@ -288,8 +288,12 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
         out += _HEAD.pack(index, 1 if inputs.stepped else 0, len(inputs.received),
                           len(inputs.host_calls))
         for message, distance, azimuth, elevation in inputs.received:
-            out += _U16.pack(len(message)) + message
-            out += _MESSAGE_TAIL.pack(distance, azimuth, elevation)
+            which = (1 if azimuth != 0.0 else 0) | (2 if elevation != 0.0 else 0)
+            out += _U16.pack(len(message)) + message + bytes([which]) + _F64.pack(distance)
+            if which & 1:
+                out += _F64.pack(azimuth)
+            if which & 2:
+                out += _F64.pack(elevation)
         for call in inputs.host_calls:
             name = call.name.encode()
             out += bytes([len(name)]) + name + bytes([len(call.effects)])
@@ -348,7 +352,10 @@ def decode_step(data: bytes) -> dict[int, StepInputs]:
         inputs = StepInputs(stepped=bool(flags & 1))
         for _ in range(messages):
             message = reader.take(reader.unpack(_U16)[0])
-            distance, azimuth, elevation = reader.unpack(_MESSAGE_TAIL)
+            which = reader.byte()
+            distance = reader.unpack(_F64)[0]
+            azimuth = reader.unpack(_F64)[0] if which & 1 else 0.0
+            elevation = reader.unpack(_F64)[0] if which & 2 else 0.0
             inputs.received.append((message, distance, azimuth, elevation))
         for _ in range(calls):
             try:

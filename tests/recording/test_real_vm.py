@@ -85,3 +85,42 @@ def test_rebuilt_vm_is_byte_identical_at_random_steps(recorded: dict) -> None:
         expected = live[step]["states"][index]
         assert rebuilt[:6] == expected[:6], (index, step)
         assert zlib.crc32(rebuilt[6]) == zlib.crc32(expected[6]), (index, step)
+
+
+#: A stigmergy created in `step` (after boot) on a host answer: its C closures are registered
+#: in the live VM at that moment, so a robot rebuilt from a later keyframe must get them too.
+LATE_STIGMERGY = """
+var s = nil
+function init() { }
+function step() {
+  if (s == nil) {
+    if (rand() > 100) { s = stigmergy.create(1) }
+  }
+  if (s != nil) { n = s.size() + rand() }
+}
+"""
+
+
+def test_closures_created_after_boot_survive_a_rebuild(tmp_path: Path) -> None:
+    from bbzide import compiler
+
+    spec = WORLDS["kilobot"]
+    script = tmp_path / "late.bzz"
+    script.write_text(LATE_STIGMERGY)
+    program = compiler.compile_file(
+        str(script), string_table=compiler.bittybuzz_string_table(list(spec.host_names))
+    ).to_bbo()
+    recordable = Recordable()
+    sim = Simulation("kilobot", program, robots=6, seed=2, robot_factory=recordable.factory)
+    path = tmp_path / "late.rrd"
+    live = {}
+    with MissionRecorder(path, sim, recordable, keyframe_every=5) as recorder:
+        for _ in range(24):
+            sim.step()
+            recorder.record_step()
+            live[sim.step_count] = [vm_state(s.robot) for s in sim.robots]
+    assert not sim.failures
+    rebuilder = RobotRebuilder(read_recording(path))
+    for index in range(6):
+        for step in (12, 24):
+            assert vm_state(rebuilder.robot_at(index, step))[:6] == live[step][index][:6]

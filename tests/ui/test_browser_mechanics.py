@@ -61,6 +61,20 @@ def test_play_advances_the_step_counter(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Play").click()
 
 
+def settled_error_line(ide: IdeSession, typed: str) -> int:
+    """Wait until the typed line is saved and compiled (no debounced upload of a half-typed
+    line still pending), and return that line's number in the saved text."""
+    app = ide.app
+    wait_until(
+        lambda: app.session.text.rstrip("\n").endswith(typed)
+        and app.session.outcome is not None
+        and app.session.outcome.revision == app.session.revision,
+        30,
+        message="the typed line saved and compiled",
+    )
+    return app.session.text.splitlines().index(typed) + 1
+
+
 def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSession) -> None:
     app = ide.app
     generation = app.controller.status.program_generation
@@ -70,7 +84,9 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     ide.page.keyboard.type("\nred = @@ 2")  # line 10, column 6
     marker = ide.editor.locator("#gutter div.error-line")
     marker.wait_for(timeout=10_000)
-    assert marker.get_attribute("data-line") == "10"
+    settled = settled_error_line(ide, "red = @@ 2")
+    assert settled == 10
+    wait_until(lambda: marker.get_attribute("data-line") == "10", 10, message="marker on 10")
     assert ide.editor.locator(".error-span").first.inner_text().startswith("@")
     assert "10:6" in ide.editor.locator("#diagnostics").inner_text()
     ide.screenshot("mechanics_syntax_error")
@@ -218,7 +234,7 @@ def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     assert body.count("\n") == 300
     write_atomically(app.session.path, body)
     source = ide.editor.locator("#source")
-    wait_until(lambda: source.input_value() == body, 10, message="300 lines in the editor")
+    wait_until(lambda: source.input_value() == body, 30, message="300 lines in the editor")
     assert ide.editor.locator("#gutter div").count() == 301
     frame = ide.page.frame(url=ide.app.editor_server.url())
     assert frame is not None
@@ -231,5 +247,5 @@ def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("# end\n")
-    wait_until(lambda: app.session.text.endswith("# end\n"), 10, message="typed text saved")
+    wait_until(lambda: app.session.text.endswith("# end\n"), 30, message="typed text saved")
     ide.screenshot("mechanics_300_lines")

@@ -78,15 +78,24 @@ def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> No
     app = ide.app
     original = app.session.text
     generation = app.controller.status.program_generation
-    broken_line = original.count("\n") + 1
     source = ide.editor.locator("#source")
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("\nx = = 1")
     marker = ide.editor.locator("#gutter div.error-line")
     marker.wait_for(timeout=15_000)
-    assert marker.get_attribute("data-line") == str(
-        broken_line + (0 if original.endswith("\n") else 1)
+    wait_until(
+        lambda: app.session.text.rstrip("\n").endswith("x = = 1")
+        and app.session.outcome is not None
+        and app.session.outcome.revision == app.session.revision,
+        30,
+        message="the typed line saved and compiled",
+    )
+    broken_line = app.session.text.splitlines().index("x = = 1") + 1
+    wait_until(
+        lambda: marker.get_attribute("data-line") == str(broken_line),
+        10,
+        message=f"marker on line {broken_line}",
     )
     ide.screenshot("real_compile_error")
     assert app.controller.status.program_generation == generation

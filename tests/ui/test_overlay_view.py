@@ -35,3 +35,25 @@ def test_overlays_by_shape_and_removal() -> None:
         assert sorted(view._handles) == ["/overlays/targets"]
     finally:
         server.stop()
+
+
+def test_m300_style_overlays_origin_cell_flags_and_index_links() -> None:
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        view = OverlayView(server)
+        overlays = {
+            "belief_map": {"origin": [0.0, 0.0], "cell": 5.0, "values": [[0.1, 0.9]] * 3},
+            "targets": [[10.0, 5.0], [2.0, 2.0]],
+            "targets_found": [False, True],
+            "relay_links": [(2, 0), (1, 2)],
+        }
+        positions = np.array([[0.0, 0.0], [1.0, 1.0], [2.0, 0.0]])
+        view.show(overlays, positions=positions)
+        image = view._handles["/overlays/belief_map"]
+        assert (image.render_width, image.render_height) == (10.0, 15.0)
+        colors = np.asarray(view._handles["/overlays/targets"].colors)
+        assert colors[0].tolist() == [220, 50, 50] and colors[1].tolist() == [40, 170, 70]
+        segments = np.asarray(view._handles["/overlays/relay_links"].points)[:, :, :2]
+        np.testing.assert_allclose(segments, [[[2, 0], [0, 0]], [[1, 1], [2, 0]]])
+    finally:
+        server.stop()
