@@ -26,7 +26,10 @@ from array import array
 from collections.abc import Callable
 from enum import IntEnum
 
+import numpy as np
+
 from bbzide.compiler import bbzfloat
+from bbzide.vm import fastloop
 from bbzide.vm import gc as gcmod
 from bbzide.vm.fastgc import PERMANENT_PHASE
 from bbzide.vm.fastgc import collect as _collect
@@ -121,7 +124,12 @@ class VM:
         self.heap = Heap(profile)
         self.host = HostRegistry(profile.ptr_size)
         self.stress_gc = stress_gc
-        self.stack: list[int] = [0] * profile.stack_size
+        #: u16 heap indices, as the C; an ``array`` so the compiled kernel shares it
+        self.stack = array("H", bytes(2 * profile.stack_size))
+        self._stack_view = np.frombuffer(self.stack, np.uint16)
+        self._heap_view = np.frombuffer(self.heap.data, np.uint8)
+        self._bcode_view = np.zeros(0, np.uint8)
+        self._bcode_of_view = b""
         self.stack_size = profile.stack_size
         self.stackptr = -1
         self.blockptr = -1
@@ -235,7 +243,7 @@ class VM:
         h = self.heap
         h.gc_runs += 1
         sp = self.stackptr
-        r = _collect(h.data, array("H", self.stack[:sp + 1]), sp, h.rtobj, h.ltseg,
+        r = _collect(h.data, self._stack_view, sp, h.rtobj, h.ltseg,
                      h.gc_info, h.gc_traversed, *self._geometry)
         h.rtobj = r >> 16
         h.ltseg = r & 0xFFFF
@@ -443,7 +451,7 @@ class VM:
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
          events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
         self.heap.restore(hs)
-        self.stack[:] = stack
+        self.stack[:] = array("H", stack)
         self.error_events = list(events)
         self.swarm, self.vstig, self.neighbors, self.queues = copy.deepcopy(recs)
         self.bcode = bcode
@@ -1134,10 +1142,42 @@ class VM:
         rules = _SKIP_RULES
         fixed = False
         pending = -1  # byte offset of a new leaf whose mark the next collection sets
+        kernel = _KERNEL
+        if kernel is not None:
+            regs = np.empty(fastloop.REGISTERS, np.int64)  # per loop: host calls nest loops
+            if self._bcode_of_view is not bcode:
+                self._bcode_view = np.frombuffer(bcode, np.uint8)
+                self._bcode_of_view = bcode
+            regs[fastloop.R_SAVED] = fastloop.NONE if saved is None else saved
+            regs[fastloop.R_BUDGET] = fastloop.NONE if budget is None else budget
+            regs[fastloop.R_NIL] = self.nil
+            regs[fastloop.R_GSYMS] = self.gsyms
+            regs[fastloop.R_FLOAT_OPS] = 1 if self.profile.float_ops else 0
+            regs[fastloop.R_STACK_SIZE] = self.stack_size
+            regs[fastloop.R_MARK_DEPTH] = self.profile.gcmark_depth
+            kernel_args = (self._heap_view, self._stack_view, self._bcode_view, regs, info,
+                           heap.gc_traversed, fastloop.RULES, s, heap.elems, heap.reserved)
         while saved is None or saved < self.blockptr:
             if self.state != ready:
                 return
-            if fixed:
+            if kernel is not None:
+                # the compiled kernel runs steps until one it does not cover (fastloop.py)
+                regs[0:12] = (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg,
+                              self.lsyms, heap.gc_runs, self.instructions_executed, n,
+                              fixed, pending, heap.peak_used)
+                status = kernel(*kernel_args)
+                (self.pc, self.stackptr, _, heap.rtobj, heap.ltseg, _, heap.gc_runs,
+                 self.instructions_executed, n, fixed, pending, heap.peak_used) = \
+                    regs[0:12].tolist()
+                if status == fastloop.EXIT:
+                    continue
+                if status == fastloop.BUDGET:
+                    self.seterror(Error.BUDGET)
+                    if saved is None:
+                        continue
+                    return
+                # NEED_PYTHON: this step's collection is done; run its instruction here
+            elif fixed:
                 # the skipped collection's only effect, done where it would have run
                 heap.gc_runs += 1
                 if pending >= 0:
@@ -1204,6 +1244,9 @@ for _op in (2, 41):
     _SKIP_RULES[_op] = _PUSHED_OLD
 for _op in (3, 35, 36, 37, 38, 39):
     _SKIP_RULES[_op] = _PUSHED_NEW
+
+#: the compiled instruction kernel, when numba is installed (else the Python loop alone)
+_KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None
 
 _SIMPLE_OPS: list[Callable[[VM], None]] = [
     VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,
