@@ -24,7 +24,7 @@ Python keeps: done, ret0/ret1, callc (host functions), pusht, pushl, lremove, fl
 arithmetic, every error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
-compiled ``fastgc.collect`` unless the previous instruction kept the heap a fixed point of
+compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
 the collector (``_SKIP_RULES``, repeated here as :data:`RULES`), then counts ``gc_runs``.
 The VM registers travel in one int64 array (``R_*`` below) so that a call costs one
 dispatch. Equality with the reference is by test: ``tests/vm/test_fast_vm_equivalence.py``.
@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, PERMANENT_PHASE, _compile, _i, collect, first_free
+from bbzide.vm.fastgc import COMPILED, PERMANENT_PHASE, _compile, _i, collect_with, first_free
 from bbzide.vm.fastgc import first_free_segment as _first_free_segment
 from bbzide.vm.fasttables import darray_get, darray_set, darray_size, table_lookup
 
@@ -353,6 +353,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     n = regs[R_N]
     fixed = regs[R_FIXED] != 0
     pending = regs[R_PENDING]
+    frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
     status = EXIT
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
@@ -361,8 +362,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             if pending >= 0:
                 d[pending] |= _GC_MARK
         else:
-            r = collect(d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
-                        size, s, g, elems, reserved, limit)
+            r = collect_with(d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
+                             frames, size, s, g, elems, reserved, limit)
             regs[R_RTOBJ] = r >> 16
             regs[R_LTSEG] = r & 0xFFFF
         fixed = False
