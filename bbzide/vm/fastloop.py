@@ -44,8 +44,9 @@ from bbzide.vm.fasttables import darray_get, darray_set, darray_size, table_look
 R_PC, R_SP, R_BP, R_RTOBJ, R_LTSEG, R_LSYMS, R_GC_RUNS, R_EXECUTED = range(8)
 R_N, R_FIXED, R_PENDING, R_PEAK = 8, 9, 10, 11
 R_NIL, R_GSYMS, R_SAVED, R_BUDGET, R_FLOAT_OPS, R_STACK_SIZE, R_MARK_DEPTH = range(12, 19)
-#: registers in the array (one spare slot keeps the layout a round size)
-REGISTERS = 20
+R_FLIST, R_DFLT_ACTREC = 19, 20
+#: registers in the array
+REGISTERS = 21
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -170,6 +171,28 @@ def _set_word(d: Any, seg: int, k: int, g: int, value: int) -> None:
 
 
 @_compile
+def _seg_alloc(d: Any, regs: Any, elems: int) -> int:
+    """``Heap.seg_alloc``: first invalid segment slot, else grow left; -1 (nothing
+    written) when there is no room."""
+    size = len(d)
+    g = 4 * elems + 2
+    ltseg = regs[R_LTSEG]
+    new = _first_free_segment(d, ltseg, size, g, elems)
+    if new < 0:
+        if ltseg - g < regs[R_RTOBJ]:
+            return -1
+        new = (size - ltseg) // g
+        regs[R_LTSEG] = ltseg - g
+        _note_usage(regs, size)
+    o = size - (new + 1) * g
+    for j in range(g - 2):
+        d[o + j] = 0
+    d[o + g - 2] = 0xFF
+    d[o + g - 1] = 0xFF
+    return new
+
+
+@_compile
 def _table_set(d: Any, regs: Any, t: int, k: int, v: int, s: int, elems: int) -> bool:
     """``tables.table_set`` on table ``t`` (type checked by the caller; ``k``, ``v`` inside
     the heap). False, with nothing written, when Python must run it: a segment outside
@@ -234,20 +257,9 @@ def _table_set(d: Any, regs: Any, t: int, k: int, v: int, s: int, elems: int) ->
     if v_is_nil:
         return True
     if free_seg < 0:
-        # Heap.seg_alloc: first invalid segment slot, else grow left
-        ltseg = regs[R_LTSEG]
-        new = _first_free_segment(d, ltseg, size, g, elems)
+        new = _seg_alloc(d, regs, elems)
         if new < 0:
-            if ltseg - g < regs[R_RTOBJ]:
-                return False
-            new = (size - ltseg) // g
-            regs[R_LTSEG] = ltseg - g
-            _note_usage(regs, size)
-        o = size - (new + 1) * g
-        for j in range(g - 2):
-            d[o + j] = 0
-        d[o + g - 2] = 0xFF
-        d[o + g - 1] = 0xFF
+            return False
         lm = _word(d, seg, mo // 2, g)
         _set_word(d, seg, mo // 2, g, (lm & ~_NO_NEXT) | (new & _NO_NEXT))
         free_seg = new
@@ -325,6 +337,187 @@ def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
         _set_word(d, seg, n, g, _word(d, seg, n, g) & 0x7FFF)  # ~SEG_VALID
         _set_word(d, prev, n, g, _word(d, prev, n, g) | _NO_NEXT)
     return True
+
+
+@_compile
+def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> None:
+    """``tables.darray_push`` on a well-formed darray whose room the caller checked."""
+    seg = _last_segment(d, a, s, elems)
+    g = 4 * elems + 2
+    n = 2 * elems
+    p = 0
+    while p < n and _word(d, seg, p, g) & 0x8000:
+        p += 1
+    if p == n:
+        new = _seg_alloc(d, regs, elems)
+        lm = _word(d, seg, n, g)
+        _set_word(d, seg, n, g, (lm & ~_NO_NEXT) | (new & _NO_NEXT))
+        seg = new
+        p = 0
+    _set_word(d, seg, p, g, v | 0x8000)
+
+
+@_compile
+def _darray_valid_count(d: Any, a: int, s: int, elems: int) -> int:
+    """``len(tables.darray_elements(a))``; -1 when ``a`` is not a valid object or its
+    chain leaves the heap, holds an invalid segment or is longer than the heap."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    if not 0 <= a < size // s or not _i(d[a * s]) & _VALID:
+        return -1
+    seg = _u16(d, a, s)
+    count = 0
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size or not _word(d, seg, n, g) & 0x8000:
+            return -1
+        for p in range(n):
+            if not _word(d, seg, p, g) & 0x8000:
+                return count
+            count += 1
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return count
+    return -1
+
+
+@_compile
+def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: int,
+           bsize: int, s: int, elems: int, reserved: int) -> bool:
+    """``VM.callc`` of a bytecode closure (native or lambda), its happy path: on success
+    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written (but
+    ``darray_size(flist)``'s idempotent unlinking) when Python must run it."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    if sp < 0:
+        return False
+    ai = _i(stack[sp])
+    if ai >= nobj or _i(d[ai * s]) & 7 != _INT:
+        return False
+    argn = _u16(d, ai, s)
+    sp1 = sp - 1
+    if sp1 < argn:
+        return False
+    c = _i(stack[sp1 - argn])
+    if c >= nobj or _i(d[c * s]) & 7 != _CLOSURE:
+        return False
+    cm = _i(d[c * s])
+    if not cm & _FLAG1:
+        return False  # a C closure: the host function runs in Python
+    is_lambda = (cm & _FLAG2) != 0
+    ref = _i(d[c * s + 1])
+    actrec = _i(d[c * s + 2])
+    flist = regs[R_FLIST]
+    if is_lambda and ref >= darray_size(d, flist, s, elems):
+        return False  # FLIST error
+    sp2 = sp1 - argn - 1
+    if sp2 < 0:
+        return False
+    own = not is_lambda or actrec == _NO_ACTREC
+    src = regs[R_DFLT_ACTREC] if own else actrec
+    if not own and actrec >= nobj:
+        return False
+    m = _darray_valid_count(d, src, s, elems)
+    if m < 0:
+        return False
+    if is_lambda:
+        fo = darray_get(d, flist, ref, s, elems)
+        newpc = _u16(d, fo if fo >= 0 else 0, s)
+    else:
+        newpc = _u16(d, c, s)
+    if newpc > bsize:
+        return False
+    # every allocation below (table + segments, two ints) fits in the free gap
+    if regs[R_LTSEG] - regs[R_RTOBJ] < 3 * s + (1 + (m + argn) // n) * g:
+        return False
+    # ---- commit, in the order of VM.callc
+    rtobj = regs[R_RTOBJ]
+    new = first_free(d, rtobj, s, reserved, _TABLE, 0)
+    if new < 0:
+        new = rtobj // s
+        regs[R_RTOBJ] = rtobj + s
+        _note_usage(regs, size)
+    d[new * s] = _TABLE | _VALID
+    seg = _seg_alloc(d, regs, elems)
+    d[new * s + 1] = seg & 0xFF
+    d[new * s + 2] = seg >> 8
+    d[new * s] = (_i(d[new * s]) | _FLAG1) & (0xFF ^ _FLAG2)
+    seg = _u16(d, src, s)
+    k = 0
+    while k < m:
+        _darray_push(d, regs, new, _word(d, seg, k % n, g) & 0x7FFF, s, elems)
+        k += 1
+        if k % n == 0:
+            seg = _word(d, seg, n, g) & _NO_NEXT
+    d[new * s] = _i(d[new * s]) | _PERMANENT
+    for i in range(argn, 0, -1):
+        _darray_push(d, regs, new, _i(stack[sp1 - (i - 1)]), s, elems)
+    if own or not _i(d[actrec * s]) & _FLAG2:
+        darray_set(d, new, 0, _i(stack[sp2]), s, elems)
+    i1 = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[i1 * s + 1] = retpc & 0xFF
+    d[i1 * s + 2] = (retpc >> 8) & 0xFF
+    stack[sp2] = i1
+    stack[sp2 + 1] = lsyms
+    i2 = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[i2 * s + 1] = bp & 0xFF
+    d[i2 * s + 2] = (bp >> 8) & 0xFF
+    stack[sp2 + 2] = i2
+    regs[R_SP] = sp2 + 2
+    regs[R_BP] = sp2 + 2
+    regs[R_LSYMS] = new
+    regs[R_PC] = newpc
+    return True
+
+
+@_compile
+def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsyms: int,
+         bsize: int, s: int, elems: int) -> bool:
+    """``VM.ret0``/``ret1`` (+ ``op_ret*``'s pc check), their happy path: on success
+    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written."""
+    size = len(d)
+    g = 4 * elems + 2
+    nobj = size // s
+    if sp + 1 < (4 if with_value else 3) or bp < 2 or bp > sp:
+        return False
+    bpobj = _i(stack[bp])
+    back = _i(stack[bp - 2])
+    if bpobj >= nobj or lsyms >= nobj or back >= nobj or _i(d[back * s]) & 7 != _INT:
+        return False
+    newpc = _u16(d, back, s)
+    first = _u16(d, lsyms, s)
+    if newpc > bsize or (first + 1) * g > size:
+        return False
+    value = _i(stack[sp]) if with_value else regs[R_NIL]
+    # ---- commit (VM._unwind: unmake permanent, darray_destroy via segment_chain)
+    d[lsyms * s] = _i(d[lsyms * s]) & (0xFF ^ _PERMANENT)
+    seg = first
+    limit = size // g
+    length = 1
+    while True:
+        _set_word(d, seg, 2 * elems, g, _word(d, seg, 2 * elems, g) & 0x7FFF)
+        nxt = _word(d, seg, 2 * elems, g) & _NO_NEXT
+        if nxt == _NO_NEXT or (nxt + 1) * g > size or length > limit:
+            break
+        seg = nxt
+        length += 1
+    d[lsyms * s] = _i(d[lsyms * s]) & (0xFF ^ _VALID)
+    regs[R_LSYMS] = _i(stack[bp - 1])
+    stack[bp - 2] = value
+    regs[R_SP] = bp - 2
+    regs[R_BP] = _s16(_u16(d, bpobj, s))
+    regs[R_PC] = newpc
+    return True
+
+
+@_compile
+def call(d: Any, stack: Any, regs: Any, bsize: int, s: int, elems: int,
+         reserved: int) -> bool:
+    """``VM.callc`` from Python (``closure_call``): the compiled happy path, or False."""
+    return _callc(d, stack, regs, regs[R_SP], regs[R_BP], regs[R_LSYMS], regs[R_PC], bsize,
+                  s, elems, reserved)
 
 
 @_compile
@@ -578,6 +771,17 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                     d[idx * s] = _i(d[idx * s]) | _FLAG1
             sp += 1
             stack[sp] = idx
+        elif op == 5 or op == 6 or op == 33:  # ret0 ret1 callc
+            if op == 33:
+                ok = _callc(d, stack, regs, sp, bp, lsyms, nxt_pc, bsize, s, elems, reserved)
+            else:
+                ok = _ret(d, stack, regs, op == 6, sp, bp, lsyms, bsize, s, elems)
+            if not ok:
+                break
+            sp = regs[R_SP]
+            bp = regs[R_BP]
+            lsyms = regs[R_LSYMS]
+            nxt_pc = regs[R_PC]
         elif op == 41:  # lload
             if sp + 1 >= stack_size:
                 break
@@ -652,10 +856,11 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     regs[R_PC] = pc
     regs[R_SP] = sp
     regs[R_BP] = bp
+    regs[R_LSYMS] = lsyms
     regs[R_N] = n
     regs[R_FIXED] = 1 if fixed else 0
     regs[R_PENDING] = pending
     return status
 
 
-__all__ = ["COMPILED", "run", "RULES", "REGISTERS", "NONE", "EXIT", "NEED_PYTHON", "BUDGET"]
+__all__ = ["COMPILED", "run", "call", "RULES", "REGISTERS", "NONE", "EXIT", "NEED_PYTHON", "BUDGET"]

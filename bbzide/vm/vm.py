@@ -1077,8 +1077,27 @@ class VM:
             return
         self.push_int(argc)
         saved = self.blockptr
-        self.callc()
+        if _CALL is None or self.stress_gc or not self._call_compiled():
+            self.callc()
         self._loop(saved, self.instruction_budget)
+
+    def _call_compiled(self) -> bool:
+        """``callc`` of a bytecode closure by the compiled kernel (fastloop.call), when it
+        takes its happy path; False (nothing done) when :meth:`callc` must run it."""
+        heap = self.heap
+        regs = np.empty(fastloop.REGISTERS, np.int64)
+        regs[0:6] = (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg,
+                     self.lsyms)
+        regs[fastloop.R_PEAK] = heap.peak_used
+        regs[fastloop.R_FLIST] = self.flist
+        regs[fastloop.R_DFLT_ACTREC] = self.dflt_actrec
+        if not _CALL(self._heap_view, self._stack_view, regs, self.bcode_size,
+                     heap.obj_size, heap.elems, heap.reserved):
+            return False
+        (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg,
+         self.lsyms) = regs[0:6].tolist()
+        heap.peak_used = int(regs[fastloop.R_PEAK])
+        return True
 
     def function_call(self, sid: int, argc: int) -> None:
         """``bbzvm_function_call``: call the global ``sid`` with ``argc`` args on the stack."""
@@ -1155,6 +1174,8 @@ class VM:
             regs[fastloop.R_FLOAT_OPS] = 1 if self.profile.float_ops else 0
             regs[fastloop.R_STACK_SIZE] = self.stack_size
             regs[fastloop.R_MARK_DEPTH] = self.profile.gcmark_depth
+            regs[fastloop.R_FLIST] = self.flist
+            regs[fastloop.R_DFLT_ACTREC] = self.dflt_actrec
             kernel_args = (self._heap_view, self._stack_view, self._bcode_view, regs, info,
                            heap.gc_traversed, fastloop.RULES, s, heap.elems, heap.reserved)
         while saved is None or saved < self.blockptr:
@@ -1166,7 +1187,8 @@ class VM:
                               self.lsyms, heap.gc_runs, self.instructions_executed, n,
                               fixed, pending, heap.peak_used)
                 status = kernel(*kernel_args)
-                (self.pc, self.stackptr, _, heap.rtobj, heap.ltseg, _, heap.gc_runs,
+                (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
+                 heap.gc_runs,
                  self.instructions_executed, n, fixed, pending, heap.peak_used) = \
                     regs[0:12].tolist()
                 if status == fastloop.EXIT:
@@ -1247,6 +1269,7 @@ for _op in (3, 35, 36, 37, 38, 39):
 
 #: the compiled instruction kernel, when numba is installed (else the Python loop alone)
 _KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None
+_CALL: Callable[..., bool] | None = fastloop.call if fastloop.COMPILED else None
 
 _SIMPLE_OPS: list[Callable[[VM], None]] = [
     VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,
