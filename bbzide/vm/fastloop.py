@@ -20,7 +20,8 @@ it writes the same bytes.) Covered, on their happy path: nop, calls, pushnil, du
 int add/sub/mul/div/mod/pow/unm, the logical ops, lnot, bnot, the six comparisons
 (``bbztype_cmp``), gload, gstore, tget, tput (no method binding), pushf, pushi, pushs
 (string dedupe), pushcn, pushcc, lload, lstore (existing local), jump, jumpz, jumpnz.
-Python keeps: done, ret0/ret1, callc (host functions), pusht, pushl, lremove, floats
+callc and ret0/ret1 of bytecode closures (Python only calls the host function of a C closure,
+status HOST_CALL). Python keeps: done, pusht, pushl, lremove of several locals, floats
 arithmetic, every error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
@@ -44,9 +45,9 @@ from bbzide.vm.fasttables import darray_get, darray_set, darray_size, table_look
 R_PC, R_SP, R_BP, R_RTOBJ, R_LTSEG, R_LSYMS, R_GC_RUNS, R_EXECUTED = range(8)
 R_N, R_FIXED, R_PENDING, R_PEAK = 8, 9, 10, 11
 R_NIL, R_GSYMS, R_SAVED, R_BUDGET, R_FLOAT_OPS, R_STACK_SIZE, R_MARK_DEPTH = range(12, 19)
-R_FLIST, R_DFLT_ACTREC = 19, 20
+R_FLIST, R_DFLT_ACTREC, R_HOST, R_CALL_FIRST, R_PRIOR = 19, 20, 21, 22, 23
 #: registers in the array
-REGISTERS = 21
+REGISTERS = 24
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -54,6 +55,9 @@ NONE = -(1 << 40)
 EXIT = 0           # the loop's condition ended it (blockptr dropped to the saved one)
 NEED_PYTHON = 1    # this step's collection is done; Python runs the instruction at pc
 BUDGET = 2         # a step completed and the instruction budget condition now holds
+HOST_CALL = 3      # a callc of a C closure (index in R_HOST) is set up: Python calls the
+#                    host function and finishes the step (VM._host_call)
+CALL_IN_PYTHON = 4  # R_CALL_FIRST: closure_call's callc is not the kernel's: Python makes it
 
 # Metadata bits and types (heap.py), as literals for the compiled code.
 _NIL, _INT, _FLOAT, _STRING, _TABLE, _CLOSURE, _USERDATA = 0, 1, 2, 3, 4, 5, 6
@@ -100,6 +104,7 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
     rtobj = regs[R_RTOBJ]
     found = first_free(d, rtobj, s, reserved, typ, sid)
     if found < -1:
+        regs[R_PRIOR] = d[(-2 - found) * s]
         return -2 - found
     if found < 0:
         if rtobj + s > regs[R_LTSEG]:
@@ -108,6 +113,7 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
         regs[R_RTOBJ] = rtobj + s
         _note_usage(regs, len(d))
     o = found * s
+    regs[R_PRIOR] = d[o]  # Heap.prior_mdata
     d[o] = typ | _VALID
     if typ == _CLOSURE:
         d[o + 2] = _NO_ACTREC
@@ -383,55 +389,61 @@ def _darray_valid_count(d: Any, a: int, s: int, elems: int) -> int:
 
 @_compile
 def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: int,
-           bsize: int, s: int, elems: int, reserved: int) -> bool:
-    """``VM.callc`` of a bytecode closure (native or lambda), its happy path: on success
-    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written (but
+           bsize: int, s: int, elems: int, reserved: int, host_ok: bool) -> int:
+    """``VM.callc``'s happy path for a bytecode closure (native or lambda) — returns 1,
+    ``regs`` gets the new sp, blockptr, lsyms and pc — or, when ``host_ok``, for a C
+    closure that is not a lambda — returns 2 with everything done up to the host function
+    call, the closure's index in ``R_HOST``. 0 with nothing written (but
     ``darray_size(flist)``'s idempotent unlinking) when Python must run it."""
     size = len(d)
     g = 4 * elems + 2
     n = 2 * elems
     nobj = size // s
     if sp < 0:
-        return False
+        return 0
     ai = _i(stack[sp])
     if ai >= nobj or _i(d[ai * s]) & 7 != _INT:
-        return False
+        return 0
     argn = _u16(d, ai, s)
     sp1 = sp - 1
     if sp1 < argn:
-        return False
+        return 0
     c = _i(stack[sp1 - argn])
     if c >= nobj or _i(d[c * s]) & 7 != _CLOSURE:
-        return False
+        return 0
     cm = _i(d[c * s])
-    if not cm & _FLAG1:
-        return False  # a C closure: the host function runs in Python
     is_lambda = (cm & _FLAG2) != 0
+    native = (cm & _FLAG1) != 0
+    if not native and (is_lambda or not host_ok):
+        return 0
     ref = _i(d[c * s + 1])
     actrec = _i(d[c * s + 2])
     flist = regs[R_FLIST]
     if is_lambda and ref >= darray_size(d, flist, s, elems):
-        return False  # FLIST error
+        return 0  # FLIST error
     sp2 = sp1 - argn - 1
     if sp2 < 0:
-        return False
+        return 0
     own = not is_lambda or actrec == _NO_ACTREC
     src = regs[R_DFLT_ACTREC] if own else actrec
     if not own and actrec >= nobj:
-        return False
+        return 0
     m = _darray_valid_count(d, src, s, elems)
     if m < 0:
-        return False
-    if is_lambda:
+        return 0
+    newpc = retpc
+    if not native:
+        pass  # the host function decides what follows
+    elif is_lambda:
         fo = darray_get(d, flist, ref, s, elems)
         newpc = _u16(d, fo if fo >= 0 else 0, s)
     else:
         newpc = _u16(d, c, s)
     if newpc > bsize:
-        return False
+        return 0
     # every allocation below (table + segments, two ints) fits in the free gap
     if regs[R_LTSEG] - regs[R_RTOBJ] < 3 * s + (1 + (m + argn) // n) * g:
-        return False
+        return 0
     # ---- commit, in the order of VM.callc
     rtobj = regs[R_RTOBJ]
     new = first_free(d, rtobj, s, reserved, _TABLE, 0)
@@ -469,7 +481,10 @@ def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: i
     regs[R_BP] = sp2 + 2
     regs[R_LSYMS] = new
     regs[R_PC] = newpc
-    return True
+    if not native:
+        regs[R_HOST] = c
+        return 2
+    return 1
 
 
 @_compile
@@ -513,14 +528,6 @@ def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsym
 
 
 @_compile
-def call(d: Any, stack: Any, regs: Any, bsize: int, s: int, elems: int,
-         reserved: int) -> bool:
-    """``VM.callc`` from Python (``closure_call``): the compiled happy path, or False."""
-    return _callc(d, stack, regs, regs[R_SP], regs[R_BP], regs[R_LSYMS], regs[R_PC], bsize,
-                  s, elems, reserved)
-
-
-@_compile
 def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         rules: Any, s: int, elems: int, reserved: int) -> int:
     """Run steps (collection or skip, then one instruction) from ``regs[R_PC]``.
@@ -547,6 +554,15 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     fixed = regs[R_FIXED] != 0
     pending = regs[R_PENDING]
     frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
+    if regs[R_CALL_FIRST]:
+        # closure_call: its callc (pc pushed as is, no collection, not an instruction)
+        regs[R_CALL_FIRST] = 0
+        if _callc(d, stack, regs, sp, bp, lsyms, pc, bsize, s, elems, reserved, False) == 0:
+            return CALL_IN_PYTHON
+        sp = regs[R_SP]
+        bp = regs[R_BP]
+        lsyms = regs[R_LSYMS]
+        pc = regs[R_PC]
     status = EXIT
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
@@ -773,15 +789,22 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             stack[sp] = idx
         elif op == 5 or op == 6 or op == 33:  # ret0 ret1 callc
             if op == 33:
-                ok = _callc(d, stack, regs, sp, bp, lsyms, nxt_pc, bsize, s, elems, reserved)
+                kind = _callc(d, stack, regs, sp, bp, lsyms, nxt_pc, bsize, s, elems,
+                              reserved, True)
             else:
-                ok = _ret(d, stack, regs, op == 6, sp, bp, lsyms, bsize, s, elems)
-            if not ok:
+                kind = 1 if _ret(d, stack, regs, op == 6, sp, bp, lsyms, bsize, s,
+                                 elems) else 0
+            if kind == 0:
                 break
             sp = regs[R_SP]
             bp = regs[R_BP]
             lsyms = regs[R_LSYMS]
             nxt_pc = regs[R_PC]
+            if kind == 2:  # counted here; Python calls the host function, ends the step
+                pc = nxt_pc
+                regs[R_EXECUTED] += 1
+                status = HOST_CALL
+                break
         elif op == 41:  # lload
             if sp + 1 >= stack_size:
                 break
@@ -832,7 +855,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         elif rule == _PUSHED_NEW:
             pending = _i(stack[sp]) * s
             t = _i(d[pending]) & 7
-            fixed = t != _TABLE and (t != _CLOSURE or not _i(d[pending]) & _FLAG2)
+            prior = regs[R_PRIOR]
+            fixed = t != _TABLE and (t != _CLOSURE or not _i(d[pending]) & _FLAG2) and \
+                ((prior & _VALID) != 0 or (prior & _GC_MARK) == 0)
         elif rule == _PUSHED_OLD:
             top = _i(stack[sp])
             m = _i(d[top * s])
@@ -863,4 +888,4 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     return status
 
 
-__all__ = ["COMPILED", "run", "call", "RULES", "REGISTERS", "NONE", "EXIT", "NEED_PYTHON", "BUDGET"]
+__all__ = ["COMPILED", "run", "RULES", "REGISTERS", "NONE", "EXIT", "NEED_PYTHON", "BUDGET"]

@@ -60,6 +60,9 @@ class Heap:
         self.ltseg = self.size
         self.peak_used = 0
         self.gc_runs = 0
+        #: metadata byte the slot returned by the last obj_alloc held before it (the fast
+        #: VM's skip rule for new leaves needs to know whether the marker reached it)
+        self.prior_mdata = 0
         #: how the last compiled collection marked (fastgc.collect's info/traversed)
         nobj = self.objects = self.size // self.obj_size  # object slots the heap can hold
         self.gc_info = np.zeros(nobj, np.uint8)
@@ -142,6 +145,7 @@ class Heap:
         # the first-fit scan (and string dedupe) runs compiled: see fastgc.first_free
         found = _first_free(d, self.rtobj, s, self.reserved, typ, string_id)
         if found < -1:
+            self.prior_mdata = d[(-2 - found) * s]
             return -2 - found
         if found < 0:
             if self.rtobj + s > self.ltseg:
@@ -150,6 +154,7 @@ class Heap:
             self.rtobj += s
             self._note_usage()
         o = found * s
+        self.prior_mdata = d[o]
         d[o] = typ | VALID
         if typ == TABLE:
             seg = self.seg_alloc()

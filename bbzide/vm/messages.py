@@ -23,6 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Generic, TypeVar
 
+from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
+from bbzide.vm.tables import table_get
+
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
 
@@ -335,10 +338,6 @@ def drain_outbox(queues: MessageQueues) -> list[bytes]:
 # ---- processing (bbzvm_process_inmsgs, bbzmsg_process_broadcast) -----------------------
 def process_broadcast(vm: VM, rec: bytearray) -> None:
     """Call the listener of the topic as ``f(topic, value, sender id)`` (self nil)."""
-    from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
-    from bbzide.vm.tables import table_get
-    from bbzide.vm.vm import Error
-
     h = vm.heap
     s = h.obj_size
     topic = vm.push_string(rec_topic(rec))
@@ -353,6 +352,8 @@ def process_broadcast(vm: VM, rec: bytearray) -> None:
         x = h.obj_alloc(USERDATA)
         h.set_ptr(x, 0)
     except HeapFull:
+        from bbzide.vm.vm import Error
+
         vm.seterror(Error.MEM)
         x = vm.nil
     vm.push(x)

@@ -339,20 +339,22 @@ def add(vm: VM, entry: NeighborEntry) -> None:
     p = vm.profile
     if p.xtreme:
         ring = n.ring
-        i = ring.size()
+        records = ring.records
+        where = ring.indices()
+        i = len(where)
         while i:
             i -= 1
-            e = ring.at(i)
+            e = records[where[i]]
             if e.robot == entry.robot:
                 e.distance, e.azimuth, e.elevation = entry.distance, entry.azimuth, \
                     entry.elevation
                 if n.clear_counter < p.neighbors_mark_time:
                     e.mark |= MARK
-                size = ring.size()
-                pos = i
-                while pos < size - 1:
-                    ring.swap(pos, pos + 1)
-                    pos += 1
+                # swaps (pos, pos + 1) up to the end: the entry moves last, the rest
+                # shift down one place
+                for a, b in zip(where[i:], where[i + 1:], strict=False):
+                    records[a] = records[b]
+                records[where[-1]] = e
                 return
         slot = ring.raw_index(ring.makeslot())
         e = ring.records[slot]

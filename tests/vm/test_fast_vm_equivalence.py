@@ -87,9 +87,17 @@ def _operand(draw: st.DrawFn, depth: int) -> str:
     """An arithmetic operand (Buzz accepts table literals and lambdas only as whole
     expressions, spec §A.3)."""
     kind = draw(st.sampled_from(["int", "int", "var", "var", "field"]
-                                + (["bin", "cmp"] if depth < 3 else ["str"])))
+                                + (["bin", "cmp", "unary", "logic"] if depth < 3
+                                   else ["str", "float"])))
     if kind == "int":
         return str(draw(st.integers(0, 40000)))
+    if kind == "float":  # a TYPE error on Kilobot, float arithmetic (Python) on PC
+        return f"{draw(st.integers(0, 99))}.5"
+    if kind == "unary":
+        return f"({draw(st.sampled_from(['-', 'not ']))}{_operand(draw, depth + 1)})"
+    if kind == "logic":
+        op = draw(st.sampled_from(["and", "or"]))
+        return f"({_operand(draw, depth + 1)} {op} {_operand(draw, depth + 1)})"
     if kind == "var":
         return draw(st.sampled_from(_NAMES + ["g", "i"]))
     if kind == "str":
@@ -97,11 +105,11 @@ def _operand(draw: st.DrawFn, depth: int) -> str:
     if kind == "field":
         return f"t.{draw(st.sampled_from(['x', 'y', 'n', 'h']))}"
     if kind == "bin":
-        op = draw(st.sampled_from(["+", "-", "*", "/", "%"]))
+        op = draw(st.sampled_from(["+", "-", "*", "/", "%", "^"]))
         # literal divisors: a division by zero would end most runs early (MATH error)
-        rhs = str(draw(st.integers(1, 9))) if op in "/%" else _operand(draw, depth + 1)
+        rhs = str(draw(st.integers(1, 9))) if op in "/%^" else _operand(draw, depth + 1)
         return f"({_operand(draw, depth + 1)} {op} {rhs})"
-    op = draw(st.sampled_from(["==", "!=", "<", ">="]))
+    op = draw(st.sampled_from(["==", "!=", "<", ">=", ">", "<="]))
     return f"({_operand(draw, depth + 1)} {op} {_operand(draw, depth + 1)})"
 
 
