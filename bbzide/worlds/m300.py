@@ -161,6 +161,25 @@ def draw_targets(belief: np.ndarray, size: float, count: int, rng: np.random.Gen
     return np.array(targets, dtype=np.float64).reshape(-1, 2)
 
 
+def parse_targets(text: str) -> int | list[tuple[float, float]]:
+    """Targets as command-line text: a count (`3`) or positions in metres (`26:24,10:5`)."""
+    text = text.strip()
+    if text.isdigit():
+        return int(text)
+    targets = []
+    for item in text.split(","):
+        x, sep, y = item.partition(":")
+        try:
+            if not sep:
+                raise ValueError(item)
+            targets.append((float(x), float(y)))
+        except ValueError:
+            raise WorldConfigError(
+                f"targets {text!r}: give a count (targets=3) or x:y positions in metres "
+                "separated by commas (targets=26:24,10:5)") from None
+    return targets
+
+
 class M300Field(World):
     """A `size` x `size` m field, origin at its south-west corner."""
 
@@ -177,7 +196,7 @@ class M300Field(World):
         comm_range: float = DEFAULT_COMM_RANGE,
         speed: float = DEFAULT_SPEED,
         altitude: float = DEFAULT_ALTITUDE,
-        targets: int | Sequence[Sequence[float]] = 3,
+        targets: int | str | Sequence[Sequence[float]] = 3,
         belief_map: Any = None,
         cells: int = DEFAULT_CELLS,
         search: str = "belief",
@@ -218,6 +237,8 @@ class M300Field(World):
         self.cells = self._given_map.shape[0] if self._given_map is not None else int(cells)
         if self.cells < 1:
             raise WorldConfigError("the belief map needs at least 1 cell")
+        if isinstance(targets, str):          # `--set targets=26:24,10:5` (x:y metres)
+            targets = parse_targets(targets)
         if isinstance(targets, int):
             if targets < 0:
                 raise WorldConfigError("the number of targets must be >= 0")
@@ -245,6 +266,10 @@ class M300Field(World):
     # ---- bodies -------------------------------------------------------------------------------
     def attach(self, sim: Simulation) -> None:
         count = sim.count
+        if self.field_size < self.comm_range:     # again: `--comm-range` overrides the radio
+            raise WorldConfigError(
+                f"a {self.field_size:g} m field is smaller than the {self.comm_range:g} m "
+                "communication range: every drone would always hear every other")
         # Map and targets from their own stream of the run seed: the same for both searches of
         # an experiment pair and unchanged by a reboot (attach runs again on load_program).
         seed = sim.seed if self.map_seed is None else self.map_seed

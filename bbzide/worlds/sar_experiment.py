@@ -17,6 +17,12 @@ Measured per run (thesis §5.4.2): the step at which the last target was first s
 to find all targets"), the steps the root spent as auctioneer ("relay formation time"), the
 step at which the tree was complete, messages and bytes sent per drone, and the bytes each
 drone sent per simulated second (the bandwidth plot, Fig. 5.12).
+
+Recording: `runs.csv` gives, per run, the `bbzide run` command that replays it step for step
+(`reproduce_command`: same program, seed and world options, `--steps` = the run's length);
+adding `--record X.rrd` records it for `bbzide replay`. The sweep itself does not record: the
+recording room sits above the worlds room, and a recording is ~0.5 MB per 1,000 drone-steps
+(the field run: 3 drones x 680 steps, 1.1 MB).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ import json
 import math
 import multiprocessing
 import os
+import shlex
 import statistics
 import sys
 import time
@@ -161,6 +168,23 @@ def plan_runs(settings: SweepSettings) -> list[RunSpec]:
     return runs
 
 
+def reproduce_command(spec: RunSpec, steps: int) -> list[str]:
+    """The `bbzide run` arguments that replay run `spec` for `steps` steps: the same program,
+    seed and world options, so it takes the same course step for step; add `--record X.rrd`
+    to record it for `bbzide replay` (recording lives above the worlds room)."""
+    options = {"size": f"{spec.arena:g}", "search": spec.search,
+               "comm_range": f"{spec.comm_range:g}", "search_steps": str(spec.search_steps),
+               "targets": (str(spec.targets) if isinstance(spec.targets, int)
+                           else ",".join(f"{x:g}:{y:g}" for x, y in spec.targets))}
+    if spec.belief_map is not None:
+        options["belief_map"] = spec.belief_map
+    command = ["run", str(SCRIPT), "--world", "m300", "--robots", str(spec.drones),
+               "--seed", str(spec.seed), "--steps", str(steps)]
+    for key, value in options.items():
+        command += ["--set", f"{key}={value}"]
+    return command
+
+
 # ---- one run (in a worker process) -------------------------------------------------------------
 _PROGRAM: Any = None
 
@@ -248,7 +272,7 @@ def load_result(path: Path) -> dict[str, Any] | None:
 CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
               "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
               "steps", "max_steps", "networkers", "roots", "messages_per_drone",
-              "bytes_per_drone", "errors", "wall_seconds")
+              "bytes_per_drone", "errors", "wall_seconds", "command")
 
 
 def write_csv(path: Path, results: Sequence[dict[str, Any]]) -> None:
@@ -390,6 +414,8 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
                     progress.advance()
     wall = time.monotonic() - started
     finished = [results[s.run_id] for s in specs]
+    for spec, result in zip(specs, finished, strict=True):
+        result["command"] = "bbzide " + shlex.join(reproduce_command(spec, result["steps"]))
     write_csv(out / "runs.csv", finished)
     rows = paired_comparison(finished)
     write_comparison(out / "comparison.csv", rows)
@@ -445,4 +471,5 @@ def run_command(args: argparse.Namespace) -> int:
     if args.preset == "field":
         formed = sum(r["complete_step"] >= 0 for r in finished)
         print(f"field test: the relay line formed in {formed} of {len(finished)} runs")
+        print(f"record one for replay: {finished[0]['command']} --record field.rrd")
     return 0

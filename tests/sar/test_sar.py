@@ -125,3 +125,16 @@ def test_bad_parameters_are_clear_errors(extra, words, tmp_path, capsys):
     assert main(["experiment", "sar", "--out", str(tmp_path), *extra]) == 1
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--robots", "0"], "at least 1 robot"),
+    (["--set", "size=5"], "smaller than the 10 m communication range"),
+    (["--set", "size=20", "--comm-range", "30"], "smaller than the 30 m communication range"),
+    (["--set", "search=spiral"], "unknown search 'spiral'"),
+    (["--set", "targets=26;24"], "x:y positions"),
+])
+def test_bad_mission_parameters_of_a_run_are_clear_errors(extra, words, capsys):
+    assert main(["run", str(sx.SCRIPT), "--world", "m300", "--steps", "1", *extra]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
