@@ -126,3 +126,30 @@ def test_reproduce_command_sets_every_world_option() -> None:
     assert options["targets"] == "26:24" and options["comm_range"] == "15"
     assert Path(options["belief_map"]) == sx.FIELD_BELIEF
     assert command[command.index("--seed") + 1] == str(SPEC.seed)
+
+
+def test_replay_app_draws_role_colours_and_the_relay_tree(field: dict) -> None:
+    """What `bbzide replay field.rrd` puts in the scene at the last step (no browser needed:
+    the viser scene nodes are the page's content)."""
+    from bbzide.ui.replay_app import ReplayApp
+    from bbzide.ui.replay_session import ReplaySession
+
+    recording, last = field["recording"], field["last"]
+    app = ReplayApp(ReplaySession(recording, RobotRebuilder(recording)), port=0)
+    try:
+        app.seek(last)
+        roles = recording.overlays_at(last)["roles"]
+        colours = np.asarray(app.scene._robots.batched_colors)  # type: ignore[union-attr]
+        for robot, role in enumerate(roles):
+            assert np.allclose(colours[robot] / 255, ROLE_COLOURS[role], atol=2 / 255), role
+        handles = app.overlays._handles
+        assert {"/overlays/relay_links", "/overlays/belief_map", "/overlays/targets"} <= set(
+            handles)
+        drawn = np.asarray(handles["/overlays/relay_links"].points)[:, :, :2]
+        at = recording.positions[recording.row(last), :, :2]
+        np.testing.assert_allclose(drawn, [[at[c], at[p]] for c, p in field["links"]],
+                                   atol=1e-4)
+        app.seek(field["found"] - 1)              # before the find: no tree, nobody a root
+        assert "/overlays/relay_links" not in app.overlays._handles
+    finally:
+        app.server.stop()
