@@ -9,7 +9,8 @@ its spec alone, so runs go to a `multiprocessing` pool (one worker per `--jobs`)
 finished run is written at once, atomically, as `runs/<id>.json` in the output folder: an
 interrupted sweep keeps every finished run and a rerun of the same command skips them
 (resume). When the pool is done, the JSON files are summarised into `runs.csv`, the paired
-belief-vs-random comparison `comparison.csv` (and on screen), and the plots (`sar_plots.py`).
+belief-vs-random comparison `comparison.csv` (and on screen, and as the README's markdown
+table in `summary.md`), and the plots (`sar_plots.py`).
 
 A run ends when every target has been seen and the relay tree is complete (`M300Field.
 relay_complete`, checked every CHECK_PERIOD steps), or after `max_steps` (a timeout, reported).
@@ -82,6 +83,7 @@ class RunSpec:
     targets: int | tuple[tuple[float, float], ...] = TARGETS
     belief_map: str | None = None
     search_steps: int = SEARCH_STEPS
+    targets_where: str = "anywhere"
 
     @property
     def run_id(self) -> str:
@@ -94,6 +96,8 @@ class RunSpec:
                                                else [list(t) for t in self.targets])}
         if self.belief_map is not None:
             options["belief_map"] = self.belief_map
+        if self.targets_where != "anywhere":
+            options["targets_where"] = self.targets_where
         return options
 
 
@@ -178,6 +182,8 @@ def reproduce_command(spec: RunSpec, steps: int) -> list[str]:
                            else ",".join(f"{x:g}:{y:g}" for x, y in spec.targets))}
     if spec.belief_map is not None:
         options["belief_map"] = spec.belief_map
+    if spec.targets_where != "anywhere":
+        options["targets_where"] = spec.targets_where
     command = ["run", str(SCRIPT), "--world", "m300", "--robots", str(spec.drones),
                "--seed", str(spec.seed), "--steps", str(steps)]
     for key, value in options.items():
@@ -323,8 +329,34 @@ def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
             "median_relay_random": med("random", "relay_formation_steps"),
             "median_relay_belief": med("belief", "relay_formation_steps"),
             "incomplete_trees": sum(p[s]["complete_step"] < 0 for p in pairs for s in p),
+            "median_messages_random": med("random", "messages_per_drone"),
+            "median_messages_belief": med("belief", "messages_per_drone"),
+            "median_bytes_random": med("random", "bytes_per_drone"),
+            "median_bytes_belief": med("belief", "bytes_per_drone"),
+            "median_wall_seconds": statistics.median(
+                [p[s]["wall_seconds"] for p in pairs for s in p]) if pairs else None,
         })
     return rows
+
+
+def format_markdown(rows: Iterable[dict[str, Any]]) -> str:
+    """The README's results table: medians per configuration, random | belief."""
+    def f(v: Any, digits: int = 0) -> str:
+        return "-" if v is None else f"{v:.{digits}f}"
+
+    lines = ["| arena | drones | pairs | find: random | find: belief | belief faster | sign "
+             "test p | relay: random | relay: belief | msgs/drone: random | msgs/drone: belief "
+             "| bytes/drone: random | bytes/drone: belief | incomplete trees |",
+             "|" + "---:|" * 14]
+    for r in rows:
+        lines.append(
+            f"| {r['arena']:g} | {r['drones']} | {r['pairs']} | {f(r['median_find_random'])} | "
+            f"{f(r['median_find_belief'])} | {r['belief_faster']}/{r['complete_pairs']} | "
+            f"{r['sign_test_p']:.3f} | {f(r['median_relay_random'])} | "
+            f"{f(r['median_relay_belief'])} | {f(r['median_messages_random'])} | "
+            f"{f(r['median_messages_belief'])} | {f(r['median_bytes_random'])} | "
+            f"{f(r['median_bytes_belief'])} | {r['incomplete_trees']} |")
+    return "\n".join(lines)
 
 
 def write_comparison(path: Path, rows: Sequence[dict[str, Any]]) -> None:
@@ -419,6 +451,7 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     write_csv(out / "runs.csv", finished)
     rows = paired_comparison(finished)
     write_comparison(out / "comparison.csv", rows)
+    (out / "summary.md").write_text(format_markdown(rows) + "\n")
     print(format_comparison(rows))
     from bbzide.worlds import sar_plots
 
@@ -445,6 +478,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
+    parser.add_argument("--targets-where", choices=["anywhere", "likely"], default="anywhere",
+                        help="generated targets: anywhere (in proportion to the prior belief) "
+                             "or only where the prior reaches the search threshold")
     parser.add_argument("--preset", choices=["field"], default=None,
                         help="field: the paper's field test (36 m, 3 drones, 1 target, "
                              "fixed belief map; 3 trials unless --trials is given)")
@@ -457,6 +493,8 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
         drones=_int_list(args.drones, "drones"), arenas=_float_list(args.arena, "arena"),
         searches=searches, trials=args.trials, seed=args.seed, jobs=args.jobs,
         out=Path(args.out), max_steps=args.max_steps, preset=args.preset)
+    if args.targets_where != "anywhere":
+        settings.extra["targets_where"] = args.targets_where
     if args.preset == "field":
         settings.drones, settings.arenas = [3], [36.0]
         if "--trials" not in sys.argv:

@@ -187,3 +187,16 @@ def test_targets_as_command_line_text():
     sim = Simulation(field, program="p", robots=1, seed=0,
                      robot_factory=factory(lambda robot, step: []))
     assert sim.world.targets.tolist() == [[26.0, 24.0]]
+
+
+def test_likely_targets_lie_only_where_the_prior_reaches_the_threshold():
+    belief = generate_belief_map(10, np.random.default_rng(3))
+    rng = np.random.default_rng(4)
+    targets = np.vstack([draw_targets(belief, 20.0, 3, rng, keep_out=5.0, floor=0.2)
+                         for _ in range(100)])
+    cells = belief[(targets[:, 1] // 2).astype(int), (targets[:, 0] // 2).astype(int)]
+    assert cells.min() >= 0.2
+    anywhere = np.vstack([draw_targets(belief, 20.0, 3, rng, keep_out=5.0) for _ in range(100)])
+    assert belief[(anywhere[:, 1] // 2).astype(int), (anywhere[:, 0] // 2).astype(int)].min() < 0.2
+    with pytest.raises(WorldConfigError, match="targets_where"):
+        M300Field(targets_where="nowhere")
