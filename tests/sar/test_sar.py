@@ -89,6 +89,9 @@ def test_sweep_writes_csv_and_plots_and_resumes(tmp_path, capsys):
         ("belief", "0"), ("random", "0"), ("belief", "1"), ("random", "1")]
     assert all(r["complete_step"] == "-1" and r["steps"] == "30" for r in rows)  # timeouts
     assert (out / "comparison.csv").exists()
+    table = (out / "summary.md").read_text().splitlines()
+    assert table[0].startswith("| arena") and table[2].startswith("| 20 | 3 | 2 |")
+    assert rows[0]["command"].startswith("bbzide run ") and "--seed" in rows[0]["command"]
     for name in ("find_time_arena20.png", "relay_time_arena20.png", "bandwidth.png"):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
     # Resume: a finished run is not run again; a torn one is.
