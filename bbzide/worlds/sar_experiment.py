@@ -509,5 +509,6 @@ def run_command(args: argparse.Namespace) -> int:
     if args.preset == "field":
         formed = sum(r["complete_step"] >= 0 for r in finished)
         print(f"field test: the relay line formed in {formed} of {len(finished)} runs")
-        print(f"record one for replay: {finished[0]['command']} --record field.rrd")
+        shown = next((r for r in finished if r["search"] == "belief"), finished[0])
+        print(f"record one for replay: {shown['command']} --record field.rrd")
     return 0
