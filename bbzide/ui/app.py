@@ -196,7 +196,9 @@ class IdeApp:
             generation = id(sim)
             if sim is not None and generation != self._world_generation:
                 self._world_generation = generation
-                self.scene.set_world(sim.geometry())
+                geometry = sim.geometry()
+                self.scene.set_world(geometry, frame.positions)
+                self.overlays.set_scale(geometry.robot_radius)
         self.scene.draw(frame)
 
     def _on_robot_click(self, client: viser.ClientHandle, index: int) -> None:

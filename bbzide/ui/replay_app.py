@@ -41,8 +41,9 @@ class ReplayApp:
             control_width="large", show_share_button=False, dark_mode=False
         )
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
-        self.scene.set_world(session.geometry())
+        self.scene.set_world(session.geometry(), session.frame(session.first_step).positions)
         self.overlays = OverlayView(self.server)
+        self.overlays.set_scale(session.geometry().robot_radius)
         self.step = session.first_step
         self.playing = False
         self.speed = 1.0
