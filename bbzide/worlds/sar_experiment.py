@@ -428,8 +428,10 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     progress = Progress(len(specs), len(results))
     started = time.monotonic()
     if todo:
-        # Longest runs first (big arenas, few drones) so the pool does not end on one straggler.
-        todo.sort(key=lambda s: (-s.arena, s.drones))
+        # Trial by trial, so a sweep stopped early has as many pairs in every configuration
+        # (give it --trials 30 and stop it when time is up); within a trial, longest runs first
+        # (big arenas, few drones) so the pool does not end on one straggler.
+        todo.sort(key=lambda s: (s.trial, -s.arena, s.drones, s.search))
         if settings.jobs == 1:
             for spec in todo:
                 result = run_one(spec)
