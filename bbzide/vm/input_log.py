@@ -119,6 +119,9 @@ class CapturingRobot:
         self._on_boot = on_boot
         #: Seconds spent in captured control steps (the recorder keyframes by this budget).
         self.busy_seconds = 0.0
+        #: The payloads the last control step sent (the inspector reads them: the out-queue is
+        #: drained at the end of every step).
+        self.last_sent: list[bytes] = []
 
     # the engine's FirmwareLoop protocol ---------------------------------------------------------
     def boot(self) -> None:
@@ -136,12 +139,14 @@ class CapturingRobot:
 
     def control_step(self) -> list[bytes]:
         if not self.capturing:
-            return self.robot.control_step()
+            self.last_sent = self.robot.control_step()
+            return self.last_sent
         self.current.stepped = True
         self.tap.log = self.current.host_calls
         started = time.perf_counter()
         try:
-            return self.robot.control_step()
+            self.last_sent = self.robot.control_step()
+            return self.last_sent
         finally:
             self.tap.log = None
             self.busy_seconds += time.perf_counter() - started
