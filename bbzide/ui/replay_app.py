@@ -66,6 +66,8 @@ class ReplayApp:
     def start(self) -> ReplayApp:
         self.seek(self.session.first_step)
         self._player.start()
+        threading.Thread(target=self.session.warm_up, args=(self._stop,),
+                         name="bbzide-replay-warm-up", daemon=True).start()
         return self
 
     def stop(self) -> None:
