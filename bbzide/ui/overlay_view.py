@@ -96,6 +96,13 @@ class OverlayView:
         self._handles: dict[str, Any] = {}
         self._drawn: dict[str, Any] = {}  # node -> what it shows (to skip unchanged data)
         self.marker_size = MARKER_RADII * DEFAULT_ROBOT_RADIUS
+        self.visible = True
+
+    def set_visible(self, visible: bool) -> None:
+        """The "World overlays" toggle: hide or show every overlay node (kept up to date)."""
+        self.visible = visible
+        for handle in self._handles.values():
+            handle.visible = visible
 
     def set_scale(self, robot_radius: float) -> None:
         """Size markers for a world whose robots have `robot_radius` metres (redraws them)."""
@@ -145,7 +152,7 @@ class OverlayView:
         self._handles[node] = self.server.scene.add_image(
             node, field_image(values, FIELD_MIN_PIXELS), x1 - x0, y1 - y0, format="png",
             position=((x0 + x1) / 2, (y0 + y1) / 2, FIELD_Z), cast_shadow=False,
-            receive_shadow=False)
+            receive_shadow=False, visible=self.visible)
         self._drawn[node] = (bounds, values.copy())
 
     def _show_targets(self, node: str, points: np.ndarray, found: np.ndarray, z: float) -> None:
@@ -160,7 +167,8 @@ class OverlayView:
         colors = np.where(found[:, None], FOUND_COLOR, color).astype(np.uint8)
         lifted = np.column_stack([points, np.full(len(points), z + 0.002)]).astype(np.float32)
         self._handles[node] = self.server.scene.add_point_cloud(
-            node, lifted, colors, point_size=self.marker_size, point_shape="diamond")
+            node, lifted, colors, point_size=self.marker_size, point_shape="diamond",
+            visible=self.visible)
         self._drawn[node] = (points, found)
 
     def _show_links(self, node: str, pairs: np.ndarray, z: float) -> None:
@@ -172,7 +180,8 @@ class OverlayView:
             handle.points = lifted  # one array update; viser skips it when unchanged
             return
         self._handles[node] = self.server.scene.add_line_segments(
-            node, lifted, RELAY_COLOR, thickness=2.5, thickness_units="screen")
+            node, lifted, RELAY_COLOR, thickness=2.5, thickness_units="screen",
+            visible=self.visible)
         self._drawn[node] = True
 
 
