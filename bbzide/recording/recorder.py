@@ -60,14 +60,16 @@ FLUSH_SECONDS = 10.0
 #: Rare rows (keyframes, events, overlays) wait in Rerun's batcher until our flush, so they too
 #: leave in one chunk per entity and flush instead of one per row.
 BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
-#: World overlays (light field, targets, belief map) are polled every 10 steps: they change
-#: slowly and some are costly to build (the Kilobot light raster is 32 x 32 evaluations). A
-#: world whose overlays have `targets` is polled every step, so "target found" events land on
-#: their step (the M300 overlays cost ~0.1 ms against a search-and-rescue step's tens of ms).
+#: World overlays (light field, targets, belief map) are recorded every 10 steps when they
+#: changed: they change slowly and some are costly to build (the Kilobot light raster is
+#: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step, so "target
+#: found" events land on their step, but in between only its found count is compared (the JSON
+#: of an M300's overlays, ~1 ms, was a fifth of the recorder's time when done every step).
 OVERLAY_EVERY = 10
-#: zlib level for snapshots: level 6 is as fast as 1 on 3 KB Kilobot snapshots (40-80 us)
-#: and 15 % smaller against a preset dictionary.
-SNAPSHOT_COMPRESSION = 6
+#: zlib level for snapshots: level 1. On an M300's 69 KB SAR snapshot it takes 0.3-0.4 ms
+#: against level 6's 1.0 ms for 3-4 % more bytes (6.2 vs 5.8 KB), and keyframes were the
+#: recorder's largest cost; on 3 KB Kilobot snapshots both take 40-80 us.
+SNAPSHOT_COMPRESSION = 1
 #: zlib level for each step's input blob: level 1 halves it (a broadcast reaches several
 #: robots, so payloads repeat; bearings of 0 and distance exponents are alike) for ~20 us.
 INPUT_COMPRESSION = 1
@@ -506,6 +508,9 @@ class MissionRecorder:
         if not overlays:
             return
         self._has_targets = "targets" in overlays
+        due = (step - self.start_step) % OVERLAY_EVERY == 0
+        if not due and found_targets(overlays) <= self._targets_found:
+            return  # a poll between two recordings: only "target found" matters now
         text = json.dumps(_jsonable(overlays))
         if text == self._last_overlays:
             return
@@ -551,7 +556,10 @@ class MissionRecorder:
         send(layout.ROBOTS, indexes=indexes, columns=rr.Points3D.columns(
             positions=positions, colors=colors, radii=np.full(rows * n, radius, np.float32),
             labels=text_labels).partition(per_robot))
-        extra = {"heading": headings, "failed": np.stack(b["failed"]).reshape(-1)}
+        # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
+        # one-element lists (a third of the flush time of a 25-drone recording).
+        extra = {"heading": pa.array(headings),
+                 "failed": pa.array(np.stack(b["failed"]).reshape(-1))}
         for name in watch:
             extra[f"label:{name}"] = pa.array(
                 [v for labels in b["labels"] for v in labels[name]], type=pa.string())
@@ -577,8 +585,9 @@ class MissionRecorder:
             pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
         messages = np.stack(b["messages"])  # rows, 3, n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
-            sent=messages[:, 0].reshape(-1), received=messages[:, 1].reshape(-1),
-            bytes_sent=messages[:, 2].reshape(-1)).partition(per_robot))
+            sent=pa.array(messages[:, 0].reshape(-1)),
+            received=pa.array(messages[:, 1].reshape(-1)),
+            bytes_sent=pa.array(messages[:, 2].reshape(-1))).partition(per_robot))
         totals = np.array(b["totals"], dtype=np.float64)
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))

@@ -66,6 +66,9 @@ class IdeApp:
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
         self.controls.world.on_update(lambda _: self._change_world(str(self.controls.world.value)))
         self.controls.record.on_update(lambda _: self._toggle_recording(self.controls.record.value))
+        self.controls.overlays.on_update(
+            lambda _: self.overlays.set_visible(bool(self.controls.overlays.value))
+        )
         self._inspectors: dict[int, InspectorPanel] = {}
         self._world_generation = -1
         self._build_dirty = True
@@ -196,7 +199,9 @@ class IdeApp:
             generation = id(sim)
             if sim is not None and generation != self._world_generation:
                 self._world_generation = generation
-                self.scene.set_world(sim.geometry())
+                geometry = sim.geometry()
+                self.scene.set_world(geometry, frame.positions)
+                self.overlays.set_scale(geometry.robot_radius)
         self.scene.draw(frame)
 
     def _on_robot_click(self, client: viser.ClientHandle, index: int) -> None:

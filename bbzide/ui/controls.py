@@ -76,6 +76,11 @@ class RunControls:
             self.links = gui.add_checkbox("Radio links", initial_value=scene.show_links)
             self.ranges = gui.add_checkbox("Radio ranges", initial_value=scene.show_ranges)
             self.trails = gui.add_checkbox("Trails", initial_value=scene.show_trails)
+            self.overlays = gui.add_checkbox(
+                "World overlays",
+                initial_value=True,
+                hint="Light field, belief map, targets, relay links (what the world offers)",
+            )
         self._wire()
 
     def _wire(self) -> None:

@@ -41,8 +41,9 @@ class ReplayApp:
             control_width="large", show_share_button=False, dark_mode=False
         )
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
-        self.scene.set_world(session.geometry())
+        self.scene.set_world(session.geometry(), session.frame(session.first_step).positions)
         self.overlays = OverlayView(self.server)
+        self.overlays.set_scale(session.geometry().robot_radius)
         self.step = session.first_step
         self.playing = False
         self.speed = 1.0
@@ -65,6 +66,8 @@ class ReplayApp:
     def start(self) -> ReplayApp:
         self.seek(self.session.first_step)
         self._player.start()
+        threading.Thread(target=self.session.warm_up, args=(self._stop,),
+                         name="bbzide-replay-warm-up", daemon=True).start()
         return self
 
     def stop(self) -> None:
@@ -94,9 +97,13 @@ class ReplayApp:
                     f"{label} ({count})", ("◀ previous", "next ▶"), disabled=count == 0)
         with gui.add_folder("View", order=2, expand_by_default=False):
             links = gui.add_checkbox("Radio links", initial_value=self.scene.show_links)
+            ranges = gui.add_checkbox("Radio ranges", initial_value=self.scene.show_ranges)
             trails = gui.add_checkbox("Trails", initial_value=self.scene.show_trails)
+            overlays = gui.add_checkbox("World overlays", initial_value=True)
         links.on_update(lambda _: self.scene.set_toggles(links=links.value))
+        ranges.on_update(lambda _: self.scene.set_toggles(ranges=ranges.value))
         trails.on_update(lambda _: self.scene.set_toggles(trails=trails.value))
+        overlays.on_update(lambda _: self.overlays.set_visible(bool(overlays.value)))
         panel = gui.add_panel()
         with panel.add_tab("Mission", icon=viser.Icon.INFO_CIRCLE):
             truncated = (" · **cut off** (the recorder did not finish; shown up to its last "

@@ -87,6 +87,21 @@ class ReplaySession:
             f"heap used {self.recording.heap['used'][row][index]} B as recorded")
         return view
 
+    def warm_up(self, stop: threading.Event | None = None) -> None:
+        """Boot every robot's rebuild robot ahead of its first click, one robot at a time under
+        the lock, so a user's seek waits for at most one boot (call from a background thread
+        when the replay opens)."""
+        for index in range(int(self.recording.meta["robots"])):
+            if stop is not None and stop.is_set():
+                return
+            if not self.has_vm(index):
+                continue
+            with self._lock:
+                try:
+                    self.rebuilder.prepare(index, self.first_step)
+                except Exception:  # noqa: BLE001 - a damaged keyframe shows when clicked
+                    continue
+
     def has_vm(self, index: int) -> bool:
         return self.rebuilder.has_vm(index)
 

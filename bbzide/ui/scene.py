@@ -3,17 +3,23 @@
 All robots are ONE batched mesh (one instanced draw call; one array assignment per frame:
 `ui-stack-notes` §2 measured N separate nodes at 43-53 ms per frame for 1000 robots, batched at
 0.4 ms). The robot body is a low-poly cylinder (8 sides: 24-sided bodies dropped software-GL
-browsers to 1-4 fps at 1000 robots) coloured by its LED. Headings, links, range circles and
-failure rings are line segments; trails are a point cloud. Everything shared is in
-`server.scene` and updated in one `server.atomic()` block per frame; the selection ring and label
-live in each client's own scene, so every tab has its own selection (and camera).
+browsers to 1-4 fps at 1000 robots) coloured by its LED. Range circles are a second batched mesh
+(a flat ring per robot), so a frame sends only their N positions, not 16 segments per robot.
+Headings, links and failure rings are line segments; trails are a point cloud sampled every
+`TRAIL_SAMPLE_FRAMES` frames into a preallocated ring buffer and sent only when a sample is
+added. Everything shared is in `server.scene` and updated in one `server.atomic()` block per
+frame (viser itself skips arrays that did not change); the selection ring and label live in each
+client's own scene, so every tab has its own selection (and camera).
+
+When a world is loaded the default camera, and every open tab's camera, frames the swarm (its
+bounding box plus one radio range), not the whole world: an M300 swarm starts in a corner of a
+36 m field.
 """
 
 from __future__ import annotations
 
 import math
 import threading
-from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -25,8 +31,15 @@ from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 BODY_SIDES = 8
 #: Segments approximating a range circle: round enough at table scale, 16 lines per robot.
 CIRCLE_SEGMENTS = 16
-#: Frames of trail kept per robot (at 30 Hz: about 1.5 s of history).
-TRAIL_LENGTH = 45
+#: Trails keep one sample every 3 frames, 15 samples per robot: at 30 Hz about 1.5 s of history,
+#: a third of the points (and of the bytes per update) of sampling every frame.
+TRAIL_SAMPLE_FRAMES = 3
+TRAIL_SAMPLES = 15
+#: A range ring's width, as a share of the radio range: thin, yet visible from above.
+RANGE_RING_WIDTH = 0.03
+#: The camera frames the swarm's box grown by this many radio ranges (at least 6 robot radii),
+#: so the robots' neighbourhood is in view.
+CAMERA_MARGIN_RANGES = 1.0
 #: Robots in error get a red ring; links and ranges are drawn in these colours (RGB 0..255).
 FAILED_COLOR = (224, 49, 49)
 LINK_COLOR = (60, 140, 230)
@@ -65,6 +78,42 @@ def heading_quaternions(headings: np.ndarray) -> np.ndarray:
     return wxyz
 
 
+def ring_mesh(
+    radius: float, width: float, sides: int = CIRCLE_SEGMENTS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices and faces of a flat ring (annulus) around the origin at z = 0, facing up."""
+    angles = np.linspace(0.0, 2.0 * math.pi, sides, endpoint=False)
+    unit = np.stack([np.cos(angles), np.sin(angles), np.zeros(sides)], axis=1)
+    vertices = np.vstack([unit * radius, unit * max(radius - width, 0.0)]).astype(np.float32)
+    faces = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        faces += [(i, sides + i, j), (j, sides + i, sides + j)]  # counter-clockwise from above
+    return vertices, np.array(faces, dtype=np.uint32)
+
+
+def camera_pose(
+    box: tuple[float, float, float, float], z: float
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(position, look_at) of a camera above and a little south of `box`, seeing all of it."""
+    xmin, ymin, xmax, ymax = box
+    distance = 1.1 * max(xmax - xmin, ymax - ymin)
+    centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
+    return (centre[0], centre[1] - 0.35 * distance, z + distance), (centre[0], centre[1], z)
+
+
+def swarm_box(
+    positions: np.ndarray | None, geometry: WorldGeometry
+) -> tuple[float, float, float, float]:
+    """The box the camera frames: the robots plus a margin, or the world when there are none."""
+    if positions is None or len(positions) == 0:
+        return geometry.bounds
+    points = np.asarray(positions, dtype=np.float64)
+    margin = max(CAMERA_MARGIN_RANGES * geometry.comm_range, 6 * geometry.robot_radius)
+    (xmin, ymin), (xmax, ymax) = points.min(axis=0) - margin, points.max(axis=0) + margin
+    return float(xmin), float(ymin), float(xmax), float(ymax)
+
+
 def circle_segments(centres: np.ndarray, radius: float, z: float) -> np.ndarray:
     """(N * CIRCLE_SEGMENTS, 2, 3) segments of a circle of `radius` around each centre."""
     angles = np.linspace(0.0, 2.0 * math.pi, CIRCLE_SEGMENTS + 1)
@@ -78,9 +127,11 @@ def circle_segments(centres: np.ndarray, radius: float, z: float) -> np.ndarray:
 
 
 def _lift(points_2d: np.ndarray, z: float) -> np.ndarray:
-    return np.concatenate([points_2d, np.full(points_2d.shape[:-1] + (1,), z)], axis=-1).astype(
-        np.float32
-    )
+    """(..., 2) points as (..., 3) float32 at height z (one allocation)."""
+    lifted = np.empty(points_2d.shape[:-1] + (3,), dtype=np.float32)
+    lifted[..., :2] = points_2d
+    lifted[..., 2] = z
+    return lifted
 
 
 #: Line segment nodes cannot be empty in viser: an invisible zero-length segment stands in.
@@ -103,8 +154,11 @@ class SwarmScene:
         self.show_ranges = False
         self.show_trails = False
         self._robots: viser.BatchedMeshHandle | None = None
+        self._range_rings: viser.BatchedMeshHandle | None = None
         self._robot_count = -1
-        self._trail: deque[np.ndarray] = deque(maxlen=TRAIL_LENGTH)
+        self._trail: np.ndarray | None = None  # (TRAIL_SAMPLES, N, 3) ring buffer
+        self._trail_frames = 0  # frames drawn since the trail was (re)started
+        self._view_box: tuple[float, float, float, float] | None = None
         self._selection: dict[int, int] = {}  # client id -> selected robot index
         self._selection_marks: dict[int, tuple[viser.LineSegmentsHandle, viser.LabelHandle]] = {}
         self.last_frame: SwarmFrame | None = None
@@ -118,14 +172,6 @@ class SwarmScene:
         self._links = server.scene.add_line_segments(
             "/swarm/links", _NO_SEGMENTS, LINK_COLOR, thickness=1.5, thickness_units="screen"
         )
-        self._ranges = server.scene.add_line_segments(
-            "/swarm/ranges",
-            _NO_SEGMENTS,
-            RANGE_COLOR,
-            thickness=1.0,
-            thickness_units="screen",
-            visible=False,
-        )
         self._trails = server.scene.add_point_cloud(
             "/swarm/trails",
             np.zeros((1, 3), dtype=np.float32),
@@ -136,12 +182,14 @@ class SwarmScene:
         )
 
     # ---- world -------------------------------------------------------------------------------
-    def set_world(self, geometry: WorldGeometry) -> None:
-        """Draw the floor, grid and overlay of a world and aim the default camera at it."""
+    def set_world(self, geometry: WorldGeometry, positions: np.ndarray | None = None) -> None:
+        """Draw the floor, grid and overlay of a world, and frame the swarm at `positions`
+        (N, 2) with the default camera and every open tab's camera."""
         with self._lock:
             self.geometry = geometry
-            self._robot_count = -1  # rebuild the robot mesh at the new size
-            self._trail.clear()
+            self._robot_count = -1  # rebuild the robot and range meshes at the new size
+            self._trail = None
+            self._view_box = swarm_box(positions, geometry)
         xmin, ymin, xmax, ymax = geometry.bounds
         width, depth = xmax - xmin, ymax - ymin
         centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
@@ -165,20 +213,22 @@ class SwarmScene:
             )
         else:
             scene.add_line_segments("/world/overlay", _NO_SEGMENTS, (90, 90, 110), visible=False)
-        distance = 1.1 * max(width, depth)
-        self.server.initial_camera.position = (centre[0], centre[1] - 0.35 * distance, distance)
-        self.server.initial_camera.look_at = (centre[0], centre[1], 0.0)
+        position, look_at = camera_pose(self._view_box, geometry.height)
+        self.server.initial_camera.position = position
+        self.server.initial_camera.look_at = look_at
         self.server.initial_camera.up = (0.0, 0.0, 1.0)
+        for client in list(self.server.get_clients().values()):
+            self.aim_camera(client)
 
     def aim_camera(self, client: viser.ClientHandle) -> None:
-        if self.geometry is None:
+        """Point this tab's camera at the swarm as it was when the world was loaded."""
+        if self.geometry is None or self._view_box is None:
             return
-        xmin, ymin, xmax, ymax = self.geometry.bounds
-        distance = 1.1 * max(xmax - xmin, ymax - ymin)
-        centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
-        client.camera.up_direction = (0.0, 0.0, 1.0)
-        client.camera.position = (centre[0], centre[1] - 0.35 * distance, distance)
-        client.camera.look_at = (centre[0], centre[1], 0.0)
+        position, look_at = camera_pose(self._view_box, self.geometry.height)
+        with client.atomic():
+            client.camera.up_direction = (0.0, 0.0, 1.0)
+            client.camera.position = position
+            client.camera.look_at = look_at
 
     # ---- toggles -------------------------------------------------------------------------------
     def set_toggles(
@@ -189,15 +239,16 @@ class SwarmScene:
             self._links.visible = links
         if ranges is not None:
             self.show_ranges = ranges
-            self._ranges.visible = ranges
+            if self._range_rings is not None:
+                self._range_rings.visible = ranges
         if trails is not None:
             self.show_trails = trails
             self._trails.visible = trails
         if self.last_frame is not None:
-            self.draw(self.last_frame)
+            self.draw(self.last_frame, resend_trail=True)
 
     # ---- per frame -------------------------------------------------------------------------------
-    def draw(self, frame: SwarmFrame) -> None:
+    def draw(self, frame: SwarmFrame, resend_trail: bool = False) -> None:
         """Push one frame to every browser (one atomic batch of array updates)."""
         geometry = self.geometry
         if geometry is None:
@@ -211,11 +262,13 @@ class SwarmScene:
             colors = led_colors_to_rgb(frame.led_colors)
             with self.server.atomic():
                 if self._robots is None or self._robot_count != frame.count:
-                    self._build_robot_mesh(frame.count, radius, wxyzs, positions, colors)
+                    self._build_robot_meshes(frame.count, geometry, wxyzs, positions, colors)
                 else:
                     self._robots.batched_positions = positions
                     self._robots.batched_wxyzs = wxyzs
                     self._robots.batched_colors = colors
+                    if self.show_ranges and self._range_rings is not None:
+                        self._range_rings.batched_positions = _lift(frame.positions, z + 0.0003)
                 self._headings.points = self._heading_segments(frame, radius, top)
                 self._failures.points = (
                     circle_segments(frame.positions[frame.failed], radius * 1.35, top)
@@ -228,32 +281,46 @@ class SwarmScene:
                         if frame.links.shape[0]
                         else _NO_SEGMENTS
                     )
-                if self.show_ranges:
-                    self._ranges.points = circle_segments(
-                        frame.positions, geometry.comm_range, z + 0.0003
-                    )
-                self._trail.append(frame.positions.astype(np.float32).copy())
-                if self.show_trails and len(self._trail) > 1:
-                    same = [p for p in self._trail if p.shape == frame.positions.shape]
-                    self._trails.points = _lift(np.concatenate(same, axis=0), z + 0.0002)
+                self._sample_trail(frame, z + 0.0002, resend_trail)
             self._draw_selections(frame)
 
-    def _heading_segments(self, frame: SwarmFrame, radius: float, top: float) -> np.ndarray:
-        tips = frame.positions + 1.1 * radius * np.stack(
-            [np.cos(frame.headings), np.sin(frame.headings)], axis=1
-        )
-        return _lift(np.stack([frame.positions, tips], axis=1), top)
+    def _sample_trail(self, frame: SwarmFrame, z: float, resend: bool) -> None:
+        """Keep one position sample every `TRAIL_SAMPLE_FRAMES` frames; send the trail only
+        when a sample was added (or on request), and only while trails are shown."""
+        count = frame.count
+        if self._trail is None or self._trail.shape[1] != count:
+            self._trail = np.empty((TRAIL_SAMPLES, count, 3), dtype=np.float32)
+            self._trail[:] = _lift(frame.positions, z)  # unfilled samples sit on the robots
+            self._trail_frames = 0
+        added = self._trail_frames % TRAIL_SAMPLE_FRAMES == 0
+        if added:
+            slot = (self._trail_frames // TRAIL_SAMPLE_FRAMES) % TRAIL_SAMPLES
+            self._trail[slot, :, :2] = frame.positions
+        self._trail_frames += 1
+        if self.show_trails and (added or resend):
+            self._trails.points = self._trail.reshape(-1, 3)
 
-    def _build_robot_mesh(
+    def _heading_segments(self, frame: SwarmFrame, radius: float, top: float) -> np.ndarray:
+        segments = np.empty((frame.count, 2, 3), dtype=np.float32)
+        segments[:, 0, :2] = frame.positions
+        segments[:, 1, 0] = frame.positions[:, 0] + 1.1 * radius * np.cos(frame.headings)
+        segments[:, 1, 1] = frame.positions[:, 1] + 1.1 * radius * np.sin(frame.headings)
+        segments[:, :, 2] = top
+        return segments
+
+    def _build_robot_meshes(
         self,
         count: int,
-        radius: float,
+        geometry: WorldGeometry,
         wxyzs: np.ndarray,
         positions: np.ndarray,
         colors: np.ndarray,
     ) -> None:
-        if self._robots is not None:
-            self._robots.remove()
+        """The robots' mesh and the range rings' mesh, built for `count` instances."""
+        for handle in (self._robots, self._range_rings):
+            if handle is not None:
+                handle.remove()
+        radius = geometry.robot_radius
         vertices, faces = cylinder_mesh(radius, 0.6 * radius)
         self._robots = self.server.scene.add_batched_meshes_simple(
             "/swarm/robots",
@@ -266,8 +333,26 @@ class SwarmScene:
             cast_shadow=False,
             receive_shadow=False,
         )
+        ring_vertices, ring_faces = ring_mesh(
+            geometry.comm_range, RANGE_RING_WIDTH * geometry.comm_range
+        )
+        ring_positions = positions.copy()
+        ring_positions[:, 2] = geometry.height + 0.0003
+        self._range_rings = self.server.scene.add_batched_meshes_simple(
+            "/swarm/ranges",
+            ring_vertices,
+            ring_faces,
+            batched_wxyzs=np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (count, 1)),
+            batched_positions=ring_positions,
+            batched_colors=RANGE_COLOR,
+            lod="off",
+            cast_shadow=False,
+            receive_shadow=False,
+            side="double",
+            visible=self.show_ranges,
+        )
         self._robot_count = count
-        self._trail.clear()
+        self._trail = None
 
         @self._robots.on_click
         def _(event: viser.SceneNodePointerEvent) -> None:

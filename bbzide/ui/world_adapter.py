@@ -48,7 +48,8 @@ DEFAULT_ROBOTS = 25
 IDE_INSTRUCTION_BUDGET = 5_000
 
 #: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
-#: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash).
+#: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash; the build
+#: view's budget for the .bbo is the compiler room's FLASH_BUDGETS).
 PLATFORM_MEMORY = {"kilobot": (2048, 32768)}
 
 
@@ -98,7 +99,11 @@ class WorldsBackend:
         return self._profiles[self._worlds[world].profile]
 
     def flash_budget(self, world: str) -> int | None:
-        return PLATFORM_MEMORY.get(self.platform(world).name, (None, None))[1]
+        """Bytes of flash left for the `.bbo` (the compiler room's `FLASH_BUDGETS`: flash less
+        the boot section and the BBZVM), not the whole flash."""
+        budgets = _import("bbzide.compiler.footprint").FLASH_BUDGETS
+        budget = budgets.get(self.platform(world).name)
+        return None if budget is None else int(budget.bytes_for_bytecode)
 
     def host_names(self, world: str) -> list[str]:
         return list(self._worlds[world].host_names)
@@ -250,7 +255,6 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int
             error_line = _source_line(where)
     gsyms = int(vm.gsyms)
     globals_ = reader.named_entries(gsyms)
-    by_name = dict(globals_)
     return RobotInspection(
         robot_index=index,
         robot_id=int(getattr(robot, "robot_id", index)),
@@ -268,21 +272,19 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int
         gc_runs=int(heap.gc_runs),
         ram_bytes=PLATFORM_MEMORY.get(profile.name, (None, None))[0],
         objects=decoded.objects,
-        frames=_stack_rows(vm, reader),
+        frames=_frame_rows(vm, program) + _stack_rows(vm, reader),
         globals=globals_,
         stigmergy=_stigmergy_rows(vm, reader, strings),
-        neighbors=_neighbor_rows(vm, profile, reader, gsyms),
-        swarms=[f"swarm = {by_name['swarm']}"] if "swarm" in by_name else [],
+        neighbors=_neighbor_rows(vm),
+        swarms=_swarm_rows(vm),
         in_queue=[_message_text(m) for m in vm.queues.in_messages()],
         out_queue=[_message_text(m) for m in vm.queues.out_messages()],
         last_error=error_text,
         last_error_line=error_line,
-        warnings=_runtime_warnings(vm),
+        warnings=_runtime_warnings(vm, getattr(robot, "last_sent", None) or []),
     )
 
 
-#: Wire payload of one message on every BittyBuzz robot (notes §F.4: Kilobot `data[9]`).
-DEFAULT_PAYLOAD_BYTES = 9
 #: The inspector lists at most this many stack entries (the top ones): a screenful.
 STACK_ROWS = 24
 
@@ -305,23 +307,66 @@ def _stigmergy_rows(vm: Any, reader: HeapReader, strings: list[str]) -> list[tup
     return rows
 
 
-def _neighbor_rows(vm: Any, profile: Any, reader: HeapReader, gsyms: int
-                   ) -> list[tuple[str, str]]:
-    """XTREME builds keep neighbors in a ring buffer outside the heap; others in a table."""
-    if profile.xtreme:
-        return [(f"robot {n.robot}", f"distance {n.distance}, azimuth {n.azimuth}")
-                for n in vm.neighbors.entries()]
-    table = reader.named_refs(gsyms).get("neighbors")
-    return [] if table is None else reader.named_entries(table)
+def _frame_rows(vm: Any, program: Any) -> list[str]:
+    """Call frames, innermost first, with the source line each returns to (the VM room's
+    `stack_frames`); empty between two steps, when no Buzz function is running."""
+    frames = _import("bbzide.vm.inspector").stack_frames(vm)
+    rows = []
+    for depth, frame in enumerate(frames):
+        where = program.location_of(frame.return_pc) if hasattr(program, "location_of") else None
+        line = f" (line {where.line})" if where is not None and where.line else ""
+        rows.append(f"frame {depth}: returns to pc {frame.return_pc}{line}, base {frame.base}")
+    return rows
 
 
-def _runtime_warnings(vm: Any) -> list[str]:
-    """Pitfalls only a running VM can see: messages filling the payload."""
-    for message in vm.queues.out_messages():
-        if isinstance(message, bytes | bytearray) and len(message) >= DEFAULT_PAYLOAD_BYTES - 1:
-            return [f"outgoing message of {len(message)} B is near the "
-                    f"{DEFAULT_PAYLOAD_BYTES} B payload"]
-    return []
+def _neighbor_rows(vm: Any) -> list[tuple[str, str]]:
+    """Neighbor data as the robot's VM holds it (the VM room's `neighbor_entries`: XTREME ring
+    buffer or heap sub-table): id, distance, azimuth, elevation."""
+    rows = []
+    for n in _import("bbzide.vm.inspector").neighbor_entries(vm):
+        rows.append((f"robot {n.robot}", f"distance {_number(n.distance)}, azimuth "
+                     f"{_number(n.azimuth)}, elevation {_number(n.elevation)}"))
+    return rows
+
+
+def _number(value: Any) -> str:
+    return "?" if value is None else f"{value:.3g}" if isinstance(value, float) else str(value)
+
+
+def _swarm_rows(vm: Any) -> list[str]:
+    """Swarm memberships (`my_swarmlist`, 8 bits) and the swarm stack (`swarm.id()`)."""
+    view = _import("bbzide.vm.inspector").swarm_view(vm)
+    member = ", ".join(map(str, view.member_of)) or "none"
+    rows = [f"member of: {member} (bits {view.membership_bits:08b})"]
+    if view.executing:
+        rows.append("executing in swarm: " + " > ".join(map(str, view.executing)))
+    return rows
+
+
+def _runtime_warnings(vm: Any, last_sent: list[bytes]) -> list[str]:
+    """Pitfalls only a running VM can see in its queues.
+
+    * A table sent in a message (queued, sent in the last step, or received): the 9-byte
+      payload carries one 3-byte value, so BittyBuzz sends the table's type and the robot id
+      only; the receivers never see its contents.
+    * The outgoing queue full: one more message hits the firmware's overflow bug (stale bytes
+      sent instead of the new message).
+    """
+    messages = _import("bbzide.vm.messages")
+    valued = (messages.BROADCAST, messages.VSTIG_PUT, messages.VSTIG_QUERY)
+    warnings = []
+    queues = vm.queues
+    outgoing = queues.out_messages()
+    # `serialize` stops after the type and robot id when the value is a table (3 bytes); the
+    # out-queue is drained at the end of each step, hence `last_sent`
+    seen = outgoing + list(last_sent) + queues.in_messages()
+    if any(len(m) == 3 and m[0] in valued for m in seen):
+        warnings.append("a table is being sent: BittyBuzz messages carry one 3-byte value, so "
+                        "only its type goes out (the receivers get no contents)")
+    if len(outgoing) >= queues.out_capacity:
+        warnings.append(f"outgoing queue full ({len(outgoing)}/{queues.out_capacity}): the next "
+                        "message hits the firmware's overflow bug (stale bytes are sent)")
+    return warnings
 
 
 def _message_text(message: Any) -> str:

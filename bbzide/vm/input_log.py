@@ -119,6 +119,9 @@ class CapturingRobot:
         self._on_boot = on_boot
         #: Seconds spent in captured control steps (the recorder keyframes by this budget).
         self.busy_seconds = 0.0
+        #: The payloads the last control step sent (the inspector reads them: the out-queue is
+        #: drained at the end of every step).
+        self.last_sent: list[bytes] = []
 
     # the engine's FirmwareLoop protocol ---------------------------------------------------------
     def boot(self) -> None:
@@ -136,12 +139,14 @@ class CapturingRobot:
 
     def control_step(self) -> list[bytes]:
         if not self.capturing:
-            return self.robot.control_step()
+            self.last_sent = self.robot.control_step()
+            return self.last_sent
         self.current.stepped = True
         self.tap.log = self.current.host_calls
         started = time.perf_counter()
         try:
-            return self.robot.control_step()
+            self.last_sent = self.robot.control_step()
+            return self.last_sent
         finally:
             self.tap.log = None
             self.busy_seconds += time.perf_counter() - started
@@ -260,6 +265,18 @@ _I64 = struct.Struct("<q")
 _F64 = struct.Struct("<d")
 
 
+#: One received message in one `pack` call (the same bytes as the layout above), by (payload
+#: length, which): an M300 swarm receives hundreds of messages a step, and three packs and
+#: four concatenations each were most of the encoding time.
+_MESSAGE_LAYOUTS: dict[tuple[int, int], struct.Struct] = {}
+
+
+def _message_layout(length: int, which: int) -> struct.Struct:
+    extra = "d" * (bin(which).count("1"))
+    layout = _MESSAGE_LAYOUTS[(length, which)] = struct.Struct(f"<H{length}sBd{extra}")
+    return layout
+
+
 class InputLogError(ValueError):
     """Bytes that are not an input log (a corrupt recording)."""
 
@@ -289,11 +306,16 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
                           len(inputs.host_calls))
         for message, distance, azimuth, elevation in inputs.received:
             which = (1 if azimuth != 0.0 else 0) | (2 if elevation != 0.0 else 0)
-            out += _U16.pack(len(message)) + message + bytes([which]) + _F64.pack(distance)
-            if which & 1:
-                out += _F64.pack(azimuth)
-            if which & 2:
-                out += _F64.pack(elevation)
+            layout = _MESSAGE_LAYOUTS.get((len(message), which)) or _message_layout(
+                len(message), which)
+            if which == 0:
+                out += layout.pack(len(message), message, which, distance)
+            elif which == 1:
+                out += layout.pack(len(message), message, which, distance, azimuth)
+            elif which == 2:
+                out += layout.pack(len(message), message, which, distance, elevation)
+            else:
+                out += layout.pack(len(message), message, which, distance, azimuth, elevation)
         for call in inputs.host_calls:
             name = call.name.encode()
             out += bytes([len(name)]) + name + bytes([len(call.effects)])
@@ -343,12 +365,49 @@ class _Reader:
         raise InputLogError(f"unknown value tag {tag!r} in input log")
 
 
-def decode_step(data: bytes) -> dict[int, StepInputs]:
-    """`encode_step`'s bytes back: robot index -> its inputs."""
+def _skip_value(reader: _Reader) -> None:
+    tag = reader.take(1)
+    if tag == b"I" or tag == b"D":
+        reader.take(8)
+    elif tag == b"T":
+        for _ in range(reader.byte()):
+            reader.take(reader.byte())
+            _skip_value(reader)
+    elif tag != b"N":
+        raise InputLogError(f"unknown value tag {tag!r} in input log")
+
+
+def _skip_record(reader: _Reader, messages: int, calls: int) -> None:
+    """Step over one robot's record without building it (a seek needs one robot of 25)."""
+    for _ in range(messages):
+        length = _U16.unpack(reader.take(2))[0]
+        reader.take(length)
+        which = reader.byte()
+        reader.take(8 * (1 + (which & 1) + (which >> 1 & 1)))
+    for _ in range(calls):
+        reader.take(reader.byte())
+        for _ in range(reader.byte()):
+            tag = reader.take(1)
+            if tag == b"E":
+                reader.take(1)
+            elif tag == b"F":
+                reader.take(reader.byte())
+            elif tag == b"R":
+                _skip_value(reader)
+            else:
+                raise InputLogError(f"unknown host effect {tag!r} in input log")
+
+
+def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
+    """`encode_step`'s bytes back: robot index -> its inputs (with `only`, just that robot's:
+    the other records are stepped over, not built)."""
     reader = _Reader(data)
     result: dict[int, StepInputs] = {}
     for _ in range(reader.unpack(_U16)[0]):
         index, flags, messages, calls = reader.unpack(_HEAD)
+        if only is not None and index != only:
+            _skip_record(reader, messages, calls)
+            continue
         inputs = StepInputs(stepped=bool(flags & 1))
         for _ in range(messages):
             message = reader.take(reader.unpack(_U16)[0])

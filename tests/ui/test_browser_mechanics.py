@@ -61,35 +61,42 @@ def test_play_advances_the_step_counter(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Play").click()
 
 
-def settled_error_line(ide: IdeSession, typed: str) -> int:
-    """Wait until the typed line is saved and compiled (no debounced upload of a half-typed
-    line still pending), and return that line's number in the saved text."""
-    app = ide.app
+def settled(ide: IdeSession, typed_end: str) -> None:
+    """Wait until the text ending in `typed_end` is saved and compiled: no debounced upload of a
+    half-typed line is still pending, so markers and programs belong to the whole edit."""
+    session = ide.app.session
     wait_until(
-        lambda: app.session.text.rstrip("\n").endswith(typed)
-        and app.session.outcome is not None
-        and app.session.outcome.revision == app.session.revision,
+        lambda: (
+            session.text.rstrip("\n").endswith(typed_end)
+            and session.outcome is not None
+            and session.outcome.revision == session.revision
+        ),
         30,
-        message="the typed line saved and compiled",
+        message=f"the text ending in {typed_end!r} saved and compiled",
     )
-    return app.session.text.splitlines().index(typed) + 1
 
 
 def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSession) -> None:
+    # Typing is character by character, and on a loaded machine the 400 ms debounce may fire
+    # mid-word: a prefix such as "red = @" is a valid program for the double, so the program
+    # generation is read only once the whole line is compiled, and the fix is awaited by its
+    # text, not by counting reloads.
     app = ide.app
-    generation = app.controller.status.program_generation
     source = ide.editor.locator("#source")
     source.click()
     ide.page.keyboard.press("Control+End")
-    ide.page.keyboard.type("\nred = @@ 2")  # line 10, column 6
+    ide.page.keyboard.type("\nred = @@ 2")
+    settled(ide, "red = @@ 2")
+    line = app.session.text.splitlines().index("red = @@ 2") + 1
+    assert line == SCRIPT.count("\n") + 2 == 10  # SCRIPT ends with a newline: one line past
     marker = ide.editor.locator("#gutter div.error-line")
-    marker.wait_for(timeout=10_000)
-    settled = settled_error_line(ide, "red = @@ 2")
-    assert settled == 10
     wait_until(lambda: marker.get_attribute("data-line") == "10", 10, message="marker on 10")
     assert ide.editor.locator(".error-span").first.inner_text().startswith("@")
     assert "10:6" in ide.editor.locator("#diagnostics").inner_text()
     ide.screenshot("mechanics_syntax_error")
+    generation = app.controller.status.program_generation
+    running = app.session.last_good
+    assert running is not None and "@@" not in running.program.text
     step = ide.shown_step()
     wait_until(lambda: ide.shown_step() > step + 3, 10, message="robots keep running the old code")
     assert app.controller.status.program_generation == generation
@@ -97,14 +104,14 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     for _ in range(4):
         ide.page.keyboard.press("Backspace")  # "red = @@ 2" -> "red = "
     ide.page.keyboard.type("2")
-    ide.editor.locator("#gutter div.error-line").wait_for(state="detached", timeout=10_000)
-    wait_until(
-        lambda: app.controller.status.program_generation == generation + 1,
-        10,
-        message="robots reloaded",
-    )
+    settled(ide, "\nred = 2")
+    assert app.session.outcome is not None and app.session.outcome.ok
+    marker.wait_for(state="detached", timeout=10_000)
     sim = app.backend.created[-1]  # type: ignore[attr-defined]
-    assert sim.program.text.endswith("\nred = 2")
+    wait_until(
+        lambda: sim.program.text.endswith("\nred = 2"), 10, message="robots on the fixed code"
+    )
+    assert app.controller.status.program_generation > generation
     wait_until(lambda: ide.shown_step() > 0, 10, message="running")
 
 

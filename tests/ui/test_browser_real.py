@@ -75,41 +75,59 @@ def test_clicked_robot_shows_its_vms_rop_and_lsp(ide: IdeSession) -> None:
 
 
 def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> None:
+    # Typing is character by character and the upload is debounced: on a loaded machine a
+    # prefix (the original text plus an empty line) may compile and reload the robots before
+    # the broken line is complete. So every expectation is read once the whole edit is saved
+    # and compiled: the marker's line from the saved text, the generation after the error.
     app = ide.app
-    original = app.session.text
-    generation = app.controller.status.program_generation
+    session = app.session
+    original = session.text
     source = ide.editor.locator("#source")
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("\nx = = 1")
-    marker = ide.editor.locator("#gutter div.error-line")
-    marker.wait_for(timeout=15_000)
     wait_until(
-        lambda: app.session.text.rstrip("\n").endswith("x = = 1")
-        and app.session.outcome is not None
-        and app.session.outcome.revision == app.session.revision,
+        lambda: (
+            session.text.rstrip("\n").endswith("x = = 1")
+            and session.outcome is not None
+            and session.outcome.revision == session.revision
+        ),
         30,
         message="the typed line saved and compiled",
     )
-    broken_line = app.session.text.splitlines().index("x = = 1") + 1
+    assert session.outcome is not None and not session.outcome.ok
+    broken_line = session.text.splitlines().index("x = = 1") + 1
+    assert broken_line == len(original.splitlines()) + (2 if original.endswith("\n") else 1)
+    marker = ide.editor.locator("#gutter div.error-line")
     wait_until(
         lambda: marker.get_attribute("data-line") == str(broken_line),
-        10,
+        15,
         message=f"marker on line {broken_line}",
     )
     ide.screenshot("real_compile_error")
-    assert app.controller.status.program_generation == generation
-    source.fill(original + "\nfixed = 1\n")
+    generation = app.controller.status.program_generation
+    fixed = original + "\nfixed = 1\n"
+    source.fill(fixed)  # one input event: one upload
     wait_until(
-        lambda: app.controller.status.program_generation == generation + 1,
+        lambda: (
+            session.text == fixed
+            and session.outcome is not None
+            and session.outcome.revision == session.revision
+        ),
+        30,
+        message="the fix saved and compiled",
+    )
+    assert session.outcome is not None and session.outcome.ok, session.outcome.diagnostics
+    wait_until(
+        lambda: app.controller.status.program_generation > generation,
         15,
         message="robots reloaded on the fix",
     )
-    good = app.session.last_good
+    good = session.last_good
     assert (
         good is not None
         and good.program.bbo
-        == BACKEND.compile(app.session.text, app.session.path, app.controller.settings.world)[1].bbo
+        == BACKEND.compile(fixed, session.path, app.controller.settings.world)[1].bbo
     )
 
 

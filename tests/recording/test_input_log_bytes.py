@@ -1,0 +1,49 @@
+"""The per-step input log's bytes: every kind of input survives encode -> decode, and decoding
+one robot's record (what a seek does) gives exactly that robot's inputs."""
+
+from __future__ import annotations
+
+import pytest
+
+from bbzide.vm.input_log import (
+    HostCallRecord,
+    InputLogError,
+    StepInputs,
+    decode_step,
+    encode_step,
+)
+
+
+def inputs_of(robot: int) -> StepInputs:
+    """Robot-dependent inputs using every layout: bearings present or not, each effect kind,
+    every value tag (nil, int, float, nested table)."""
+    received = [
+        (bytes([0, robot, 0, 7, 0, 1, 2, 3]), 12.5 + robot, 0.0, 0.0),
+        (bytes([1, 2, 0, 9, 0, 4, 5, 6, robot]), 3.0, -1.25, 0.0),
+        (bytes([0, 3, 0]), 7.0, 0.0, 2.5),
+        (bytes([2, 1, 0, 4, 0, 9, 9, 9, 1]), 0.5, 1.0, -0.75),
+    ][: 1 + robot % 4]
+    calls = [
+        HostCallRecord("position", [("expect", 0), ("ret", {"x": robot, "y": 2.5, "z": None})]),
+        HostCallRecord("goto", [("expect", 2), ("fail", "TYPE")]),
+        HostCallRecord("rand", [("ret", -robot * 1000)]),
+        HostCallRecord("nested", [("ret", {"a": {"b": 1.0}, "c": 3})]),
+    ][: robot % 5]
+    return StepInputs(received, stepped=robot % 3 != 0, host_calls=calls)
+
+
+def test_every_input_round_trips_and_one_robot_decodes_alone() -> None:
+    records = [(index, inputs_of(index)) for index in (0, 1, 2, 4, 7, 11)]
+    data = encode_step(records)
+    assert decode_step(data) == dict(records)
+    for index, inputs in records:
+        assert decode_step(data, only=index) == {index: inputs}
+    assert decode_step(data, only=3) == {}  # a robot with no record this step
+
+
+def test_a_torn_record_is_an_error_even_when_skipped() -> None:
+    data = encode_step([(0, inputs_of(1)), (1, inputs_of(2))])
+    with pytest.raises(InputLogError):
+        decode_step(data[:-3], only=1)
+    with pytest.raises(InputLogError):
+        decode_step(data[:20], only=1)  # cut inside robot 0's record, which is stepped over

@@ -1,0 +1,68 @@
+"""The inspector's runtime rows on real Kilobot VMs: neighbors, swarm memberships, pitfalls.
+
+A script joins swarm 3 and broadcasts a table every step. The inspector must list each robot's
+neighbors as its VM holds them (ids of the robots within IR range, distances in mm as the
+world measured them), its swarm membership (not the `swarm` library table), and warn that a
+table goes out as its type only (BittyBuzz's 9-byte payload carries one 3-byte value).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+
+try:
+    BACKEND: WorldsBackend | None = WorldsBackend()
+except MissingRoomError:
+    BACKEND = None
+
+pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+
+SCRIPT = """
+got = 0
+function init() {
+  s = swarm.create(3)
+  s.join()
+  neighbors.listen("t", function(vid, value, rid) { got = got + 1 })
+}
+function step() {
+  neighbors.broadcast("t", TABLE)
+}
+"""
+
+
+def run(tmp_path: Path, value: str) -> object:
+    assert BACKEND is not None
+    path = tmp_path / "probe.bzz"
+    text = SCRIPT.replace("TABLE", value)
+    path.write_text(text)
+    _, program = BACKEND.compile(text, path, "kilobot")
+    sim = BACKEND.create("kilobot", program, 4, 1)
+    for _ in range(3):
+        sim.step()
+    return sim
+
+
+def test_neighbors_swarms_and_the_table_warning(tmp_path: Path) -> None:
+    sim = run(tmp_path, "{.a = 1}")
+    view = sim.inspect(0)
+    frame = sim.frame()
+    distances = np.linalg.norm(frame.positions - frame.positions[0], axis=1)
+    comm_range = sim.geometry().comm_range
+    in_range = {frame.robot_ids[k] for k in range(1, frame.count) if distances[k] < comm_range}
+    listed = {int(name.split()[1]): value for name, value in view.neighbors}
+    assert set(listed) == in_range and in_range
+    for robot, value in listed.items():
+        measured = int(value.split(",")[0].split()[1])
+        assert abs(measured - 1000 * distances[frame.robot_ids.index(robot)]) < 5
+    assert view.swarms == ["member of: 3 (bits 00001000)"]
+    assert any("a table is being sent" in w for w in view.warnings)
+
+
+def test_no_table_no_warning(tmp_path: Path) -> None:
+    view = run(tmp_path, "7").inspect(0)
+    assert not any("table" in w for w in view.warnings)

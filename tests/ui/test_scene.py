@@ -1,0 +1,87 @@
+"""The scene without a browser: camera framing on world load, range rings, sampled trails.
+
+Each test reads back what the viser handles would send, so it checks the arrays a browser gets.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+import viser
+
+from bbzide.ui.scene import TRAIL_SAMPLE_FRAMES, TRAIL_SAMPLES, SwarmScene, camera_pose, swarm_box
+from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
+
+#: A 36 m field with 10 m radios and 0.5 m drones flying at 5 m (the M300 world's scale).
+FIELD = WorldGeometry(0.5, 10.0, (0.0, 0.0, 36.0, 36.0), np.zeros((0, 2, 2)), height=5.0)
+
+
+def frame(step: int, positions: np.ndarray) -> SwarmFrame:
+    count = len(positions)
+    return SwarmFrame(
+        step,
+        positions,
+        np.zeros(count),
+        np.full((count, 3), 0.5),
+        np.zeros(count, dtype=bool),
+        np.zeros((0, 2), dtype=np.int32),
+        list(range(count)),
+    )
+
+
+@pytest.fixture
+def server() -> Iterator[viser.ViserServer]:
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    yield server
+    server.stop()
+
+
+def test_world_load_frames_the_swarm_not_the_field(server: viser.ViserServer) -> None:
+    corner = np.array([[2.0, 2.0], [4.0, 3.0], [3.0, 5.0]])  # a swarm at the rendezvous corner
+    SwarmScene(server).set_world(FIELD, corner)
+    look_at = np.asarray(server.initial_camera.look_at)
+    position = np.asarray(server.initial_camera.position)
+    np.testing.assert_allclose(look_at, [3.0, 3.5, 5.0])  # the swarm's centre, at flight height
+    box = swarm_box(corner, FIELD)
+    assert box == (-8.0, -8.0, 14.0, 15.0)  # the robots grown by one radio range
+    assert position[2] - 5.0 == pytest.approx(1.1 * 23.0)  # sees the 23 m box, not 36 m
+    world_view = camera_pose(FIELD.bounds, FIELD.height)[0]
+    assert position[2] < world_view[2]
+    assert swarm_box(None, FIELD) == FIELD.bounds  # no robots yet: the whole world
+
+
+def test_range_rings_follow_the_robots(server: viser.ViserServer) -> None:
+    scene = SwarmScene(server)
+    scene.set_world(FIELD)
+    rng = np.random.default_rng(3)
+    scene.draw(frame(0, rng.uniform(0, 36, size=(20, 2))))
+    scene.set_toggles(ranges=True)
+    moved = rng.uniform(0, 36, size=(20, 2))
+    scene.draw(frame(1, moved))
+    rings = scene._range_rings
+    assert rings is not None and rings.visible
+    np.testing.assert_allclose(np.asarray(rings.batched_positions)[:, :2], moved, rtol=1e-6)
+    scene.set_toggles(ranges=False)
+    assert not rings.visible
+
+
+def test_trails_sample_every_few_frames_into_a_fixed_buffer(server: viser.ViserServer) -> None:
+    scene = SwarmScene(server)
+    scene.set_world(FIELD)
+    scene.set_toggles(trails=True)
+    positions = np.array([[1.0, 1.0], [2.0, 2.0]])
+    sent = []
+    for step in range(2 * TRAIL_SAMPLES * TRAIL_SAMPLE_FRAMES):
+        scene.draw(frame(step, positions + [step, 0.0]))
+        sent.append(np.asarray(scene._trails.points).copy())
+    assert all(points.shape == (TRAIL_SAMPLES * 2, 3) for points in sent[1:])
+    # a new sample every TRAIL_SAMPLE_FRAMES frames; the frames between send nothing new
+    changes = [k for k in range(1, len(sent)) if not np.array_equal(sent[k], sent[k - 1])]
+    assert changes == list(range(TRAIL_SAMPLE_FRAMES, len(sent), TRAIL_SAMPLE_FRAMES))
+    # the buffer holds the last TRAIL_SAMPLES samples of robot 0 (the points at y = 1)
+    steps = len(sent)
+    sampled = range(0, steps, TRAIL_SAMPLE_FRAMES)[-TRAIL_SAMPLES:]
+    robot0 = sent[-1][sent[-1][:, 1] == 1.0]
+    assert sorted(robot0[:, 0].tolist()) == [1.0 + s for s in sampled]
