@@ -56,6 +56,9 @@ class Heap:
         self.reserved = profile.rsv_actrec
         # The firmware's heap is a zero-initialised static array.
         self.data = bytearray(self.size)
+        #: the same bytes as a numpy array: what the compiled kernels take (one numba
+        #: specialisation for every caller instead of one for bytearray and one for arrays)
+        self.view = np.frombuffer(self.data, np.uint8)
         self.rtobj = self.reserved * self.obj_size
         self.ltseg = self.size
         self.peak_used = 0
@@ -143,7 +146,7 @@ class Heap:
         d = self.data
         s = self.obj_size
         # the first-fit scan (and string dedupe) runs compiled: see fastgc.first_free
-        found = _first_free(d, self.rtobj, s, self.reserved, typ, string_id)
+        found = _first_free(self.view, self.rtobj, s, self.reserved, typ, string_id)
         if found < -1:
             self.prior_mdata = d[(-2 - found) * s]
             return -2 - found
@@ -224,7 +227,7 @@ class Heap:
 
     def seg_alloc(self) -> int:
         """``bbzheap_tseg_alloc``: first invalid segment slot, else grow left."""
-        found = _first_free_segment(self.data, self.ltseg, self.size, self.seg_size,
+        found = _first_free_segment(self.view, self.ltseg, self.size, self.seg_size,
                                     self.elems)
         if found < 0:
             if self.ltseg - self.seg_size < self.rtobj:

@@ -61,7 +61,7 @@ def compare(heap: Heap, a: int, b: int) -> int:
 # ---- tables ---------------------------------------------------------------------------
 def table_get(heap: Heap, t: int, k: int) -> int | None:
     """The value index stored under key object ``k``, or None (absent or not a table)."""
-    v = _table_lookup(heap.data, t, k, heap.obj_size, heap.elems)
+    v = _table_lookup(heap.view, t, k, heap.obj_size, heap.elems)
     return None if v < 0 else v
 
 
@@ -188,17 +188,17 @@ def darray_pop(heap: Heap, d: int) -> bool:
 
 
 def darray_get(heap: Heap, d: int, i: int) -> int | None:
-    v = _darray_get(heap.data, d, i, heap.obj_size, heap.elems)
+    v = _darray_get(heap.view, d, i, heap.obj_size, heap.elems)
     return None if v < 0 else v
 
 
 def darray_set(heap: Heap, d: int, i: int, v: int) -> bool:
-    return _darray_set(heap.data, d, i, v, heap.obj_size, heap.elems)
+    return _darray_set(heap.view, d, i, v, heap.obj_size, heap.elems)
 
 
 def darray_size(heap: Heap, d: int) -> int:
     """Count valid elements up to the first invalid one; unlinks what follows (quirk)."""
-    return _darray_size(heap.data, d, heap.obj_size, heap.elems)
+    return _darray_size(heap.view, d, heap.obj_size, heap.elems)
 
 
 def darray_elements(heap: Heap, d: int) -> list[int]:

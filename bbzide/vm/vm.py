@@ -127,7 +127,7 @@ class VM:
         #: u16 heap indices, as the C; an ``array`` so the compiled kernel shares it
         self.stack = array("H", bytes(2 * profile.stack_size))
         self._stack_view = np.frombuffer(self.stack, np.uint16)
-        self._heap_view = np.frombuffer(self.heap.data, np.uint8)
+        self._heap_view = self.heap.view
         self._bcode_view = np.zeros(0, np.uint8)
         self._bcode_of_view = b""
         self.stack_size = profile.stack_size
@@ -243,7 +243,7 @@ class VM:
         h = self.heap
         h.gc_runs += 1
         sp = self.stackptr
-        r = _collect(h.data, self._stack_view, sp, h.rtobj, h.ltseg,
+        r = _collect(h.view, self._stack_view, sp, h.rtobj, h.ltseg,
                      h.gc_info, h.gc_traversed, *self._geometry)
         h.rtobj = r >> 16
         h.ltseg = r & 0xFFFF
