@@ -2,12 +2,14 @@
 
 Cases (issue #4): the Kilobot table with 100 and 1,000 robots running the gradient example,
 the Crazyflie lab with 10 drones running the consensus example, and the M300 field with 25
-drones when a world called "m300" is registered (the sar room). Each case boots the swarm,
+drones running the flocking example and the search-and-rescue mission (examples/sar/sar.bzz, a
+30 m arena: the thesis §5.4 sweep's middle size; its figure sets the sweep's wall time, see
+README "Search and rescue"). Each case boots the swarm,
 runs a few warm-up steps, then times `seconds` of steps and prints steps/s next to the goal
 (100 Kilobots >= 60 steps/s, 1,000 >= 10) and the share of step time spent in the engine's
 phases (`Simulation.timings`: sense, vm = receive + control_step, radio, physics).
 
-    PYTHONPATH=. python benchmarks/world_bench.py [seconds per case, default 5]
+    PYTHONPATH=. python benchmarks/world_bench.py [seconds per case, default 5] [world]
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ CASES = [
     ("kilobot", 1000, "examples/kilobot/gradient.bzz", {"width": 2.0, "height": 2.0}, 10.0),
     ("crazyflie", 10, "examples/crazyflie/consensus.bzz", {}, None),
     ("m300", 25, None, {}, None),
+    ("m300", 25, "examples/sar/sar.bzz", {"size": 30.0}, None),
 ]
 WARM_UP_STEPS = 3
 
@@ -59,10 +62,14 @@ def bench(world: str, robots: int, script: str | None, options: dict, seconds: f
 
 def main() -> None:
     seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 5.0
+    only = sys.argv[2] if len(sys.argv) > 2 else None      # e.g. `m300`: one world's cases
     print(f"{'case':28} {'steps/s':>9} {'goal':>6} {'vm':>5} {'radio':>6} {'physics':>8} "
           f"{'sense':>6} {'msg/step':>9} {'boot s':>7} errors")
     for world, robots, script, options, goal in CASES:
-        label = f"{world} x {robots}"
+        example = script or (WORLDS[world].example if world in WORLDS else "")
+        label = f"{world} x {robots} {Path(example).stem}"
+        if only is not None and world != only:
+            continue
         if world not in WORLDS:
             print(f"{label:28} (world not registered in this build)")
             continue

@@ -36,7 +36,9 @@ it); the default mode is for users. Each row: reference behaviour -> default / r
    both: the same message, located at the last token of the script.
    Lexer errors are reported one column left of the character (as the reference); for a
    character in column 0 we report column 0, not -1.
-12. Not quirks but easy to trip on, kept in both modes as the reference: `0x1F` is `0` then
+12. An include cycle (a file includes one that is still being read) is skipped silently.
+   default: skipped (same code) + warning naming the cycle; reference: skipped, no warning.
+13. Not quirks but easy to trip on, kept in both modes as the reference: `0x1F` is `0` then
    `x1F`; `1.2.3` is a float; newlines and `;` are optional separators
    (`for (i = 0; ...)` fails with "expected ,").
 """

@@ -225,11 +225,17 @@ class Parser:
         self.advance()
         self.scopes.append({})
         self.add_local("self")
+        self.params_and_body(node, previous, docstring=True)
+
+    def params_and_body(self, node: Node, previous: list[str], docstring: bool) -> None:
+        """`(a, b) { ... }` of a function or lambda whose scope is already open: parameters,
+        body, the closing `ret0`; then the scope and the code chunk are closed. Named
+        functions may carry a docstring string after `)`; lambdas may not."""
         node.params = self.idlist()
         self.expect(T.PARCLOSE)
         self.advance()
-        if self.tok.kind == T.STRING:
-            self.advance()  # docstring
+        if docstring and self.tok.kind == T.STRING:
+            self.advance()
         self.nodes.append(node.children)
         self.function_depth += 1
         self.block(False)
@@ -470,17 +476,7 @@ class Parser:
             self.add_local("self")
         else:
             self.scopes.append(dict(self.scopes[-1]))
-        node.params = self.idlist()
-        self.expect(T.PARCLOSE)
-        self.advance()
-        self.nodes.append(node.children)
-        self.function_depth += 1
-        self.block(False)
-        self.function_depth -= 1
-        self.nodes.pop()
-        self.emit("ret0")
-        self.scopes.pop()
-        self.gen.close_chunk(previous)
+        self.params_and_body(node, previous, docstring=False)
 
     def tabledef(self) -> None:
         self.advance()

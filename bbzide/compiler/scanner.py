@@ -12,7 +12,8 @@ decode files as latin-1 so that one character = one byte; `frontend.py` converts
 `include "file"` is a *prefix* test at every token start (the reference's quirk: `included_x`
 is taken as a directive). Files are found relative to the process CWD, then each include-path
 directory, then (our extension, off in reference mode) the including file's directory. A file is
-skipped while it is still open on the include stack (cycle); included again later, it is re-read.
+skipped while it is still open on the include stack (a cycle: skipped with a warning, as the
+reference skips it silently); included again later, it is re-read.
 
 Positions: `line` 1-based, `col` 0-based byte offset in the line. Lexer-error columns are one
 less than the character's column, exactly as the reference prints them (corpus README §6).
@@ -195,7 +196,14 @@ class Scanner:
                                  "directory and the include path)", f.pos - f.line_start)
         realpath = bytes_text(os.fsencode(os.path.realpath(found)))
         if any(open_file.path == realpath for open_file in self.stack):
-            return  # still open: an include cycle, ignored like the reference
+            # still open: an include cycle. The reference skips the include silently (corpus
+            # include_cycle.bzz); we skip it too, so the bytecode is identical, and say so.
+            if not self.reference_quirks:
+                chain = " -> ".join(os.path.basename(user_text(o.path)) for o in self.stack)
+                self.warn(f"{user_text(f.path)}:{f.line}:{f.pos - f.line_start}: include cycle "
+                          f"({chain} -> {os.path.basename(user_text(realpath))}): "
+                          f"'{user_text(name)}' is still being read, so this include is skipped")
+            return
         try:
             with open(found, "rb") as handle:
                 data = handle.read()

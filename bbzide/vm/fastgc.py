@@ -26,13 +26,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 try:  # numba is optional: the kernels are plain Python that numba compiles when present
     from numba import njit as _njit
 
     def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
         return _njit(cache=True, nogil=True)(fn)
-
-    import numpy as np
 
     _i = np.int64  # numba's int() of a uint8 is unsigned: mixing it with int64 gives floats
     COMPILED = True
@@ -65,6 +65,19 @@ def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, info: An
             traversed: Any, size: int, s: int, g: int, elems: int, reserved: int,
             limit: int) -> int:
     """One ``bbzheap_gc`` on ``d``; ``stack[0..top]`` are the roots (an int buffer).
+    See :func:`collect_with` (this one allocates its frame stack)."""
+    frames = np.empty((4, limit + 2), np.int64)
+    return collect_with(d, stack, top, rtobj, ltseg, info, traversed, frames, size, s, g,
+                        elems, reserved, limit)
+
+
+@_compile
+def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, info: Any,
+                 traversed: Any, frames: Any, size: int, s: int, g: int, elems: int,
+                 reserved: int, limit: int) -> int:
+    """One ``bbzheap_gc`` on ``d``; ``stack[0..top]`` are the roots (an int buffer);
+    ``frames``: a 4 x (limit + 2) int64 scratch array for the mark stack (the compiled
+    instruction kernel passes one it keeps, saving an allocation per collection).
 
     Also records how it marked, for the VM's skip rules: ``info[x]`` =
     the depth at which x was first marked (0: not marked) plus ``PERMANENT_PHASE`` if that
@@ -82,15 +95,14 @@ def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, info: An
         d[size - (j + 1) * g + mo + 1] &= 0xFF ^ _SEG_MARK_HI
     for i in range(n):
         d[i * s] &= 0xFF ^ _GC_MARK
-    for i in range(size // s):
-        info[i] = 0
+    info[:] = 0
     traversed[0] = 0
     phase = PERMANENT_PHASE
     # frames of the explicit mark stack: segment, next word, depth, segments walked
-    f_seg = [0] * (limit + 2)
-    f_word = [0] * (limit + 2)
-    f_depth = [0] * (limit + 2)
-    f_walk = [0] * (limit + 2)
+    f_seg = frames[0]
+    f_word = frames[1]
+    f_depth = frames[2]
+    f_walk = frames[3]
     nobj = size // s
     nroots = n + top + 1
     for r in range(nroots):

@@ -70,18 +70,20 @@ class RingBuffer(Generic[R]):
         return self.start == self.end
 
     def raw_index(self, idx: int) -> int:
-        """``bbzringbuf_rawat``: wrap by repeated subtraction (u8 index)."""
-        idx &= 0xFF
-        while idx >= self.capacity:
-            idx -= self.capacity
-        return idx
+        """``bbzringbuf_rawat``: wrap by repeated subtraction (u8 index) — the remainder."""
+        return (idx & 0xFF) % self.capacity
 
     def index_at(self, i: int) -> int:
         """``bbzringbuf_at``: the u8 sum ``start + i`` wrapped."""
-        return self.raw_index((i + self.start) & 0xFF)
+        return ((i + self.start) & 0xFF) % self.capacity
 
     def at(self, i: int) -> R:
-        return self.records[self.index_at(i)]
+        return self.records[((i + self.start) & 0xFF) % self.capacity]
+
+    def indices(self) -> list[int]:
+        """Raw indices of the queued records, head first (``index_at(0..size-1)``)."""
+        start, cap = self.start, self.capacity
+        return [((i + start) & 0xFF) % cap for i in range(self.size())]
 
     def pop(self) -> bool:
         if self.empty():
@@ -106,13 +108,19 @@ class RingBuffer(Generic[R]):
         self.records[a], self.records[b] = self.records[b], self.records[a]
 
     def sort_by_type(self) -> None:
-        """``bbzmsg_sort_priority``: stable insertion sort by message type."""
-        n = self.size()
-        for i in range(1, n):
-            j = i
-            while j > 0 and self.at(j)[_TYPE] < self.at(j - 1)[_TYPE]:  # type: ignore[index]
-                self.swap(j, j - 1)
-                j -= 1
+        """``bbzmsg_sort_priority``: stable insertion sort by message type. An insertion
+        sort that swaps while the left neighbour is strictly greater is a stable sort, so
+        the records are put in ``sorted`` order (Python's sort is stable) — and left alone
+        when already in order, the common case."""
+        where = self.indices()
+        records = self.records
+        queued = [records[k] for k in where]
+        types = [r[_TYPE] for r in queued]  # type: ignore[index]
+        if all(a <= b for a, b in zip(types, types[1:], strict=False)):
+            return
+        order = sorted(range(len(queued)), key=types.__getitem__)
+        for k, j in zip(where, order, strict=True):
+            records[k] = queued[j]
 
 
 @dataclass
@@ -249,8 +257,9 @@ def inmsg_append(queues: MessageQueues, payload: bytes) -> bool:
     else:
         return False
     if t == BROADCAST:
-        for i in range(q.size()):
-            rec = q.at(i)
+        records = q.records
+        for k in q.indices():
+            rec = records[k]
             if rec[_TYPE] == t and rec[_RID:_RID + 2] == m[_RID:_RID + 2] \
                     and rec[_BC_TOPIC:_BC_TOPIC + 2] == m[_BC_TOPIC:_BC_TOPIC + 2]:
                 rec[:] = m

@@ -26,7 +26,10 @@ from array import array
 from collections.abc import Callable
 from enum import IntEnum
 
+import numpy as np
+
 from bbzide.compiler import bbzfloat
+from bbzide.vm import fastloop
 from bbzide.vm import gc as gcmod
 from bbzide.vm.fastgc import PERMANENT_PHASE
 from bbzide.vm.fastgc import collect as _collect
@@ -121,7 +124,12 @@ class VM:
         self.heap = Heap(profile)
         self.host = HostRegistry(profile.ptr_size)
         self.stress_gc = stress_gc
-        self.stack: list[int] = [0] * profile.stack_size
+        #: u16 heap indices, as the C; an ``array`` so the compiled kernel shares it
+        self.stack = array("H", bytes(2 * profile.stack_size))
+        self._stack_view = np.frombuffer(self.stack, np.uint16)
+        self._heap_view = np.frombuffer(self.heap.data, np.uint8)
+        self._bcode_view = np.zeros(0, np.uint8)
+        self._bcode_of_view = b""
         self.stack_size = profile.stack_size
         self.stackptr = -1
         self.blockptr = -1
@@ -235,7 +243,7 @@ class VM:
         h = self.heap
         h.gc_runs += 1
         sp = self.stackptr
-        r = _collect(h.data, array("H", self.stack[:sp + 1]), sp, h.rtobj, h.ltseg,
+        r = _collect(h.data, self._stack_view, sp, h.rtobj, h.ltseg,
                      h.gc_info, h.gc_traversed, *self._geometry)
         h.rtobj = r >> 16
         h.ltseg = r & 0xFFFF
@@ -442,7 +450,7 @@ class VM:
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
          events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
         self.heap.restore(hs)
-        self.stack[:] = stack
+        self.stack[:] = array("H", stack)
         self.error_events = list(events)
         self.swarm, self.vstig, self.neighbors, self.queues = recs  # fresh from pickle.loads
         self.bcode = bcode
@@ -1068,8 +1076,27 @@ class VM:
             return
         self.push_int(argc)
         saved = self.blockptr
-        self.callc()
+        if _CALL is None or self.stress_gc or not self._call_compiled():
+            self.callc()
         self._loop(saved, self.instruction_budget)
+
+    def _call_compiled(self) -> bool:
+        """``callc`` of a bytecode closure by the compiled kernel (fastloop.call), when it
+        takes its happy path; False (nothing done) when :meth:`callc` must run it."""
+        heap = self.heap
+        regs = np.empty(fastloop.REGISTERS, np.int64)
+        regs[0:6] = (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg,
+                     self.lsyms)
+        regs[fastloop.R_PEAK] = heap.peak_used
+        regs[fastloop.R_FLIST] = self.flist
+        regs[fastloop.R_DFLT_ACTREC] = self.dflt_actrec
+        if not _CALL(self._heap_view, self._stack_view, regs, self.bcode_size,
+                     heap.obj_size, heap.elems, heap.reserved):
+            return False
+        (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg,
+         self.lsyms) = regs[0:6].tolist()
+        heap.peak_used = int(regs[fastloop.R_PEAK])
+        return True
 
     def function_call(self, sid: int, argc: int) -> None:
         """``bbzvm_function_call``: call the global ``sid`` with ``argc`` args on the stack."""
@@ -1133,10 +1160,45 @@ class VM:
         rules = _SKIP_RULES
         fixed = False
         pending = -1  # byte offset of a new leaf whose mark the next collection sets
+        kernel = _KERNEL
+        if kernel is not None:
+            regs = np.empty(fastloop.REGISTERS, np.int64)  # per loop: host calls nest loops
+            if self._bcode_of_view is not bcode:
+                self._bcode_view = np.frombuffer(bcode, np.uint8)
+                self._bcode_of_view = bcode
+            regs[fastloop.R_SAVED] = fastloop.NONE if saved is None else saved
+            regs[fastloop.R_BUDGET] = fastloop.NONE if budget is None else budget
+            regs[fastloop.R_NIL] = self.nil
+            regs[fastloop.R_GSYMS] = self.gsyms
+            regs[fastloop.R_FLOAT_OPS] = 1 if self.profile.float_ops else 0
+            regs[fastloop.R_STACK_SIZE] = self.stack_size
+            regs[fastloop.R_MARK_DEPTH] = self.profile.gcmark_depth
+            regs[fastloop.R_FLIST] = self.flist
+            regs[fastloop.R_DFLT_ACTREC] = self.dflt_actrec
+            kernel_args = (self._heap_view, self._stack_view, self._bcode_view, regs, info,
+                           heap.gc_traversed, fastloop.RULES, s, heap.elems, heap.reserved)
         while saved is None or saved < self.blockptr:
             if self.state != ready:
                 return
-            if fixed:
+            if kernel is not None:
+                # the compiled kernel runs steps until one it does not cover (fastloop.py)
+                regs[0:12] = (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg,
+                              self.lsyms, heap.gc_runs, self.instructions_executed, n,
+                              fixed, pending, heap.peak_used)
+                status = kernel(*kernel_args)
+                (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
+                 heap.gc_runs,
+                 self.instructions_executed, n, fixed, pending, heap.peak_used) = \
+                    regs[0:12].tolist()
+                if status == fastloop.EXIT:
+                    continue
+                if status == fastloop.BUDGET:
+                    self.seterror(Error.BUDGET)
+                    if saved is None:
+                        continue
+                    return
+                # NEED_PYTHON: this step's collection is done; run its instruction here
+            elif fixed:
                 # the skipped collection's only effect, done where it would have run
                 heap.gc_runs += 1
                 if pending >= 0:
@@ -1203,6 +1265,10 @@ for _op in (2, 41):
     _SKIP_RULES[_op] = _PUSHED_OLD
 for _op in (3, 35, 36, 37, 38, 39):
     _SKIP_RULES[_op] = _PUSHED_NEW
+
+#: the compiled instruction kernel, when numba is installed (else the Python loop alone)
+_KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None
+_CALL: Callable[..., bool] | None = fastloop.call if fastloop.COMPILED else None
 
 _SIMPLE_OPS: list[Callable[[VM], None]] = [
     VM.op_nop, VM.op_done, VM.op_pushnil, VM.op_dup, VM.op_pop, VM.op_ret0, VM.op_ret1,

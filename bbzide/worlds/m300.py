@@ -18,8 +18,9 @@ out-queue per step.
 A prior belief map (the authorities' knowledge of where the targets are, thesis §5.3.2) is a
 `cells` x `cells` raster over the field with values in [0, 1]; it is either given (an array or
 a .npy/.csv file) or generated from the run seed as a few Gaussian hot spots, and the targets are
-drawn from it (a target is more likely where the belief is high), so the same seed gives the
-same map and targets whatever the search method (the pairs of the experiments).
+drawn from it (a target is more likely where the belief is high; with `targets_where=likely`
+only cells at or above the search threshold hold targets), so the same seed gives the same map
+and targets whatever the search method (the pairs of the experiments).
 
 Host functions (Buzz names). Positions and distances a script sees are integer DECIMETRES in
 the field frame: BittyBuzz compares floats by their raw 16-bit payloads (a wrong order for
@@ -88,6 +89,10 @@ BELIEF_FLOOR = 0.05          # generated maps never say "impossible" (priors can
 TARGET_SEPARATION = 4.0      # m: generated targets at least this far apart (distinct finds)
 DEFAULT_SEARCH_STEPS = 20    # goals per search run between two rendezvous (thesis §5.4.2)
 DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
+#: Where generated targets may lie: "anywhere" (in proportion to the prior, floor included:
+#: ~21 % of a generated map's mass is in cells under the threshold) or "likely" (only in cells
+#: the prior puts at or above the search threshold: the authorities' prior is right).
+TARGETS_WHERE = ("anywhere", "likely")
 
 #: Role codes of `set_role` -> names the UI shows; LED colours per role.
 ROLE_NAMES = ("searcher", "root_candidate", "root", "auctioneer", "networker_bidder",
@@ -138,12 +143,16 @@ def load_belief_map(source: Any) -> np.ndarray:
 
 
 def draw_targets(belief: np.ndarray, size: float, count: int, rng: np.random.Generator,
-                 keep_out: float) -> np.ndarray:
+                 keep_out: float, floor: float = 0.0) -> np.ndarray:
     """`count` target positions drawn cell-wise in proportion to the belief, uniform within the
-    cell, east of x = keep_out and TARGET_SEPARATION apart (rejection sampling)."""
+    cell, east of x = keep_out and TARGET_SEPARATION apart (rejection sampling). With `floor`
+    > 0 only cells believed at least `floor` can hold a target (a prior that is never wrong)."""
     cells = belief.shape[0]
     cell = size / cells
-    weights = belief.ravel() / belief.sum()
+    weights = belief.ravel() * (belief.ravel() >= floor)
+    if weights.sum() <= 0:
+        raise WorldConfigError(f"no belief cell reaches {floor:g}: nowhere to put a target")
+    weights = weights / weights.sum()
     targets: list[tuple[float, float]] = []
     for _ in range(10_000):          # far more tries than any sane field needs
         if len(targets) == count:
@@ -159,6 +168,25 @@ def draw_targets(belief: np.ndarray, size: float, count: int, rng: np.random.Gen
         raise WorldConfigError(f"cannot place {count} targets {TARGET_SEPARATION} m apart "
                                f"in a {size:g} m field")
     return np.array(targets, dtype=np.float64).reshape(-1, 2)
+
+
+def parse_targets(text: str) -> int | list[tuple[float, float]]:
+    """Targets as command-line text: a count (`3`) or positions in metres (`26:24,10:5`)."""
+    text = text.strip()
+    if text.isdigit():
+        return int(text)
+    targets = []
+    for item in text.split(","):
+        x, sep, y = item.partition(":")
+        try:
+            if not sep:
+                raise ValueError(item)
+            targets.append((float(x), float(y)))
+        except ValueError:
+            raise WorldConfigError(
+                f"targets {text!r}: give a count (targets=3) or x:y positions in metres "
+                "separated by commas (targets=26:24,10:5)") from None
+    return targets
 
 
 class M300Field(World):
@@ -177,12 +205,13 @@ class M300Field(World):
         comm_range: float = DEFAULT_COMM_RANGE,
         speed: float = DEFAULT_SPEED,
         altitude: float = DEFAULT_ALTITUDE,
-        targets: int | Sequence[Sequence[float]] = 3,
+        targets: int | str | Sequence[Sequence[float]] = 3,
         belief_map: Any = None,
         cells: int = DEFAULT_CELLS,
         search: str = "belief",
         search_steps: int = DEFAULT_SEARCH_STEPS,
         threshold: int = DEFAULT_THRESHOLD,
+        targets_where: str = "anywhere",
         loss: float = 0.0,
         map_seed: int | None = None,
     ) -> None:
@@ -198,6 +227,9 @@ class M300Field(World):
             raise WorldConfigError("speed and altitude must be positive")
         if search not in ("belief", "random"):
             raise WorldConfigError(f"unknown search {search!r}: belief or random")
+        if targets_where not in TARGETS_WHERE:
+            raise WorldConfigError(f"targets_where {targets_where!r}: "
+                                   f"choose from {', '.join(TARGETS_WHERE)}")
         if search_steps < 1:
             raise WorldConfigError("a search run needs at least 1 search step")
         if not 0 <= loss <= 1:
@@ -212,12 +244,15 @@ class M300Field(World):
         self.search = search
         self.search_steps = int(search_steps)
         self.threshold = int(threshold)
+        self.targets_where = targets_where
         self.rendezvous = (min(2.0, size / 2), size / 2)
         self.map_seed = map_seed
         self._given_map = None if belief_map is None else load_belief_map(belief_map)
         self.cells = self._given_map.shape[0] if self._given_map is not None else int(cells)
         if self.cells < 1:
             raise WorldConfigError("the belief map needs at least 1 cell")
+        if isinstance(targets, str):          # `--set targets=26:24,10:5` (x:y metres)
+            targets = parse_targets(targets)
         if isinstance(targets, int):
             if targets < 0:
                 raise WorldConfigError("the number of targets must be >= 0")
@@ -245,6 +280,10 @@ class M300Field(World):
     # ---- bodies -------------------------------------------------------------------------------
     def attach(self, sim: Simulation) -> None:
         count = sim.count
+        if self.field_size < self.comm_range:     # again: `--comm-range` overrides the radio
+            raise WorldConfigError(
+                f"a {self.field_size:g} m field is smaller than the {self.comm_range:g} m "
+                "communication range: every drone would always hear every other")
         # Map and targets from their own stream of the run seed: the same for both searches of
         # an experiment pair and unchanged by a reboot (attach runs again on load_program).
         seed = sim.seed if self.map_seed is None else self.map_seed
@@ -253,7 +292,9 @@ class M300Field(World):
                        else generate_belief_map(self.cells, rng))
         self.targets = (self._given_targets if self._given_targets is not None
                         else draw_targets(self.belief, self.field_size, self._target_count, rng,
-                                          keep_out=LAUNCH_STRIP + 1.0))
+                                          keep_out=LAUNCH_STRIP + 1.0,
+                                          floor=(self.threshold / 100
+                                                 if self.targets_where == "likely" else 0.0)))
         self.mode = np.full(count, LANDED, dtype=np.int64)
         self.goals = sim.positions.copy()
         self.found_step = np.full(len(self.targets), -1, dtype=np.int64)

@@ -9,7 +9,8 @@ its spec alone, so runs go to a `multiprocessing` pool (one worker per `--jobs`)
 finished run is written at once, atomically, as `runs/<id>.json` in the output folder: an
 interrupted sweep keeps every finished run and a rerun of the same command skips them
 (resume). When the pool is done, the JSON files are summarised into `runs.csv`, the paired
-belief-vs-random comparison `comparison.csv` (and on screen), and the plots (`sar_plots.py`).
+belief-vs-random comparison `comparison.csv` (and on screen, and as the README's markdown
+table in `summary.md`), and the plots (`sar_plots.py`).
 
 A run ends when every target has been seen and the relay tree is complete (`M300Field.
 relay_complete`, checked every CHECK_PERIOD steps), or after `max_steps` (a timeout, reported).
@@ -17,6 +18,12 @@ Measured per run (thesis §5.4.2): the step at which the last target was first s
 to find all targets"), the steps the root spent as auctioneer ("relay formation time"), the
 step at which the tree was complete, messages and bytes sent per drone, and the bytes each
 drone sent per simulated second (the bandwidth plot, Fig. 5.12).
+
+Recording: `runs.csv` gives, per run, the `bbzide run` command that replays it step for step
+(`reproduce_command`: same program, seed and world options, `--steps` = the run's length);
+adding `--record X.rrd` records it for `bbzide replay`. The sweep itself does not record: the
+recording room sits above the worlds room, and a recording is ~0.5 MB per 1,000 drone-steps
+(the field run: 3 drones x 680 steps, 1.1 MB).
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import json
 import math
 import multiprocessing
 import os
+import shlex
 import statistics
 import sys
 import time
@@ -75,6 +83,7 @@ class RunSpec:
     targets: int | tuple[tuple[float, float], ...] = TARGETS
     belief_map: str | None = None
     search_steps: int = SEARCH_STEPS
+    targets_where: str = "anywhere"
 
     @property
     def run_id(self) -> str:
@@ -87,6 +96,8 @@ class RunSpec:
                                                else [list(t) for t in self.targets])}
         if self.belief_map is not None:
             options["belief_map"] = self.belief_map
+        if self.targets_where != "anywhere":
+            options["targets_where"] = self.targets_where
         return options
 
 
@@ -159,6 +170,25 @@ def plan_runs(settings: SweepSettings) -> list[RunSpec]:
                     runs.append(RunSpec(drones, arena, search, trial, seed,
                                         max_steps=settings.max_steps, **settings.extra))
     return runs
+
+
+def reproduce_command(spec: RunSpec, steps: int) -> list[str]:
+    """The `bbzide run` arguments that replay run `spec` for `steps` steps: the same program,
+    seed and world options, so it takes the same course step for step; add `--record X.rrd`
+    to record it for `bbzide replay` (recording lives above the worlds room)."""
+    options = {"size": f"{spec.arena:g}", "search": spec.search,
+               "comm_range": f"{spec.comm_range:g}", "search_steps": str(spec.search_steps),
+               "targets": (str(spec.targets) if isinstance(spec.targets, int)
+                           else ",".join(f"{x:g}:{y:g}" for x, y in spec.targets))}
+    if spec.belief_map is not None:
+        options["belief_map"] = spec.belief_map
+    if spec.targets_where != "anywhere":
+        options["targets_where"] = spec.targets_where
+    command = ["run", str(SCRIPT), "--world", "m300", "--robots", str(spec.drones),
+               "--seed", str(spec.seed), "--steps", str(steps)]
+    for key, value in options.items():
+        command += ["--set", f"{key}={value}"]
+    return command
 
 
 # ---- one run (in a worker process) -------------------------------------------------------------
@@ -248,7 +278,7 @@ def load_result(path: Path) -> dict[str, Any] | None:
 CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
               "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
               "steps", "max_steps", "networkers", "roots", "messages_per_drone",
-              "bytes_per_drone", "errors", "wall_seconds")
+              "bytes_per_drone", "errors", "wall_seconds", "command")
 
 
 def write_csv(path: Path, results: Sequence[dict[str, Any]]) -> None:
@@ -299,8 +329,34 @@ def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
             "median_relay_random": med("random", "relay_formation_steps"),
             "median_relay_belief": med("belief", "relay_formation_steps"),
             "incomplete_trees": sum(p[s]["complete_step"] < 0 for p in pairs for s in p),
+            "median_messages_random": med("random", "messages_per_drone"),
+            "median_messages_belief": med("belief", "messages_per_drone"),
+            "median_bytes_random": med("random", "bytes_per_drone"),
+            "median_bytes_belief": med("belief", "bytes_per_drone"),
+            "median_wall_seconds": statistics.median(
+                [p[s]["wall_seconds"] for p in pairs for s in p]) if pairs else None,
         })
     return rows
+
+
+def format_markdown(rows: Iterable[dict[str, Any]]) -> str:
+    """The README's results table: medians per configuration, random | belief."""
+    def f(v: Any, digits: int = 0) -> str:
+        return "-" if v is None else f"{v:.{digits}f}"
+
+    lines = ["| arena | drones | pairs | find: random | find: belief | belief faster | sign "
+             "test p | relay: random | relay: belief | msgs/drone: random | msgs/drone: belief "
+             "| bytes/drone: random | bytes/drone: belief | incomplete trees |",
+             "|" + "---:|" * 14]
+    for r in rows:
+        lines.append(
+            f"| {r['arena']:g} | {r['drones']} | {r['pairs']} | {f(r['median_find_random'])} | "
+            f"{f(r['median_find_belief'])} | {r['belief_faster']}/{r['complete_pairs']} | "
+            f"{r['sign_test_p']:.3f} | {f(r['median_relay_random'])} | "
+            f"{f(r['median_relay_belief'])} | {f(r['median_messages_random'])} | "
+            f"{f(r['median_messages_belief'])} | {f(r['median_bytes_random'])} | "
+            f"{f(r['median_bytes_belief'])} | {r['incomplete_trees']} |")
+    return "\n".join(lines)
 
 
 def write_comparison(path: Path, rows: Sequence[dict[str, Any]]) -> None:
@@ -372,8 +428,10 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     progress = Progress(len(specs), len(results))
     started = time.monotonic()
     if todo:
-        # Longest runs first (big arenas, few drones) so the pool does not end on one straggler.
-        todo.sort(key=lambda s: (-s.arena, s.drones))
+        # Trial by trial, so a sweep stopped early has as many pairs in every configuration
+        # (give it --trials 30 and stop it when time is up); within a trial, longest runs first
+        # (big arenas, few drones) so the pool does not end on one straggler.
+        todo.sort(key=lambda s: (s.trial, -s.arena, s.drones, s.search))
         if settings.jobs == 1:
             for spec in todo:
                 result = run_one(spec)
@@ -390,9 +448,12 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
                     progress.advance()
     wall = time.monotonic() - started
     finished = [results[s.run_id] for s in specs]
+    for spec, result in zip(specs, finished, strict=True):
+        result["command"] = "bbzide " + shlex.join(reproduce_command(spec, result["steps"]))
     write_csv(out / "runs.csv", finished)
     rows = paired_comparison(finished)
     write_comparison(out / "comparison.csv", rows)
+    (out / "summary.md").write_text(format_markdown(rows) + "\n")
     print(format_comparison(rows))
     from bbzide.worlds import sar_plots
 
@@ -419,6 +480,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
+    parser.add_argument("--targets-where", choices=["anywhere", "likely"], default="anywhere",
+                        help="generated targets: anywhere (in proportion to the prior belief) "
+                             "or only where the prior reaches the search threshold")
     parser.add_argument("--preset", choices=["field"], default=None,
                         help="field: the paper's field test (36 m, 3 drones, 1 target, "
                              "fixed belief map; 3 trials unless --trials is given)")
@@ -431,6 +495,8 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
         drones=_int_list(args.drones, "drones"), arenas=_float_list(args.arena, "arena"),
         searches=searches, trials=args.trials, seed=args.seed, jobs=args.jobs,
         out=Path(args.out), max_steps=args.max_steps, preset=args.preset)
+    if args.targets_where != "anywhere":
+        settings.extra["targets_where"] = args.targets_where
     if args.preset == "field":
         settings.drones, settings.arenas = [3], [36.0]
         if "--trials" not in sys.argv:
@@ -445,4 +511,6 @@ def run_command(args: argparse.Namespace) -> int:
     if args.preset == "field":
         formed = sum(r["complete_step"] >= 0 for r in finished)
         print(f"field test: the relay line formed in {formed} of {len(finished)} runs")
+        shown = next((r for r in finished if r["search"] == "belief"), finished[0])
+        print(f"record one for replay: {shown['command']} --record field.rrd")
     return 0

@@ -5,7 +5,8 @@ Design: one function per figure of thesis §5.4, fed with the run dictionaries o
 folder. Box plots follow Figs. 5.6-5.11: one figure per arena, drone counts on the x axis, the
 random walk and the belief search side by side (the paper's green/orange for the find time,
 red/blue for the relay formation). The bandwidth plot follows Fig. 5.12: the bytes each drone
-sent per simulated second over one run (the first belief run of the smallest configuration).
+sent per simulated second over one run (the first belief run of the smallest configuration),
+with the random walk of the same pair as a dashed per-drone mean.
 """
 
 from __future__ import annotations
@@ -57,13 +58,21 @@ def box_plot(results: Sequence[dict[str, Any]], arena: float, key: str, ylabel: 
     return path
 
 
-def bandwidth_plot(result: dict[str, Any], path: Path) -> Path:
+def bandwidth_plot(result: dict[str, Any], path: Path,
+                   baseline: dict[str, Any] | None = None) -> Path:
+    """Bytes each drone sent per simulated second; `baseline` (the random walk of the same
+    pair) is drawn as its per-drone mean, dashed, to show what the belief gossip adds."""
     plt = _pyplot()
     samples = result["bandwidth"]   # per second: bytes sent by each drone
     fig, ax = plt.subplots(figsize=(7, 4))
     if samples:
         for drone in range(len(samples[0])):
             ax.plot(range(1, len(samples) + 1), [s[drone] for s in samples], linewidth=0.8)
+    if baseline and baseline.get("bandwidth"):
+        means = [sum(s) / len(s) for s in baseline["bandwidth"]]
+        ax.plot(range(1, len(means) + 1), means, "k--", linewidth=2,
+                label=f"{baseline['search']} search, same seed: mean per drone")
+        ax.legend()
     ax.set_xlabel("simulated time (s)")
     ax.set_ylabel("bytes sent per second, per drone")
     ax.set_title(f"{result['drones']} drones, {result['arena']:g} m arena, "
@@ -87,5 +96,9 @@ def write_all(out: Path, results: Sequence[dict[str, Any]]) -> list[Path]:
                         key=lambda r: (r["search"] != "belief", r["arena"], r["drones"],
                                        r["trial"]))
     if candidates:
-        written.append(bandwidth_plot(candidates[0], out / "bandwidth.png"))
+        shown = candidates[0]
+        partner = next((r for r in results if r["search"] != shown["search"]
+                        and (r["arena"], r["drones"], r["trial"])
+                        == (shown["arena"], shown["drones"], shown["trial"])), None)
+        written.append(bandwidth_plot(shown, out / "bandwidth.png", partner))
     return written

@@ -112,3 +112,18 @@ def test_source_overrides_file_and_keeps_utf8(tmp_path):
     script.write_text("ignored = 1\n")
     result = compile_to_basm(script, source='log("héllo")\n')
     assert strings_of(result.basm) == ["log", "héllo"]
+
+
+def test_include_cycle_is_skipped_with_a_warning(tmp_path, monkeypatch):
+    """The reference skips an include of a file still being read (corpus include_cycle.bzz);
+    we produce the same code and name the cycle with its position."""
+    (tmp_path / "a.bzz").write_text('include "b.bzz"\nA = 1\n')
+    (tmp_path / "b.bzz").write_text('B = 2\ninclude "a.bzz"\n')
+    monkeypatch.chdir(tmp_path)
+    default = compile_to_basm("a.bzz")
+    quirky = compile_to_basm("a.bzz", reference_quirks=True)
+    assert default.basm == quirky.basm
+    assert not quirky.warnings
+    [warning] = [w for w in default.warnings if "include cycle" in w]
+    assert warning.startswith(f"{tmp_path / 'b.bzz'}:2:")
+    assert "a.bzz -> b.bzz -> a.bzz" in warning

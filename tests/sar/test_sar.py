@@ -89,6 +89,9 @@ def test_sweep_writes_csv_and_plots_and_resumes(tmp_path, capsys):
         ("belief", "0"), ("random", "0"), ("belief", "1"), ("random", "1")]
     assert all(r["complete_step"] == "-1" and r["steps"] == "30" for r in rows)  # timeouts
     assert (out / "comparison.csv").exists()
+    table = (out / "summary.md").read_text().splitlines()
+    assert table[0].startswith("| arena") and table[2].startswith("| 20 | 3 | 2 |")
+    assert rows[0]["command"].startswith("bbzide run ") and "--seed" in rows[0]["command"]
     for name in ("find_time_arena20.png", "relay_time_arena20.png", "bandwidth.png"):
         assert (out / name).read_bytes()[:4] == b"\x89PNG"
     # Resume: a finished run is not run again; a torn one is.
@@ -123,5 +126,18 @@ def test_sign_test():
 ])
 def test_bad_parameters_are_clear_errors(extra, words, tmp_path, capsys):
     assert main(["experiment", "sar", "--out", str(tmp_path), *extra]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--robots", "0"], "at least 1 robot"),
+    (["--set", "size=5"], "smaller than the 10 m communication range"),
+    (["--set", "size=20", "--comm-range", "30"], "smaller than the 30 m communication range"),
+    (["--set", "search=spiral"], "unknown search 'spiral'"),
+    (["--set", "targets=26;24"], "x:y positions"),
+])
+def test_bad_mission_parameters_of_a_run_are_clear_errors(extra, words, capsys):
+    assert main(["run", str(sx.SCRIPT), "--world", "m300", "--steps", "1", *extra]) == 1
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err

@@ -35,7 +35,7 @@ from bbzide.vm.vm import VM, State  # noqa: E402
 def _observe(vm: VM) -> tuple:
     return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
             vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data), list(vm.error_events),
-            vm.heap.gc_runs, vm.instructions_executed)
+            vm.heap.gc_runs, vm.instructions_executed, vm.heap.peak_used)
 
 
 def _harness_lines() -> list[tuple[str, list[str]]]:
@@ -63,6 +63,15 @@ def test_corpus_harness_runs_identical() -> None:
         fast = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=False)
         assert (stress.lines, stress.status) == (fast.lines, fast.status), argv
         assert stress.robot.vm.heap.gc_runs == fast.robot.vm.heap.gc_runs, argv
+        assert stress.robot.vm.heap.peak_used == fast.robot.vm.heap.peak_used, argv
+
+
+def test_kernel_skip_rules_are_the_vm_rules() -> None:
+    """The compiled kernel (fastloop.py) repeats the VM's skip-rule table."""
+    from bbzide.vm import fastloop
+    from bbzide.vm.vm import _SKIP_RULES
+
+    assert list(fastloop.RULES) == _SKIP_RULES
 
 
 # ---- generated programs ---------------------------------------------------------------

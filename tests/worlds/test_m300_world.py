@@ -14,6 +14,7 @@ from bbzide.worlds.m300 import (
     draw_targets,
     generate_belief_map,
     load_belief_map,
+    parse_targets,
 )
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import WORLDS
@@ -105,6 +106,7 @@ def test_load_belief_map(tmp_path):
     ({"search": "spiral"}, "unknown search"),
     ({"targets": [(50.0, 1.0)]}, "inside the field"),
     ({"speed": 0.0}, "positive"),
+    ({"targets": "26,24"}, "x:y positions"),
 ])
 def test_bad_options_are_user_errors(options, words):
     with pytest.raises(WorldConfigError, match=words):
@@ -176,3 +178,25 @@ def test_flocking_example_sweeps_the_field_as_a_separated_connected_flock():
     assert covered.mean() >= 0.8
     assert min(closest) >= 1.0
     assert all(connected)
+
+
+def test_targets_as_command_line_text():
+    assert parse_targets("3") == 3
+    assert parse_targets("26:24,10:5.5") == [(26.0, 24.0), (10.0, 5.5)]
+    field = M300Field(size=36.0, targets="26:24")
+    sim = Simulation(field, program="p", robots=1, seed=0,
+                     robot_factory=factory(lambda robot, step: []))
+    assert sim.world.targets.tolist() == [[26.0, 24.0]]
+
+
+def test_likely_targets_lie_only_where_the_prior_reaches_the_threshold():
+    belief = generate_belief_map(10, np.random.default_rng(3))
+    rng = np.random.default_rng(4)
+    targets = np.vstack([draw_targets(belief, 20.0, 3, rng, keep_out=5.0, floor=0.2)
+                         for _ in range(100)])
+    cells = belief[(targets[:, 1] // 2).astype(int), (targets[:, 0] // 2).astype(int)]
+    assert cells.min() >= 0.2
+    anywhere = np.vstack([draw_targets(belief, 20.0, 3, rng, keep_out=5.0) for _ in range(100)])
+    assert belief[(anywhere[:, 1] // 2).astype(int), (anywhere[:, 0] // 2).astype(int)].min() < 0.2
+    with pytest.raises(WorldConfigError, match="targets_where"):
+        M300Field(targets_where="nowhere")

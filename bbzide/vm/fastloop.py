@@ -1,0 +1,866 @@
+"""Compiled instruction kernel of the fast VM mode: the common instructions, in machine code.
+
+With the collector compiled (:mod:`fastgc`), the cost of the fast VM was the Python
+dispatch itself: one method call per instruction plus a few heap reads, ~4 µs. This module
+runs the step loop of ``VM._loop`` — the collection (or the skip rule that proves it
+changeless), then one instruction — as one numba function over the heap bytes
+(``np.frombuffer(heap.data)``, the same memory as the ``bytearray``), the u16 stack
+(``np.frombuffer`` of the VM's ``array('H')``) and the bytecode, so a loop never leaves
+machine code until it meets an instruction the kernel does not cover.
+
+**The one rule that keeps it exact: handle only the happy path, bail out before any side
+effect.** For every covered instruction the kernel first checks everything that could make
+the Python routine (:mod:`bbzide.vm.vm`) do something other than its normal path — stack
+underflow/overflow, a wrong type, an object index past the heap, a full heap, a jump past
+the code, a division by zero, a lambda to bind, a local to create — and if any holds it
+returns :data:`NEED_PYTHON` *before touching anything* of that instruction: the Python
+routine then runs it from the start, so errors, their pcs and every quirk stay in one place.
+(``darray_size``'s unlinking write, done by ``lstore``'s check, is idempotent: Python redoing
+it writes the same bytes.) Covered, on their happy path: nop, calls, pushnil, dup, pop,
+int add/sub/mul/div/mod/pow/unm, the logical ops, lnot, bnot, the six comparisons
+(``bbztype_cmp``), gload, gstore, tget, tput (no method binding), pushf, pushi, pushs
+(string dedupe), pushcn, pushcc, lload, lstore (existing local), jump, jumpz, jumpnz.
+Python keeps: done, ret0/ret1, callc (host functions), pusht, pushl, lremove, floats
+arithmetic, every error.
+
+Before each instruction the kernel does what ``VM._loop`` does: a collection by the
+compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
+the collector (``_SKIP_RULES``, repeated here as :data:`RULES`), then counts ``gc_runs``.
+The VM registers travel in one int64 array (``R_*`` below) so that a call costs one
+dispatch. Equality with the reference is by test: ``tests/vm/test_fast_vm_equivalence.py``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bbzide.vm.fastgc import COMPILED, PERMANENT_PHASE, _compile, _i, collect_with, first_free
+from bbzide.vm.fastgc import first_free_segment as _first_free_segment
+from bbzide.vm.fasttables import darray_get, darray_set, darray_size, table_lookup
+
+# Register slots of the ``regs`` array (in: the VM's values; out: the updated ones).
+R_PC, R_SP, R_BP, R_RTOBJ, R_LTSEG, R_LSYMS, R_GC_RUNS, R_EXECUTED = range(8)
+R_N, R_FIXED, R_PENDING, R_PEAK = 8, 9, 10, 11
+R_NIL, R_GSYMS, R_SAVED, R_BUDGET, R_FLOAT_OPS, R_STACK_SIZE, R_MARK_DEPTH = range(12, 19)
+R_FLIST, R_DFLT_ACTREC = 19, 20
+#: registers in the array
+REGISTERS = 21
+#: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
+NONE = -(1 << 40)
+
+# Kernel results.
+EXIT = 0           # the loop's condition ended it (blockptr dropped to the saved one)
+NEED_PYTHON = 1    # this step's collection is done; Python runs the instruction at pc
+BUDGET = 2         # a step completed and the instruction budget condition now holds
+
+# Metadata bits and types (heap.py), as literals for the compiled code.
+_NIL, _INT, _FLOAT, _STRING, _TABLE, _CLOSURE, _USERDATA = 0, 1, 2, 3, 4, 5, 6
+_VALID = 0x08
+_PERMANENT = 0x10
+_GC_MARK = 0x20
+_FLAG1 = 0x40
+_FLAG2 = 0x80
+_NO_ACTREC = 0xFF
+_NO_NEXT = 0x3FFF
+
+#: skip rules by opcode — the same table as ``vm._SKIP_RULES`` (checked equal by a test)
+_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW = 1, 2, 3
+RULES = np.zeros(256, np.int64)
+for _op in (0, 34, 44):
+    RULES[_op] = _PC_ONLY
+for _op in (2, 41):
+    RULES[_op] = _PUSHED_OLD
+for _op in (3, 35, 36, 37, 38, 39):
+    RULES[_op] = _PUSHED_NEW
+
+
+@_compile
+def _u16(d: Any, i: int, s: int) -> int:
+    return _i(d[i * s + 1]) | (_i(d[i * s + 2]) << 8)
+
+
+@_compile
+def _s16(v: int) -> int:
+    v &= 0xFFFF
+    return v - 0x10000 if v & 0x8000 else v
+
+
+@_compile
+def _note_usage(regs: Any, size: int) -> None:
+    used = regs[R_RTOBJ] + (size - regs[R_LTSEG])
+    if used > regs[R_PEAK]:
+        regs[R_PEAK] = used
+
+
+@_compile
+def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> int:
+    """``Heap.obj_alloc`` for a non-table type; -1 (and nothing written) when full."""
+    rtobj = regs[R_RTOBJ]
+    found = first_free(d, rtobj, s, reserved, typ, sid)
+    if found < -1:
+        return -2 - found
+    if found < 0:
+        if rtobj + s > regs[R_LTSEG]:
+            return -1
+        found = rtobj // s
+        regs[R_RTOBJ] = rtobj + s
+        _note_usage(regs, len(d))
+    o = found * s
+    d[o] = typ | _VALID
+    if typ == _CLOSURE:
+        d[o + 2] = _NO_ACTREC
+    return found
+
+
+@_compile
+def _can_alloc(d: Any, regs: Any, s: int, reserved: int) -> bool:
+    """Would an object allocation succeed (a free slot below rtobj, or room to grow)?"""
+    if regs[R_RTOBJ] + s <= regs[R_LTSEG]:
+        return True
+    return first_free(d, regs[R_RTOBJ], s, reserved, _INT, 0) >= 0
+
+
+@_compile
+def _compare(d: Any, a: int, b: int, s: int) -> int:
+    """``bbztype_cmp`` (tables.compare); both indices inside the heap."""
+    ta = _i(d[a * s]) & 7
+    tb = _i(d[b * s]) & 7
+    if ta == _NIL or tb == _NIL:
+        if ta == tb:
+            return 0
+        return -1 if ta == _NIL else 1
+    if ta == _INT and tb == _INT:
+        x = _s16(_u16(d, a, s))
+        y = _s16(_u16(d, b, s))
+    elif (ta == _FLOAT and (tb == _INT or tb == _FLOAT)) or (tb == _FLOAT and ta == _INT):
+        x = _u16(d, a, s)
+        y = _u16(d, b, s)
+    elif ta == tb and (ta == _STRING or ta == _TABLE):
+        x = _u16(d, a, s)
+        y = _u16(d, b, s)
+    elif ta == tb and ta == _USERDATA:
+        # unsigned little-endian pointer values: compare from the most significant byte
+        for j in range(s - 1, 0, -1):
+            xa = _i(d[a * s + j])
+            xb = _i(d[b * s + j])
+            if xa != xb:
+                return 1 if xa > xb else -1
+        return 0
+    else:
+        return -1
+    if x > y:
+        return 1
+    if x < y:
+        return -1
+    return 0
+
+
+@_compile
+def _word(d: Any, seg: int, k: int, g: int) -> int:
+    o = len(d) - (seg + 1) * g + 2 * k
+    return _i(d[o]) | (_i(d[o + 1]) << 8)
+
+
+@_compile
+def _set_word(d: Any, seg: int, k: int, g: int, value: int) -> None:
+    o = len(d) - (seg + 1) * g + 2 * k
+    d[o] = value & 0xFF
+    d[o + 1] = (value >> 8) & 0xFF
+
+
+@_compile
+def _seg_alloc(d: Any, regs: Any, elems: int) -> int:
+    """``Heap.seg_alloc``: first invalid segment slot, else grow left; -1 (nothing
+    written) when there is no room."""
+    size = len(d)
+    g = 4 * elems + 2
+    ltseg = regs[R_LTSEG]
+    new = _first_free_segment(d, ltseg, size, g, elems)
+    if new < 0:
+        if ltseg - g < regs[R_RTOBJ]:
+            return -1
+        new = (size - ltseg) // g
+        regs[R_LTSEG] = ltseg - g
+        _note_usage(regs, size)
+    o = size - (new + 1) * g
+    for j in range(g - 2):
+        d[o + j] = 0
+    d[o + g - 2] = 0xFF
+    d[o + g - 1] = 0xFF
+    return new
+
+
+@_compile
+def _table_set(d: Any, regs: Any, t: int, k: int, v: int, s: int, elems: int) -> bool:
+    """``tables.table_set`` on table ``t`` (type checked by the caller; ``k``, ``v`` inside
+    the heap). False, with nothing written, when Python must run it: a segment outside
+    the heap, a key index past the heap, an over-long chain, or no room for a segment."""
+    size = len(d)
+    g = 4 * elems + 2
+    nobj = size // s
+    mo = 2 * 2 * elems  # the mdata word: word index 2E
+    v_is_nil = (_i(d[v * s]) & 7) == _NIL
+    first = _u16(d, t, s)
+    seg = first
+    prev = -1
+    free_seg = -1
+    free_slot = -1
+    ended = False
+    for _ in range(size // g + 1):
+        if seg < 0 or (seg + 1) * g > size:
+            return False
+        match = -1
+        for sl in range(elems):
+            kw = _word(d, seg, sl, g)
+            if kw & 0x8000:
+                if match < 0:
+                    ki = kw & 0x7FFF
+                    if ki >= nobj:
+                        return False
+                    if _compare(d, ki, k, s) == 0:
+                        match = sl
+            elif free_seg < 0:
+                free_seg = seg
+                free_slot = sl
+        if match >= 0:
+            if not v_is_nil:
+                _set_word(d, seg, match + elems, g, v | 0x8000)
+                return True
+            _set_word(d, seg, match, g, 0)
+            _set_word(d, seg, match + elems, g, 0)
+            empty = True
+            for sl in range(elems):
+                if _word(d, seg, sl, g) & 0x8000:
+                    empty = False
+            if empty:
+                nxt = _word(d, seg, mo // 2, g) & _NO_NEXT
+                if seg == first:
+                    if nxt != _NO_NEXT:
+                        d[t * s + 1] = nxt & 0xFF
+                        d[t * s + 2] = (nxt >> 8) & 0xFF
+                        _set_word(d, seg, mo // 2, g, 0)
+                else:
+                    pm = _word(d, prev, mo // 2, g)
+                    _set_word(d, prev, mo // 2, g, (pm & ~_NO_NEXT) | nxt)
+                    _set_word(d, seg, mo // 2, g, 0)
+            return True
+        nxt = _word(d, seg, mo // 2, g) & _NO_NEXT
+        if nxt == _NO_NEXT:
+            ended = True
+            break
+        prev = seg
+        seg = nxt
+    if not ended:
+        return False  # a chain longer than the heap: let Python do what it does
+    if v_is_nil:
+        return True
+    if free_seg < 0:
+        new = _seg_alloc(d, regs, elems)
+        if new < 0:
+            return False
+        lm = _word(d, seg, mo // 2, g)
+        _set_word(d, seg, mo // 2, g, (lm & ~_NO_NEXT) | (new & _NO_NEXT))
+        free_seg = new
+        free_slot = 0
+    _set_word(d, free_seg, free_slot, g, k | 0x8000)
+    _set_word(d, free_seg, free_slot + elems, g, v | 0x8000)
+    return True
+
+
+@_compile
+def _last_segment(d: Any, a: int, s: int, elems: int) -> int:
+    """``tables._last_segment`` of darray ``a``; -1 when a segment lies outside the heap
+    or the chain is longer than the heap (Python then does what it does)."""
+    size = len(d)
+    g = 4 * elems + 2
+    seg = _u16(d, a, s)
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return -1
+        nxt = _word(d, seg, 2 * elems, g) & _NO_NEXT
+        if nxt == _NO_NEXT:
+            return seg
+        seg = nxt
+    return -1
+
+
+@_compile
+def _darray_push_in_place(d: Any, a: int, v: int, s: int, elems: int) -> bool:
+    """``tables.darray_push`` when the last segment has a free word; False (nothing
+    written) when it would need a new segment."""
+    seg = _last_segment(d, a, s, elems)
+    if seg < 0:
+        return False
+    g = 4 * elems + 2
+    for p in range(2 * elems):
+        if not _word(d, seg, p, g) & 0x8000:
+            _set_word(d, seg, p, g, v | 0x8000)
+            return True
+    return False
+
+
+@_compile
+def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
+    """``tables.darray_pop``; False (nothing written) when the darray is empty or its
+    chain is broken (Python then reports LNUM or does what it does)."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    first = _u16(d, a, s)
+    if (first + 1) * g > size:
+        return False
+    if _word(d, first, n, g) & _NO_NEXT == _NO_NEXT and not _word(d, first, 0, g) & 0x8000:
+        return False
+    prev = -1
+    seg = first
+    ended = False
+    for _ in range(size // g + 1):
+        nxt = _word(d, seg, n, g) & _NO_NEXT
+        if nxt == _NO_NEXT:
+            ended = True
+            break
+        if (nxt + 1) * g > size:
+            return False
+        prev = seg
+        seg = nxt
+    if not ended:
+        return False
+    p = 0
+    while p < n and _word(d, seg, p, g) & 0x8000:
+        p += 1
+    if p > 0:
+        _set_word(d, seg, p - 1, g, _word(d, seg, p - 1, g) & 0x7FFF)
+    else:
+        _set_word(d, prev, n - 1, g, _word(d, prev, n - 1, g) & 0x7FFF)
+        _set_word(d, seg, n, g, _word(d, seg, n, g) & 0x7FFF)  # ~SEG_VALID
+        _set_word(d, prev, n, g, _word(d, prev, n, g) | _NO_NEXT)
+    return True
+
+
+@_compile
+def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> None:
+    """``tables.darray_push`` on a well-formed darray whose room the caller checked."""
+    seg = _last_segment(d, a, s, elems)
+    g = 4 * elems + 2
+    n = 2 * elems
+    p = 0
+    while p < n and _word(d, seg, p, g) & 0x8000:
+        p += 1
+    if p == n:
+        new = _seg_alloc(d, regs, elems)
+        lm = _word(d, seg, n, g)
+        _set_word(d, seg, n, g, (lm & ~_NO_NEXT) | (new & _NO_NEXT))
+        seg = new
+        p = 0
+    _set_word(d, seg, p, g, v | 0x8000)
+
+
+@_compile
+def _darray_valid_count(d: Any, a: int, s: int, elems: int) -> int:
+    """``len(tables.darray_elements(a))``; -1 when ``a`` is not a valid object or its
+    chain leaves the heap, holds an invalid segment or is longer than the heap."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    if not 0 <= a < size // s or not _i(d[a * s]) & _VALID:
+        return -1
+    seg = _u16(d, a, s)
+    count = 0
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size or not _word(d, seg, n, g) & 0x8000:
+            return -1
+        for p in range(n):
+            if not _word(d, seg, p, g) & 0x8000:
+                return count
+            count += 1
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return count
+    return -1
+
+
+@_compile
+def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: int,
+           bsize: int, s: int, elems: int, reserved: int) -> bool:
+    """``VM.callc`` of a bytecode closure (native or lambda), its happy path: on success
+    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written (but
+    ``darray_size(flist)``'s idempotent unlinking) when Python must run it."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    if sp < 0:
+        return False
+    ai = _i(stack[sp])
+    if ai >= nobj or _i(d[ai * s]) & 7 != _INT:
+        return False
+    argn = _u16(d, ai, s)
+    sp1 = sp - 1
+    if sp1 < argn:
+        return False
+    c = _i(stack[sp1 - argn])
+    if c >= nobj or _i(d[c * s]) & 7 != _CLOSURE:
+        return False
+    cm = _i(d[c * s])
+    if not cm & _FLAG1:
+        return False  # a C closure: the host function runs in Python
+    is_lambda = (cm & _FLAG2) != 0
+    ref = _i(d[c * s + 1])
+    actrec = _i(d[c * s + 2])
+    flist = regs[R_FLIST]
+    if is_lambda and ref >= darray_size(d, flist, s, elems):
+        return False  # FLIST error
+    sp2 = sp1 - argn - 1
+    if sp2 < 0:
+        return False
+    own = not is_lambda or actrec == _NO_ACTREC
+    src = regs[R_DFLT_ACTREC] if own else actrec
+    if not own and actrec >= nobj:
+        return False
+    m = _darray_valid_count(d, src, s, elems)
+    if m < 0:
+        return False
+    if is_lambda:
+        fo = darray_get(d, flist, ref, s, elems)
+        newpc = _u16(d, fo if fo >= 0 else 0, s)
+    else:
+        newpc = _u16(d, c, s)
+    if newpc > bsize:
+        return False
+    # every allocation below (table + segments, two ints) fits in the free gap
+    if regs[R_LTSEG] - regs[R_RTOBJ] < 3 * s + (1 + (m + argn) // n) * g:
+        return False
+    # ---- commit, in the order of VM.callc
+    rtobj = regs[R_RTOBJ]
+    new = first_free(d, rtobj, s, reserved, _TABLE, 0)
+    if new < 0:
+        new = rtobj // s
+        regs[R_RTOBJ] = rtobj + s
+        _note_usage(regs, size)
+    d[new * s] = _TABLE | _VALID
+    seg = _seg_alloc(d, regs, elems)
+    d[new * s + 1] = seg & 0xFF
+    d[new * s + 2] = seg >> 8
+    d[new * s] = (_i(d[new * s]) | _FLAG1) & (0xFF ^ _FLAG2)
+    seg = _u16(d, src, s)
+    k = 0
+    while k < m:
+        _darray_push(d, regs, new, _word(d, seg, k % n, g) & 0x7FFF, s, elems)
+        k += 1
+        if k % n == 0:
+            seg = _word(d, seg, n, g) & _NO_NEXT
+    d[new * s] = _i(d[new * s]) | _PERMANENT
+    for i in range(argn, 0, -1):
+        _darray_push(d, regs, new, _i(stack[sp1 - (i - 1)]), s, elems)
+    if own or not _i(d[actrec * s]) & _FLAG2:
+        darray_set(d, new, 0, _i(stack[sp2]), s, elems)
+    i1 = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[i1 * s + 1] = retpc & 0xFF
+    d[i1 * s + 2] = (retpc >> 8) & 0xFF
+    stack[sp2] = i1
+    stack[sp2 + 1] = lsyms
+    i2 = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[i2 * s + 1] = bp & 0xFF
+    d[i2 * s + 2] = (bp >> 8) & 0xFF
+    stack[sp2 + 2] = i2
+    regs[R_SP] = sp2 + 2
+    regs[R_BP] = sp2 + 2
+    regs[R_LSYMS] = new
+    regs[R_PC] = newpc
+    return True
+
+
+@_compile
+def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsyms: int,
+         bsize: int, s: int, elems: int) -> bool:
+    """``VM.ret0``/``ret1`` (+ ``op_ret*``'s pc check), their happy path: on success
+    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written."""
+    size = len(d)
+    g = 4 * elems + 2
+    nobj = size // s
+    if sp + 1 < (4 if with_value else 3) or bp < 2 or bp > sp:
+        return False
+    bpobj = _i(stack[bp])
+    back = _i(stack[bp - 2])
+    if bpobj >= nobj or lsyms >= nobj or back >= nobj or _i(d[back * s]) & 7 != _INT:
+        return False
+    newpc = _u16(d, back, s)
+    first = _u16(d, lsyms, s)
+    if newpc > bsize or (first + 1) * g > size:
+        return False
+    value = _i(stack[sp]) if with_value else regs[R_NIL]
+    # ---- commit (VM._unwind: unmake permanent, darray_destroy via segment_chain)
+    d[lsyms * s] = _i(d[lsyms * s]) & (0xFF ^ _PERMANENT)
+    seg = first
+    limit = size // g
+    length = 1
+    while True:
+        _set_word(d, seg, 2 * elems, g, _word(d, seg, 2 * elems, g) & 0x7FFF)
+        nxt = _word(d, seg, 2 * elems, g) & _NO_NEXT
+        if nxt == _NO_NEXT or (nxt + 1) * g > size or length > limit:
+            break
+        seg = nxt
+        length += 1
+    d[lsyms * s] = _i(d[lsyms * s]) & (0xFF ^ _VALID)
+    regs[R_LSYMS] = _i(stack[bp - 1])
+    stack[bp - 2] = value
+    regs[R_SP] = bp - 2
+    regs[R_BP] = _s16(_u16(d, bpobj, s))
+    regs[R_PC] = newpc
+    return True
+
+
+@_compile
+def call(d: Any, stack: Any, regs: Any, bsize: int, s: int, elems: int,
+         reserved: int) -> bool:
+    """``VM.callc`` from Python (``closure_call``): the compiled happy path, or False."""
+    return _callc(d, stack, regs, regs[R_SP], regs[R_BP], regs[R_LSYMS], regs[R_PC], bsize,
+                  s, elems, reserved)
+
+
+@_compile
+def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+        rules: Any, s: int, elems: int, reserved: int) -> int:
+    """Run steps (collection or skip, then one instruction) from ``regs[R_PC]``.
+
+    Returns :data:`EXIT`, :data:`NEED_PYTHON` (collection done, instruction not run) or
+    :data:`BUDGET`; ``regs`` then holds the VM's registers.
+    """
+    size = len(d)
+    g = 4 * elems + 2
+    nobj = size // s
+    bsize = len(bcode)
+    nil = regs[R_NIL]
+    gsyms = regs[R_GSYMS]
+    saved = regs[R_SAVED]
+    budget = regs[R_BUDGET]
+    float_ops = regs[R_FLOAT_OPS] != 0
+    stack_size = regs[R_STACK_SIZE]
+    limit = regs[R_MARK_DEPTH]
+    lsyms = regs[R_LSYMS]
+    pc = regs[R_PC]
+    sp = regs[R_SP]
+    bp = regs[R_BP]
+    n = regs[R_N]
+    fixed = regs[R_FIXED] != 0
+    pending = regs[R_PENDING]
+    frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
+    status = EXIT
+    while saved == NONE or saved < bp:
+        # ---- the collection before the instruction (or its provably changeless skip)
+        regs[R_GC_RUNS] += 1
+        if fixed:
+            if pending >= 0:
+                d[pending] |= _GC_MARK
+        else:
+            r = collect_with(d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
+                             frames, size, s, g, elems, reserved, limit)
+            regs[R_RTOBJ] = r >> 16
+            regs[R_LTSEG] = r & 0xFFFF
+        fixed = False
+        pending = -1
+        # ---- one instruction, or back to Python (nothing of it done yet)
+        status = NEED_PYTHON
+        if pc >= bsize:
+            break
+        op = _i(bcode[pc])
+        nxt_pc = pc + 1
+        arg = 0
+        if op >= 35:
+            if op > 46 or pc + 3 > bsize:
+                break
+            arg = _i(bcode[pc + 1]) | (_i(bcode[pc + 2]) << 8)
+            nxt_pc = pc + 3
+        if op == 0 or op == 34:  # nop, calls
+            pass
+        elif op == 2:  # pushnil
+            if sp + 1 >= stack_size:
+                break
+            sp += 1
+            stack[sp] = nil
+        elif op == 4:  # pop
+            if sp < 0:
+                break
+            sp -= 1
+        elif op == 3:  # dup
+            if not 0 < sp + 1 < stack_size:
+                break
+            src = _i(stack[sp])
+            if src >= nobj:
+                break
+            idx = _obj_alloc(d, regs, s, reserved, _USERDATA, 0)
+            if idx < 0:
+                break
+            for j in range(s):
+                d[idx * s + j] = d[src * s + j]
+            d[idx * s] = (_i(d[idx * s]) | _VALID) & (0xFF ^ _PERMANENT)
+            sp += 1
+            stack[sp] = idx
+        elif 7 <= op <= 12:  # add sub mul div mod pow
+            if sp < 1:
+                break
+            rhs = _i(stack[sp])
+            lhs = _i(stack[sp - 1])
+            if lhs >= nobj or rhs >= nobj:
+                break
+            tl = _i(d[lhs * s]) & 7
+            tr = _i(d[rhs * s]) & 7
+            if float_ops:
+                if tl != _INT or tr != _INT:
+                    break
+            elif tl == _FLOAT or tr == _FLOAT:
+                break
+            a = _s16(_u16(d, lhs, s))
+            b = _s16(_u16(d, rhs, s))
+            if op == 7:
+                res = a + b
+            elif op == 8:
+                res = a - b
+            elif op == 9:
+                res = a * b
+            elif op == 10 or op == 11:
+                if b == 0:
+                    break
+                q = abs(a) // abs(b)
+                if (a < 0) != (b < 0):
+                    q = -q
+                res = q if op == 10 else a - q * b
+            else:
+                if b >= 0:
+                    res = 1
+                    for _ in range(b):
+                        res = (res * a) & 0xFFFFFFFF
+                        if res & 0x80000000:
+                            res -= 0x100000000
+                elif a == 1:
+                    res = 1
+                elif a == -1:
+                    res = -1
+                else:
+                    break
+            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+            if idx < 0:
+                break
+            d[idx * s + 1] = res & 0xFF
+            d[idx * s + 2] = (res >> 8) & 0xFF
+            sp -= 1
+            stack[sp] = idx
+        elif op == 13 or op == 16 or op == 19:  # unm, lnot, bnot
+            if sp < 0:
+                break
+            o = _i(stack[sp])
+            if o >= nobj:
+                break
+            t = _i(d[o * s]) & 7
+            u = _u16(d, o, s)
+            if op == 13:
+                if t != _INT:
+                    break
+                res = -_s16(u)
+            elif t != _NIL and t != _INT:
+                break
+            elif op == 16:
+                res = 1 if u != 0 else 0
+            else:
+                res = ~u
+            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+            if idx < 0:
+                break
+            d[idx * s + 1] = res & 0xFF
+            d[idx * s + 2] = (res >> 8) & 0xFF
+            stack[sp] = idx
+        elif op == 14 or op == 15 or op == 17 or op == 18 or 22 <= op <= 27:
+            if sp < 1:
+                break
+            rhs = _i(stack[sp])
+            lhs = _i(stack[sp - 1])
+            if lhs >= nobj or rhs >= nobj:
+                break
+            if op <= 18:  # land lor band bor: int truth of both sides
+                ta = 1 if (_i(d[lhs * s]) & 7) == _INT and _u16(d, lhs, s) != 0 else 0
+                tb = 1 if (_i(d[rhs * s]) & 7) == _INT and _u16(d, rhs, s) != 0 else 0
+                res = (ta & tb) if (op == 14 or op == 17) else (ta | tb)
+            else:
+                c = _compare(d, lhs, rhs, s)
+                if op == 22:
+                    res = 1 if c == 0 else 0
+                elif op == 23:
+                    res = 1 if c != 0 else 0
+                elif op == 24:
+                    res = 1 if c > 0 else 0
+                elif op == 25:
+                    res = 1 if c >= 0 else 0
+                elif op == 26:
+                    res = 1 if c < 0 else 0
+                else:
+                    res = 1 if c <= 0 else 0
+            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+            if idx < 0:
+                break
+            d[idx * s + 1] = res
+            d[idx * s + 2] = 0
+            sp -= 1
+            stack[sp] = idx
+        elif op == 28:  # gload
+            if sp < 0:
+                break
+            o = _i(stack[sp])
+            if o >= nobj or (_i(d[o * s]) & 7) != _STRING:
+                break
+            v = table_lookup(d, gsyms, o, s, elems)
+            stack[sp] = nil if v < 0 else v
+        elif op == 29:  # gstore
+            if sp < 1:
+                break
+            o = _i(stack[sp - 1])
+            v = _i(stack[sp])
+            if o >= nobj or v >= nobj or (_i(d[o * s]) & 7) != _STRING:
+                break
+            if not _table_set(d, regs, gsyms, o, v, s, elems):
+                break
+            sp -= 2
+        elif op == 31:  # tput
+            if sp < 2:
+                break
+            v = _i(stack[sp])
+            k = _i(stack[sp - 1])
+            t = _i(stack[sp - 2])
+            if t >= nobj or k >= nobj or v >= nobj or (_i(d[t * s]) & 7) != _TABLE:
+                break
+            m = _i(d[v * s])
+            if m & 7 == _CLOSURE and m & _FLAG2:
+                ar = _i(d[v * s + 2])
+                if ar != _NO_ACTREC and not _i(d[ar * s]) & _FLAG2:
+                    break  # a method to bind (VM._bind_method)
+            if not _table_set(d, regs, t, k, v, s, elems):
+                break
+            sp -= 3
+        elif op == 32:  # tget
+            if sp < 1:
+                break
+            k = _i(stack[sp])
+            t = _i(stack[sp - 1])
+            if t >= nobj or (_i(d[t * s]) & 7) != _TABLE:
+                break
+            v = table_lookup(d, t, k, s, elems)
+            sp -= 1
+            stack[sp] = nil if v < 0 else v
+        elif 35 <= op <= 39:  # pushf pushi pushs pushcn pushcc
+            if sp + 1 >= stack_size:
+                break
+            if op == 35:
+                idx = _obj_alloc(d, regs, s, reserved, _FLOAT, 0)
+            elif op == 36:
+                idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+            elif op == 37:
+                idx = _obj_alloc(d, regs, s, reserved, _STRING, arg)
+            else:
+                idx = _obj_alloc(d, regs, s, reserved, _CLOSURE, 0)
+            if idx < 0:
+                break
+            if op <= 37:
+                d[idx * s + 1] = arg & 0xFF
+                d[idx * s + 2] = arg >> 8
+            else:
+                value = arg if op == 38 else _s16(arg)
+                for j in range(s - 1):
+                    d[idx * s + 1 + j] = (value >> (8 * j)) & 0xFF
+                if op == 38:
+                    d[idx * s] = _i(d[idx * s]) | _FLAG1
+            sp += 1
+            stack[sp] = idx
+        elif op == 5 or op == 6 or op == 33:  # ret0 ret1 callc
+            if op == 33:
+                ok = _callc(d, stack, regs, sp, bp, lsyms, nxt_pc, bsize, s, elems, reserved)
+            else:
+                ok = _ret(d, stack, regs, op == 6, sp, bp, lsyms, bsize, s, elems)
+            if not ok:
+                break
+            sp = regs[R_SP]
+            bp = regs[R_BP]
+            lsyms = regs[R_LSYMS]
+            nxt_pc = regs[R_PC]
+        elif op == 41:  # lload
+            if sp + 1 >= stack_size:
+                break
+            v = darray_get(d, lsyms, arg, s, elems)
+            if v < 0:
+                break
+            sp += 1
+            stack[sp] = v
+        elif op == 42:  # lstore of an existing local, or of the next one (no new segment)
+            if sp < 0:
+                break
+            count = darray_size(d, lsyms, s, elems)
+            if count < arg:
+                break
+            if count == arg and not _darray_push_in_place(d, lsyms, nil, s, elems):
+                break
+            darray_set(d, lsyms, arg, _i(stack[sp]), s, elems)
+            sp -= 1
+        elif op == 43:  # lremove of one local
+            if arg > 1 or (arg == 1 and not _darray_pop(d, lsyms, s, elems)):
+                break
+        elif op == 44:  # jump
+            if arg > bsize:
+                break
+            nxt_pc = arg
+        elif op == 45 or op == 46:  # jumpz jumpnz
+            if sp < 0:
+                break
+            o = _i(stack[sp])
+            if o >= nobj:
+                break
+            t = _i(d[o * s]) & 7
+            if t != _NIL and t != _INT:
+                break
+            if (_u16(d, o, s) == 0) == (op == 45):
+                nxt_pc = arg
+            if nxt_pc > bsize:
+                break
+            sp -= 1
+        else:
+            break
+        # ---- the instruction is done: count it, then the skip rule (VM._loop)
+        pc = nxt_pc
+        regs[R_EXECUTED] += 1
+        rule = rules[op]
+        if rule >= _PUSHED_OLD and _i(stack[sp]) >= nobj:
+            fixed = False
+        elif rule == _PUSHED_NEW:
+            pending = _i(stack[sp]) * s
+            t = _i(d[pending]) & 7
+            fixed = t != _TABLE and (t != _CLOSURE or not _i(d[pending]) & _FLAG2)
+        elif rule == _PUSHED_OLD:
+            top = _i(stack[sp])
+            m = _i(d[top * s])
+            t = m & 7
+            if t != _TABLE and (t != _CLOSURE or not m & _FLAG2):
+                fixed = (m & _GC_MARK) != 0
+            else:
+                fixed = (_i(info[top]) & PERMANENT_PHASE) != 0
+        else:
+            fixed = rule == _PC_ONLY
+        n += 1
+        status = EXIT
+        if budget != NONE:
+            if saved == NONE:
+                if n >= budget:
+                    status = BUDGET
+                    break
+            elif n > budget:
+                status = BUDGET
+                break
+    regs[R_PC] = pc
+    regs[R_SP] = sp
+    regs[R_BP] = bp
+    regs[R_LSYMS] = lsyms
+    regs[R_N] = n
+    regs[R_FIXED] = 1 if fixed else 0
+    regs[R_PENDING] = pending
+    return status
+
+
+__all__ = ["COMPILED", "run", "call", "RULES", "REGISTERS", "NONE", "EXIT", "NEED_PYTHON", "BUDGET"]
