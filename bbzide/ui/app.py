@@ -55,6 +55,9 @@ class IdeApp:
         self.server.gui.configure_theme(
             control_width="large", show_share_button=False, dark_mode=False
         )
+        # Docked, not floating: the 3D view then spans only the free area between the panels, so
+        # the camera's centre (where the swarm is framed) is visible, not behind the controls.
+        self.server.gui.main_panel.dock_right()
         self.controller = RunController(backend, settings)
         self.session = ProgramSession(
             source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls

@@ -65,6 +65,10 @@ class HeapReader:
         self.rop = rop
         self.lsp = lsp
         self.strings = strings
+        #: The heap is a frozen copy, so each table's chain is walked once (the decode asks
+        #: for it for the heap map label, the object row and every parent's row: an M300 heap
+        #: has ~500 objects, and this halved the inspector's decode).
+        self._entries: dict[int, list[tuple[int | None, int]]] = {}
 
     # ---- raw access -----------------------------------------------------------------------
     def object_count(self) -> int:
@@ -128,6 +132,12 @@ class HeapReader:
 
     def table_entries(self, index: int) -> list[tuple[int | None, int]]:
         """(key object, value object) pairs in chain order; darrays give (None, value)."""
+        cached = self._entries.get(index)
+        if cached is None:
+            cached = self._entries[index] = self._walk_table(index)
+        return cached
+
+    def _walk_table(self, index: int) -> list[tuple[int | None, int]]:
         darray = bool(self.meta(index) & DARRAY_OR_NATIVE_BIT)
         segment = self.payload_u16(index)
         elems = self.g.elems_per_segment

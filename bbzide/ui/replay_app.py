@@ -40,6 +40,9 @@ class ReplayApp:
         self.server.gui.configure_theme(
             control_width="large", show_share_button=False, dark_mode=False
         )
+        # Docked, not floating: the 3D view then spans only the free area between the panels, so
+        # the camera's centre (where the swarm is framed) is visible, not behind the controls.
+        self.server.gui.main_panel.dock_right()
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.scene.set_world(session.geometry(), session.frame(session.first_step).positions)
         self.overlays = OverlayView(self.server)

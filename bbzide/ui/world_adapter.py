@@ -50,7 +50,14 @@ IDE_INSTRUCTION_BUDGET = 5_000
 #: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
 #: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash; the build
 #: view's budget for the .bbo is the compiler room's FLASH_BUDGETS).
-PLATFORM_MEMORY = {"kilobot": (2048, 32768)}
+#: Zooids: STM32F051C8, 8 KB SRAM / 64 KB flash; Crazyflie 2.x: STM32F405RG, 192 KB SRAM
+#: (128 KB + 64 KB core-coupled) / 1 MB flash. The M300's script runs on a companion computer
+#: (no meaningful RAM limit) and `pc` is a desktop: no figure.
+PLATFORM_MEMORY = {
+    "kilobot": (2048, 32768),
+    "zooids": (8192, 65536),
+    "crazyflie": (196608, 1048576),
+}
 
 
 class MissingRoomError(UserError):

@@ -365,37 +365,48 @@ class _Reader:
         raise InputLogError(f"unknown value tag {tag!r} in input log")
 
 
-def _skip_value(reader: _Reader) -> None:
-    tag = reader.take(1)
-    if tag == b"I" or tag == b"D":
-        reader.take(8)
-    elif tag == b"T":
-        for _ in range(reader.byte()):
-            reader.take(reader.byte())
-            _skip_value(reader)
-    elif tag != b"N":
-        raise InputLogError(f"unknown value tag {tag!r} in input log")
+def _skip_value(data: bytes, at: int) -> int:
+    """The offset after the value at `at` (index arithmetic only: nothing is built)."""
+    tag = data[at]
+    if tag == 0x49 or tag == 0x44:  # b"I", b"D"
+        return at + 9
+    if tag == 0x54:  # b"T"
+        at += 2
+        for _ in range(data[at - 1]):
+            at = _skip_value(data, at + 1 + data[at])
+        return at
+    if tag != 0x4E:  # b"N"
+        raise InputLogError(f"unknown value tag {bytes([tag])!r} in input log")
+    return at + 1
 
 
 def _skip_record(reader: _Reader, messages: int, calls: int) -> None:
     """Step over one robot's record without building it (a seek needs one robot of 25)."""
-    for _ in range(messages):
-        length = _U16.unpack(reader.take(2))[0]
-        reader.take(length)
-        which = reader.byte()
-        reader.take(8 * (1 + (which & 1) + (which >> 1 & 1)))
-    for _ in range(calls):
-        reader.take(reader.byte())
-        for _ in range(reader.byte()):
-            tag = reader.take(1)
-            if tag == b"E":
-                reader.take(1)
-            elif tag == b"F":
-                reader.take(reader.byte())
-            elif tag == b"R":
-                _skip_value(reader)
-            else:
-                raise InputLogError(f"unknown host effect {tag!r} in input log")
+    data, at = reader.data, reader.at
+    try:
+        for _ in range(messages):
+            length = data[at] | data[at + 1] << 8
+            which = data[at + 2 + length]
+            at += 3 + length + 8 * (1 + (which & 1) + (which >> 1 & 1))
+        for _ in range(calls):
+            at += 1 + data[at]
+            effects = data[at]
+            at += 1
+            for _ in range(effects):
+                tag = data[at]
+                if tag == 0x45:  # b"E"
+                    at += 2
+                elif tag == 0x46:  # b"F"
+                    at += 2 + data[at + 1]
+                elif tag == 0x52:  # b"R"
+                    at = _skip_value(data, at + 1)
+                else:
+                    raise InputLogError(f"unknown host effect {bytes([tag])!r} in input log")
+    except IndexError:
+        raise InputLogError("input log ends in the middle of a record") from None
+    if at > len(data):
+        raise InputLogError("input log ends in the middle of a record")
+    reader.at = at
 
 
 def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:

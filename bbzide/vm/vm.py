@@ -443,7 +443,6 @@ class VM:
         ))
 
     def restore(self, snapshot: bytes) -> None:
-        import copy
         import pickle
 
         snap = pickle.loads(snapshot)
@@ -453,7 +452,7 @@ class VM:
         self.heap.restore(hs)
         self.stack[:] = array("H", stack)
         self.error_events = list(events)
-        self.swarm, self.vstig, self.neighbors, self.queues = copy.deepcopy(recs)
+        self.swarm, self.vstig, self.neighbors, self.queues = recs  # fresh from pickle.loads
         self.bcode = bcode
         self.bcode_size = len(bcode)
 
