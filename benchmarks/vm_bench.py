@@ -9,7 +9,7 @@ Scripts (ours, beside this file):
   per neighbor and library call — the call path of the worlds' listeners.
 
 Each run: construct, ``set_bcode``, the top-level code, then ``step`` called repeatedly
-(the firmware's loop, ``pop`` variant) for a fixed wall time. Modes: ``stress`` collects
+(the firmware's loop, ``pop`` variant) for a fixed CPU time. Modes: ``stress`` collects
 before every instruction (the reference ``bbzvm_step``), ``fast`` is the default fast VM
 (compiled collector, provably changeless collections skipped — ARCHITECTURE.md "vm speed").
 Printed: instructions/s, steps/s, fast/stress ratio, and the ratio to the C BittyBuzz built
@@ -17,8 +17,8 @@ with -O2 on this machine (≈ 1.2 M instructions/s on a 3,400-instruction loop s
 reference runs its GC before every instruction). Rates are per second of this process's
 CPU time (``time.process_time``): the machine is shared, and wall time would measure the
 other jobs as much as the VM (the load average is printed first). The first fast run also
-pays numba's first-call compilation once per cache (``bbzide/vm/__pycache__``), so a
-warm-up run of each mode precedes the timed ones.
+would pay numba's first-call compilation (once per cache, ``bbzide/vm/__pycache__``), so a
+short untimed warm-up run comes first and its duration is printed.
 
     PYTHONPATH=. python benchmarks/vm_bench.py [seconds per run, default 2]
 """

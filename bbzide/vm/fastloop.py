@@ -58,6 +58,10 @@ BUDGET = 2         # a step completed and the instruction budget condition now h
 HOST_CALL = 3      # a callc of a C closure (index in R_HOST) is set up: Python calls the
 #                    host function and finishes the step (VM._host_call)
 CALL_IN_PYTHON = 4  # R_CALL_FIRST: closure_call's callc is not the kernel's: Python makes it
+SLICE = 5          # SLICE_STEPS steps done: back to Python, which re-enters at once (so
+#                    that Ctrl-C reaches a VM looping forever without a budget)
+#: steps per kernel call at most: ~0.5 s of machine code, then Python handles its signals
+SLICE_STEPS = 1 << 20
 
 # Metadata bits and types (heap.py), as literals for the compiled code.
 _NIL, _INT, _FLOAT, _STRING, _TABLE, _CLOSURE, _USERDATA = 0, 1, 2, 3, 4, 5, 6
@@ -564,6 +568,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         lsyms = regs[R_LSYMS]
         pc = regs[R_PC]
     status = EXIT
+    slice_left = SLICE_STEPS
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
         regs[R_GC_RUNS] += 1
@@ -878,6 +883,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             elif n > budget:
                 status = BUDGET
                 break
+        slice_left -= 1
+        if slice_left == 0:
+            status = SLICE
+            break
     regs[R_PC] = pc
     regs[R_SP] = sp
     regs[R_BP] = bp

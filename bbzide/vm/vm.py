@@ -1195,7 +1195,7 @@ class VM:
                     self.callc()
                     continue
                 call_first = False
-                if status == fastloop.EXIT:
+                if status == fastloop.EXIT or status == fastloop.SLICE:
                     continue
                 if status == fastloop.BUDGET:
                     self.seterror(Error.BUDGET)
