@@ -19,6 +19,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from bbzide.compiler import bbzfloat
+from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
+from bbzide.vm.heap import NIL as TNIL
+
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
 
@@ -111,10 +115,6 @@ class HostCall:
 
     def arg(self, i: int) -> object:
         """Argument i decoded: None, int, float, string name, or ("table"/"closure", index)."""
-        from bbzide.compiler import bbzfloat
-        from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
-        from bbzide.vm.heap import NIL as TNIL
-
         h = self.vm.heap
         o = self.vm.lsym(i)
         t = h.obj_type(o)
@@ -141,8 +141,6 @@ class HostCall:
         return self.vm.assert_lnum(n)
 
     def ret(self, value: object = None) -> None:
-        from bbzide.compiler import bbzfloat
-
         vm = self.vm
         self._done = True
         if value is None:

@@ -221,8 +221,11 @@ class Robot:
         """One received payload (at most 9 bytes are read) with its situated data."""
         if self.failure is not None or not self.booted:
             return
-        self._guard(lambda: self._receive(bytes(message[:messages.PAYLOAD_SIZE]), distance,
-                                          azimuth, elevation))
+        try:  # _guard inlined (one call per received message: a hot path)
+            self._receive(bytes(message[:messages.PAYLOAD_SIZE]), distance, azimuth,
+                          elevation)
+        except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
+            self._fail_host(exc)
 
     def _receive(self, payload: bytes, distance: float, azimuth: float,
                  elevation: float) -> None:
@@ -235,15 +238,7 @@ class Robot:
     def neighbor_entry(self, rid: int, distance: float, azimuth: float,
                        elevation: float) -> neighbors.NeighborEntry:
         """Situated data as the build stores it: bbzfloat bits, or u8 (rounded, clamped)."""
-        if self.profile.neighbors_floats:
-            def conv(x: float) -> int:
-                return bbzfloat.from_float(float(x))
-        else:
-            def conv(x: float) -> int:
-                try:
-                    return min(255, max(0, round(x)))
-                except (ValueError, OverflowError):  # NaN, inf
-                    return 255
+        conv = _to_bbzfloat if self.profile.neighbors_floats else _to_u8
         return neighbors.NeighborEntry(rid & 0xFFFF, conv(distance), conv(azimuth),
                                        conv(elevation))
 
@@ -282,11 +277,15 @@ class Robot:
         try:
             action()
         except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
-            vm = self.vm
-            vm.state = State.ERROR
-            if self.failure is None:
-                self.failure = RobotFailure("HOST", vm.pc, self.program.location_of(vm.pc),
-                                            f"{ERROR_MESSAGES['HOST']}: {exc!r}")
+            self._fail_host(exc)
+
+    def _fail_host(self, exc: Exception) -> None:
+        """A Python exception escaped the VM: the robot is errored with reason HOST."""
+        vm = self.vm
+        vm.state = State.ERROR
+        if self.failure is None:
+            self.failure = RobotFailure("HOST", vm.pc, self.program.location_of(vm.pc),
+                                        f"{ERROR_MESSAGES['HOST']}: {exc!r}")
 
     # ---- state ---------------------------------------------------------------------------
     def snapshot(self) -> bytes:
@@ -304,3 +303,16 @@ class Robot:
     @property
     def error(self) -> Error:
         return self.vm.error
+
+
+def _to_bbzfloat(x: float) -> int:
+    """A situated value as bbzfloat bits (builds with float neighbor data)."""
+    return bbzfloat.from_float(float(x))
+
+
+def _to_u8(x: float) -> int:
+    """A situated value as the u8 the XTREME/int builds store: rounded, clamped to 0..255."""
+    try:
+        return min(255, max(0, round(x)))
+    except (ValueError, OverflowError):  # NaN, inf
+        return 255
