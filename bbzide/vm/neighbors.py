@@ -27,7 +27,13 @@ from typing import TYPE_CHECKING
 from bbzide.vm import messages
 from bbzide.vm.heap import CLOSURE, INT, STRING
 from bbzide.vm.messages import RingBuffer
-from bbzide.vm.table_library import foreach_live, table_set_quiet, table_size_live, to_bool
+from bbzide.vm.table_library import (
+    call_and_take,
+    foreach_live,
+    table_set_quiet,
+    table_size_live,
+    to_bool,
+)
 from bbzide.vm.tables import compare, table_get
 
 if TYPE_CHECKING:
@@ -198,8 +204,6 @@ def neighbors_foreach(vm: VM) -> None:
 
 
 def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
-    from bbzide.vm.vm import Error
-
     if not vm.assert_lnum(1):
         return
     c = vm.lsym(1)
@@ -209,17 +213,9 @@ def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
     _add_neighborlike_fields(vm, 0)
 
     def fun(key: int, value: int) -> None:
-        ss = vm.stack_depth()
-        vm.op_lload(0)
-        vm.push(c)
-        vm.push(key)
-        vm.push(value)
-        vm.closure_call(2)
-        if not vm.stack_depth() > ss:
-            vm.seterror(Error.RET)
+        ret = call_and_take(vm, 0, c, key, value)
+        if ret is None:
             return
-        ret = vm.stack[vm.stackptr]
-        vm.pop()
         vm.push(ret_tbl)
         vm.push_int(key)  # bbzvm_pushi(key): the firmware pushes the key's heap index
         put(value, ret)

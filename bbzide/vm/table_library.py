@@ -67,9 +67,27 @@ def to_bool(vm: VM, o: int) -> bool:
     return vm.heap.obj_type(o) == INT and vm.heap.u16(o) != 0
 
 
-def table_foreach(vm: VM) -> None:
-    from bbzide.vm.vm import Error
+def call_and_take(vm: VM, self_slot: int, c: int, *args: int) -> int | None:
+    """Call closure ``c`` as the C library loops do (``bbzvm_lload(self_slot)``, push ``c``
+    and ``args``, ``bbzvm_closure_call``), then pop and return its result; when it left
+    nothing on the stack, set BBZVM_ERROR_RET and return None."""
+    ss = vm.stack_depth()
+    vm.op_lload(self_slot)
+    vm.push(c)
+    for arg in args:
+        vm.push(arg)
+    vm.closure_call(len(args))
+    if not vm.stack_depth() > ss:
+        from bbzide.vm.vm import Error  # vm imports this module: only on the error path
 
+        vm.seterror(Error.RET)
+        return None
+    ret = vm.stack[vm.stackptr]
+    vm.pop()
+    return ret
+
+
+def table_foreach(vm: VM) -> None:
     if not vm.assert_lnum(2):
         return
     t = vm.lsym(1)
@@ -80,24 +98,13 @@ def table_foreach(vm: VM) -> None:
         return
 
     def entry(key: int, value: int) -> None:
-        ss = vm.stack_depth()
-        vm.op_lload(1)
-        vm.push(c)
-        vm.push(key)
-        vm.push(value)
-        vm.closure_call(2)
-        if not vm.stack_depth() > ss:
-            vm.seterror(Error.RET)
-            return
-        vm.pop()
+        call_and_take(vm, 1, c, key, value)
 
     foreach_live(vm, t, entry)
     vm.ret0()
 
 
 def _map_base(vm: VM, keep: Callable[[int, int, int, int], None]) -> None:
-    from bbzide.vm.vm import Error
-
     if not vm.assert_lnum(2):
         return
     t = vm.lsym(1)
@@ -109,18 +116,9 @@ def _map_base(vm: VM, keep: Callable[[int, int, int, int], None]) -> None:
     ret_tbl = vm.push_table()
 
     def entry(key: int, value: int) -> None:
-        ss = vm.stack_depth()
-        vm.op_lload(1)
-        vm.push(c)
-        vm.push(key)
-        vm.push(value)
-        vm.closure_call(2)
-        if not vm.stack_depth() > ss:
-            vm.seterror(Error.RET)
-            return
-        ret = vm.stack[vm.stackptr]
-        vm.pop()
-        keep(ret_tbl, key, value, ret)
+        ret = call_and_take(vm, 1, c, key, value)
+        if ret is not None:
+            keep(ret_tbl, key, value, ret)
 
     foreach_live(vm, t, entry)
     vm.ret1()
@@ -139,8 +137,6 @@ def table_filter(vm: VM) -> None:
 
 
 def table_reduce(vm: VM) -> None:
-    from bbzide.vm.vm import Error
-
     if not vm.assert_lnum(3):
         return
     t = vm.lsym(1)
@@ -153,19 +149,9 @@ def table_reduce(vm: VM) -> None:
 
     def entry(key: int, value: int) -> None:
         nonlocal accum
-        ss = vm.stack_depth()
-        vm.op_lload(1)
-        vm.push(c)
-        vm.push(key)
-        vm.push(value)
-        vm.push(accum)
-        vm.closure_call(3)
-        if not vm.stack_depth() > ss:
-            vm.seterror(Error.RET)
-            return
-        ret = vm.stack[vm.stackptr]
-        vm.pop()
-        accum = ret
+        ret = call_and_take(vm, 1, c, key, value, accum)
+        if ret is not None:
+            accum = ret
 
     foreach_live(vm, t, entry)
     vm.push(accum)
