@@ -17,8 +17,13 @@ import shutil
 import time
 import webbrowser
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from bbzide.diagnostics import UserError
+
+if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
+    from bbzide.ui.app import IdeApp
+    from bbzide.ui.replay_app import ReplayApp
 
 DEFAULT_PORT = 8080
 
@@ -82,16 +87,7 @@ def run_replay(args: argparse.Namespace) -> int:
         f"{recording.last_step}{cut}; Ctrl-C to stop)",
         flush=True,
     )
-    if not args.no_browser:
-        webbrowser.open(app.url)
-    try:
-        while True:
-            time.sleep(3600)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        app.stop()
-    return 0
+    return serve_until_interrupted(app, open_browser=not args.no_browser)
 
 
 def run_ide(args: argparse.Namespace) -> int:
@@ -117,7 +113,12 @@ def run_ide(args: argparse.Namespace) -> int:
     app = IdeApp(script, backend, settings, host=args.host, port=args.port)
     app.start(run=not args.paused)
     print(f"bbzide IDE: {app.url}  (editing {script}; Ctrl-C to stop)", flush=True)
-    if not args.no_browser:
+    return serve_until_interrupted(app, open_browser=not args.no_browser)
+
+
+def serve_until_interrupted(app: IdeApp | ReplayApp, open_browser: bool) -> int:
+    """Open a browser tab on the started app (unless told not to), serve until Ctrl-C, stop."""
+    if open_browser:
         webbrowser.open(app.url)
     try:
         while True:
