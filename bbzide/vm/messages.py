@@ -212,6 +212,15 @@ def serialize(rec: bytearray, obj_size: int) -> bytes:
 
 
 # ---- in-queue (bbzinmsg_queue_append / extract) ----------------------------------------
+def _read_object(m: bytearray, at: int, payload: bytes) -> None:
+    """The serialised object at payload byte 5 (metadata, then 2 payload bytes when the
+    message holds them) into record bytes ``at`` ...; the object is marked valid (0x08)."""
+    m[at] = payload[5]
+    if len(payload) >= 8:
+        m[at + 1:at + 3] = payload[6:8]
+    m[at] |= 0x08
+
+
 def inmsg_append(queues: MessageQueues, payload: bytes) -> bool:
     """Decode ``payload`` into the scratch record and queue it; False when dropped.
 
@@ -238,10 +247,7 @@ def inmsg_append(queues: MessageQueues, payload: bytes) -> bool:
         m[_BC_TOPIC:_BC_TOPIC + 2] = payload[3:5]
         if n < 6:
             return False
-        m[_BC_VALUE] = payload[5]
-        if n >= 8:
-            m[_BC_VALUE + 1:_BC_VALUE + 3] = payload[6:8]
-        m[_BC_VALUE] |= 0x08
+        _read_object(m, _BC_VALUE, payload)
         if n < 8:
             return False
     elif t in (VSTIG_PUT, VSTIG_QUERY):
@@ -250,10 +256,7 @@ def inmsg_append(queues: MessageQueues, payload: bytes) -> bool:
         m[_VS_KEY:_VS_KEY + 2] = payload[3:5]
         if n < 6:
             return False
-        m[_VS_DATA] = payload[5]
-        if n >= 8:
-            m[_VS_DATA + 1:_VS_DATA + 3] = payload[6:8]
-        m[_VS_DATA] |= 0x08
+        _read_object(m, _VS_DATA, payload)
         if n < 9:
             return False
         m[_VS_LAMPORT] = payload[8]
