@@ -23,6 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Generic, TypeVar
 
+import numpy as np
+
+from bbzide.vm import fastinbox, fastloop
 from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
 from bbzide.vm.tables import table_get
 
@@ -30,6 +33,9 @@ if TYPE_CHECKING:
     from bbzide.vm.vm import VM
 
 R = TypeVar("R")
+
+#: the compiled in-queue loop is used when numba compiles it (else Python alone)
+_INBOX_KERNEL = fastloop.COMPILED
 
 BROADCAST, VSTIG_PUT, VSTIG_QUERY, SWARM = 0, 1, 2, 3
 
@@ -417,7 +423,12 @@ def _process_broadcast_checked(vm: VM, rec: bytearray) -> bool:
 
 
 def process_inmsgs(vm: VM) -> None:
-    """``bbzvm_process_inmsgs``: at most ``msg_in_proc_max`` messages, each after a GC."""
+    """``bbzvm_process_inmsgs``: at most ``msg_in_proc_max`` messages, each after a GC.
+
+    The fast mode hands the loop to the compiled :func:`fastinbox.process_broadcasts`,
+    which stops at the first message (or listener step) it does not cover; from there
+    this loop goes on with the reference routines, then calls the kernel again.
+    """
     from bbzide.vm import vstig
     from bbzide.vm.vm import State
 
@@ -428,12 +439,19 @@ def process_inmsgs(vm: VM) -> None:
     # collected: the heap is what a collection just left, so the next one would change
     # nothing (the fast mode's PC_ONLY rule, vm._SKIP_RULES): fast mode counts it only
     collected = False
+    compiled = _INBOX_KERNEL and not vm.stress_gc
     while not q.inbox.empty() and count < vm.profile.msg_in_proc_max:
-        count += 1
-        if collected and not vm.stress_gc:
-            vm.heap.gc_runs += 1
+        if compiled and vm.state == State.READY:
+            status, count, collected = _process_compiled(vm, count, collected)
+            if status != fastinbox.PYTHON_MESSAGE:
+                continue
+            # the kernel took message `count` and collected for it; the rest is ours
         else:
-            vm.gc()
+            count += 1
+            if collected and not vm.stress_gc:
+                vm.heap.gc_runs += 1
+            else:
+                vm.gc()
         collected = False
         if vm.state == State.ERROR:
             return
@@ -443,3 +461,35 @@ def process_inmsgs(vm: VM) -> None:
             collected = process_broadcast(vm, rec)
         elif t in (VSTIG_PUT, VSTIG_QUERY):
             vstig.process_vstig(vm, rec)
+
+
+def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bool]:
+    """Run :func:`fastinbox.process_broadcasts` from message ``count + 1``; a listener
+    call it leaves under way is finished here (``VM._loop`` resumed, then the end of
+    :func:`process_broadcast`). Returns (kernel status, messages taken, collected)."""
+    q = vm.queues.inbox
+    records = q.records
+    size = len(records[0])
+    packed = bytearray().join(records)
+    inq = np.array((q.start, q.end, q.capacity, size, count, vm.profile.msg_in_proc_max,
+                    collected, vm.neighbors.listeners, 0, 0), np.int64)
+    saved, budget = vm.blockptr, vm.instruction_budget
+    regs = vm.kernel_registers(saved, budget)
+    h = vm.heap
+    status = fastinbox.process_broadcasts(
+        h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+        fastloop.RULES, h.obj_size, h.elems, h.reserved, np.frombuffer(packed, np.uint8),
+        inq)
+    vm.take_kernel_registers(regs)
+    start, _end, _slots, _size, count, _max, collected, _lst, extracted, inner = \
+        inq.tolist()
+    q.start = start
+    if extracted:  # the scratch record holds the last message the kernel took
+        scratch = q.capacity * size
+        records[q.capacity][:] = packed[scratch:scratch + size]
+    if status == fastinbox.IN_CALL:
+        vm._loop(saved, budget, resume=(inner, regs))
+        vm.pop()
+        vm.gc()
+        collected = True
+    return status, count, bool(collected)

@@ -1119,7 +1119,33 @@ class VM:
         budget = max_instructions if max_instructions is not None else self.instruction_budget
         self._loop(None, budget)
 
-    def _loop(self, saved: int | None, budget: int | None, call_first: bool = False) -> None:
+    def kernel_registers(self, saved: int | None, budget: int | None,
+                         call_first: bool = False) -> np.ndarray:
+        """The registers the compiled kernels take, in ``fastloop``'s ``R_*`` order (one
+        array per loop: host functions nest loops), and the bytecode view refreshed."""
+        if self._bcode_of_view is not self.bcode:
+            self._bcode_view = np.frombuffer(self.bcode, np.uint8)
+            self._bcode_of_view = self.bcode
+        heap = self.heap
+        return np.array((
+            self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
+            heap.gc_runs, self.instructions_executed, 0, False, -1, heap.peak_used,
+            self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
+            fastloop.NONE if budget is None else budget, self.profile.float_ops,
+            self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
+            0, call_first, 0), np.int64)
+
+    def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
+        """Copy a kernel's registers back into the VM and its heap; the loop's own
+        (instructions counted, heap known fixed, pending mark) are returned."""
+        heap = self.heap
+        (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
+         heap.gc_runs, self.instructions_executed, n, fixed, pending, heap.peak_used) = \
+            regs[0:12].tolist()
+        return n, bool(fixed), pending
+
+    def _loop(self, saved: int | None, budget: int | None, call_first: bool = False,
+              resume: tuple[int, np.ndarray] | None = None) -> None:
         """The step loop of ``run`` (``saved`` None: until not READY) and of
         ``closure_call`` (until blockptr drops to ``saved``), with the instruction budget.
 
@@ -1128,6 +1154,9 @@ class VM:
         first step of a loop always collects, since code outside it may have changed the
         heap. ``call_first``: fast mode only — ``closure_call``'s ``callc`` is still to
         be made (by the kernel, or by Python when the kernel hands it back).
+        ``resume``: fast mode only — (status, registers) of a kernel that ran this loop's
+        first steps (``fastinbox``: a listener call), already copied into the VM; the
+        loop goes on from that status as if its own kernel call had returned it.
         """
         ready = State.READY
         n = 0
@@ -1160,36 +1189,35 @@ class VM:
         pending = -1  # byte offset of a new leaf whose mark the next collection sets
         kernel = _KERNEL
         if kernel is not None:
-            if self._bcode_of_view is not bcode:
-                self._bcode_view = np.frombuffer(bcode, np.uint8)
-                self._bcode_of_view = bcode
-            # one register array per loop (host functions nest loops); R_* order
-            regs = np.array((
-                self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
-                heap.gc_runs, self.instructions_executed, n, fixed, pending, heap.peak_used,
-                self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
-                fastloop.NONE if budget is None else budget, self.profile.float_ops,
-                self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
-                0, call_first, 0), np.int64)
+            if resume is None:
+                regs = self.kernel_registers(saved, budget, call_first)
+                fresh = True  # regs holds the VM's registers already
+            else:
+                resumed, regs = resume
+                n, fixed, pending = (int(regs[fastloop.R_N]), bool(regs[fastloop.R_FIXED]),
+                                     int(regs[fastloop.R_PENDING]))
+                # a callc the kernel handed back is still to be made: enter the loop
+                call_first = resumed == fastloop.CALL_IN_PYTHON
+                fresh = False
             kernel_args = (self._heap_view, self._stack_view, self._bcode_view, regs, info,
                            heap.gc_traversed, fastloop.RULES, s, heap.elems, heap.reserved)
-            fresh = True  # regs holds the VM's registers already
         while call_first or saved is None or saved < self.blockptr:
             if self.state != ready:
                 return
             if kernel is not None:
                 # the compiled kernel runs steps until one it does not cover (fastloop.py)
-                if not fresh:
-                    regs[0:12] = (self.pc, self.stackptr, self.blockptr, heap.rtobj,
-                                  heap.ltseg, self.lsyms, heap.gc_runs,
-                                  self.instructions_executed, n, fixed, pending,
-                                  heap.peak_used)
-                fresh = False
-                status = kernel(*kernel_args)
-                (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
-                 heap.gc_runs,
-                 self.instructions_executed, n, fixed, pending, heap.peak_used) = \
-                    regs[0:12].tolist()
+                if resume is not None:
+                    status = resumed
+                    resume = None
+                else:
+                    if not fresh:
+                        regs[0:12] = (self.pc, self.stackptr, self.blockptr, heap.rtobj,
+                                      heap.ltseg, self.lsyms, heap.gc_runs,
+                                      self.instructions_executed, n, fixed, pending,
+                                      heap.peak_used)
+                    fresh = False
+                    status = kernel(*kernel_args)
+                    n, fixed, pending = self.take_kernel_registers(regs)
                 if status == fastloop.CALL_IN_PYTHON:
                     call_first = False
                     self.callc()

@@ -1,0 +1,192 @@
+"""Compiled in-queue processing of the fast VM mode: a robot's broadcasts, in machine code.
+
+With the instruction kernel (:mod:`fastloop`) running the listeners' bytecode, a swarm's
+time went to the Python *around* each listener call: for every received broadcast
+``process_inmsgs`` made a collection call, extracted the record, looked the topic string
+and the listener up, allocated the userdata and int arguments, pushed them, entered
+``closure_call``/``_loop`` (building a register array) and collected again — some 40 µs a
+message, nine messages per Kilobot per step. :func:`process_broadcasts` does that whole loop
+(``bbzvm_process_inmsgs`` + ``bbzmsg_process_broadcast``) for one robot in one call, calling
+the instruction kernel's :func:`fastloop.run` for each listener.
+
+It follows :mod:`fastloop`'s rule — **handle only the happy path, give Python the rest
+before any side effect it cannot hand over** — at two points of a message:
+
+* after the message's collection (the first thing the reference does for it) and before its
+  extraction: a record that is not a broadcast (stigmergy), a stack without room for the
+  six pushes (five arguments and ``closure_call``'s argument count), a heap without room
+  for the four objects (topic string, userdata, sender id, argument count): the kernel
+  returns :data:`PYTHON_MESSAGE` and ``messages.process_inmsgs`` runs that message with
+  the reference routines, the collection already done;
+* during the listener call: whatever :func:`fastloop.run` hands back (a host function, an
+  instruction it does not cover, an error, the budget, a C closure as listener) is
+  returned as :data:`IN_CALL` with the register array as ``run`` left it, and
+  ``VM._loop`` resumes the call from that very status (``resume=``), exactly as it would
+  have handled it; Python then ends the message (pop, collection).
+
+The records travel as one byte array (the in-queue's records, concatenated: record ``k``
+at ``k * record_size``; the last one is the scratch record of ``bbzinmsg_queue_extract``)
+and the ring state in a small int64 array (``Q_*`` below). Equality with the reference
+(stress mode, Python only) is by test: ``tests/vm/test_fast_vm_equivalence.py``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bbzide.vm.fastgc import _compile, _i, collect_with
+from bbzide.vm.fastloop import (
+    EXIT,
+    NONE,
+    R_BP,
+    R_CALL_FIRST,
+    R_FIXED,
+    R_GC_RUNS,
+    R_LTSEG,
+    R_MARK_DEPTH,
+    R_N,
+    R_NIL,
+    R_PENDING,
+    R_RTOBJ,
+    R_SAVED,
+    R_SP,
+    R_STACK_SIZE,
+    _obj_alloc,
+    run,
+)
+from bbzide.vm.fasttables import table_lookup
+
+# Slots of the ``inq`` array (in: the queue's values; out: the updated ones).
+Q_START, Q_END, Q_SLOTS, Q_RECORD = 0, 1, 2, 3   # ring start/end, ring slots, record bytes
+Q_COUNT, Q_MAX, Q_COLLECTED = 4, 5, 6   # messages taken, msg_in_proc_max, heap just collected
+Q_LISTENERS, Q_EXTRACTED, Q_INNER = 7, 8, 9   # listeners table, kernel extractions, run status
+#: slots in the array
+QUEUE_SLOTS = 10
+
+# Results.
+DONE = 0            # the queue is empty or msg_in_proc_max messages were taken
+PYTHON_MESSAGE = 1  # message Q_COUNT's collection is done; Python extracts and processes it
+IN_CALL = 2         # a listener call is under way: fastloop.run returned inq[Q_INNER]
+
+_BROADCAST = 0
+_STRING, _INT, _USERDATA = 3, 1, 6
+_TYPE_MASK = 0x07
+_VALID = 0x08
+_PERMANENT = 0x10
+#: record offsets (messages.py): topic u16 at 3, the value object from 5, rid u16 at 1
+_RID, _TOPIC, _VALUE = 1, 3, 5
+#: pushes of one call: nil, listener, topic, value, sender id, then the argument count
+_PUSHES = 6
+#: objects one call allocates before its callc: topic string, value, sender id, count
+_OBJECTS = 4
+#: ``closure_call(3)``: a listener gets (topic, value, sender id)
+_LISTENER_ARGS = 3
+
+
+@_compile
+def _room_for_objects(d: Any, regs: Any, s: int, reserved: int, wanted: int) -> bool:
+    """At least ``wanted`` allocations would succeed: free slots below rtobj plus room to
+    grow (a deduplicated string needs neither, so this may be one too strict: harmless)."""
+    rtobj = regs[R_RTOBJ]
+    free = (regs[R_LTSEG] - rtobj) // s
+    i = reserved
+    while free < wanted and i < rtobj // s:
+        if not _i(d[i * s]) & _VALID:
+            free += 1
+        i += 1
+    return free >= wanted
+
+
+@_compile
+def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
+                       traversed: Any, rules: Any, s: int, elems: int, reserved: int,
+                       records: Any, inq: Any) -> int:
+    """``bbzvm_process_inmsgs`` from message ``inq[Q_COUNT] + 1`` on (see the module
+    comment). ``regs``: the VM's registers in ``fastloop``'s ``R_*`` layout (``R_BUDGET``
+    the instruction budget of one call); the VM must be READY. Returns :data:`DONE`,
+    :data:`PYTHON_MESSAGE` or :data:`IN_CALL`."""
+    size = len(d)
+    g = 4 * elems + 2
+    limit = regs[R_MARK_DEPTH]
+    frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
+    n = inq[Q_RECORD]
+    slots = inq[Q_SLOTS]
+    scratch = slots * n  # records[capacity]: bbzinmsg_queue_extract's copy
+    listeners = inq[Q_LISTENERS]
+    while True:
+        start = inq[Q_START]
+        if start == inq[Q_END] or inq[Q_COUNT] >= inq[Q_MAX]:
+            return DONE
+        # ---- the message's collection (or, right after one, only its count)
+        inq[Q_COUNT] += 1
+        regs[R_GC_RUNS] += 1
+        if inq[Q_COLLECTED] == 0:
+            r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
+                             traversed, frames, size, s, g, elems, reserved, limit)
+            regs[R_RTOBJ] = r >> 16
+            regs[R_LTSEG] = r & 0xFFFF
+        inq[Q_COLLECTED] = 0
+        # ---- anything but the happy path: Python takes the message from here
+        head = ((start & 0xFF) % slots) * n
+        sp = regs[R_SP]
+        if _i(records[head]) != _BROADCAST or sp + _PUSHES >= regs[R_STACK_SIZE] \
+                or not _room_for_objects(d, regs, s, reserved, _OBJECTS):
+            return PYTHON_MESSAGE
+        # ---- inmsg_extract: the head into the scratch record, pop
+        for j in range(n):
+            records[scratch + j] = records[head + j]
+        inq[Q_START] = ((start + 1) & 0xFF) % slots
+        inq[Q_EXTRACTED] += 1
+        # ---- process_broadcast: topic string (kept above the top), listener lookup
+        sid = _i(records[scratch + _TOPIC]) | (_i(records[scratch + _TOPIC + 1]) << 8)
+        topic = _obj_alloc(d, regs, s, reserved, _STRING, sid)
+        d[topic * s + 1] = sid & 0xFF
+        d[topic * s + 2] = sid >> 8
+        stack[sp + 1] = topic
+        listener = table_lookup(d, listeners, topic, s, elems)
+        if listener < 0:
+            continue
+        stack[sp + 1] = regs[R_NIL]  # self
+        stack[sp + 2] = listener
+        stack[sp + 3] = topic
+        value = _obj_alloc(d, regs, s, reserved, _USERDATA, 0)  # bbzvm_pushu(0)
+        o = value * s
+        for j in range(1, s):
+            d[o + j] = 0
+        stack[sp + 4] = value
+        d[o] = (_i(d[o]) & (0xFF ^ _TYPE_MASK ^ _PERMANENT)) | \
+            (_i(records[scratch + _VALUE]) & _TYPE_MASK)
+        for j in range(1, s):
+            d[o + j] = records[scratch + _VALUE + j]
+        sender = _obj_alloc(d, regs, s, reserved, _INT, 0)
+        d[sender * s + 1] = records[scratch + _RID]
+        d[sender * s + 2] = records[scratch + _RID + 1]
+        stack[sp + 5] = sender
+        # ---- closure_call(3): push the count, the kernel's callc, run to the return
+        argc = _obj_alloc(d, regs, s, reserved, _INT, 0)
+        d[argc * s + 1] = _LISTENER_ARGS
+        d[argc * s + 2] = 0
+        stack[sp + 6] = argc
+        regs[R_SP] = sp + _PUSHES
+        regs[R_SAVED] = regs[R_BP]
+        regs[R_N] = 0
+        regs[R_FIXED] = 0
+        regs[R_PENDING] = -1
+        regs[R_CALL_FIRST] = 1
+        status = run(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved)
+        if status != EXIT or regs[R_SP] < 0:
+            inq[Q_INNER] = status
+            return IN_CALL
+        # ---- the end of process_broadcast: pop the result, collect
+        regs[R_SP] -= 1
+        regs[R_GC_RUNS] += 1
+        r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
+                         traversed, frames, size, s, g, elems, reserved, limit)
+        regs[R_RTOBJ] = r >> 16
+        regs[R_LTSEG] = r & 0xFFFF
+        inq[Q_COLLECTED] = 1
+
+
+__all__ = ["process_broadcasts", "DONE", "PYTHON_MESSAGE", "IN_CALL", "QUEUE_SLOTS", "NONE"]

@@ -1,0 +1,111 @@
+"""The compiled in-queue loop (``bbzide/vm/fastinbox.py``) against the reference routines.
+
+A robot in the fast mode processes its received broadcasts in compiled code and hands the
+rest back to Python; a robot in the reference mode (``stress_gc=True``) runs the Python
+routines only. Both receive the same messages — broadcasts to a bytecode listener, to a
+topic nobody listens to, to a listener calling a host function, stigmergy messages between
+them, garbage — on a stack filled to every depth near its end (the kernel leaves a call
+without room for its pushes to Python) and a heap filled until it is full (no room for the
+call's objects: Python again). After each control step every observable must be equal.
+"""
+
+from __future__ import annotations
+
+import pickle
+
+import pytest
+
+from bbzide.compiler import bittybuzz_string_table, compile_source
+from bbzide.vm.host import HostCall
+from bbzide.vm.profiles import KILOBOT, PC
+from bbzide.vm.robot import Robot
+
+SOURCE = """
+heard = 0
+kept = {}
+n = 0
+function init() {
+  v = stigmergy.create(1)
+  neighbors.listen("g", function(topic, value, rid) {
+    if (value < 100) { heard = heard + value }
+  })
+  neighbors.listen("h", function(topic, value, rid) {
+    log(value, rid)
+  })
+  neighbors.listen("k", function(topic, value, rid) {
+    n = n + 1
+    kept[n] = value
+  })
+}
+function step() {
+  neighbors.broadcast("g", id)
+  neighbors.broadcast("h", id)
+  neighbors.broadcast("k", id)
+  neighbors.broadcast("z", id)
+  if (n == 0) { v.put(1, heard) }   # a few local puts (the Kilobot store is tiny)
+  n = n + 1
+}
+"""
+
+
+def _observe(robot: Robot) -> tuple:
+    vm = robot.vm
+    q = vm.queues.inbox
+    return (vm.state, vm.error, vm.pc, bytes(vm.stack), vm.stackptr, vm.blockptr, vm.lsyms,
+            vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data), list(vm.error_events),
+            vm.heap.gc_runs, vm.heap.peak_used, vm.instructions_executed,
+            [bytes(r) for r in q.records], q.start, q.end, pickle.dumps(vm.neighbors),
+            pickle.dumps(vm.vstig), str(robot.failure))
+
+
+def _pair(profile, fill: int) -> tuple[list[Robot], list[list]]:
+    program = compile_source(SOURCE, "inbox.bzz",
+                             string_table=bittybuzz_string_table(["log"])).to_bbo()
+    logs: list[list] = [[], []]
+    robots = []
+    for k, stress in enumerate((True, False)):
+        def log(call: HostCall, store: list = logs[k]) -> None:
+            store.append(call.args)
+
+        robot = Robot(program, profile, 1, {"log": log}, stress_gc=stress)
+        robot.boot()
+        for _ in range(fill):  # a stack filled by the firmware's own pushes
+            robot.vm.push_nil()
+        robots.append(robot)
+    return robots, logs
+
+
+@pytest.mark.parametrize("profile", [KILOBOT, PC], ids=["kilobot", "pc"])
+def test_inbox_identical_on_a_filling_stack(profile) -> None:
+    for fill in range(profile.stack_size - 12, profile.stack_size - 1):
+        (reference, fast), logs = _pair(profile, fill)
+        sender = Robot(reference.program, profile, 7, {"log": lambda call: None})
+        sender.boot()
+        for _ in range(3):
+            sent = sender.control_step()
+            for robot in (reference, fast):
+                for payload in sent + [b"\x00\x07", b"\x09" * 9]:
+                    robot.receive(payload, 30.0, 1.0, 0.0)
+                robot.control_step()
+            assert _observe(reference) == _observe(fast), fill
+        assert logs[0] == logs[1]
+
+
+@pytest.mark.parametrize("profile", [KILOBOT, PC], ids=["kilobot", "pc"])
+def test_inbox_identical_until_the_heap_is_full(profile) -> None:
+    (reference, fast), logs = _pair(profile, 0)
+    senders = [Robot(reference.program, profile, i, {"log": lambda call: None})
+               for i in range(2, 6)]
+    for sender in senders:
+        sender.boot()
+    for _ in range(80):
+        sent = [m for sender in senders for m in sender.control_step()]
+        for robot in (reference, fast):
+            for payload in sent:
+                robot.receive(payload, 30.0, 1.0, 0.0)
+            robot.control_step()
+        assert _observe(reference) == _observe(fast)
+        if reference.failure is not None:
+            break
+    assert reference.failure is not None and reference.failure.reason == "MEM"
+    assert logs[0] == logs[1]
