@@ -35,13 +35,14 @@ robot exactly.
 from __future__ import annotations
 
 import pickle
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import messages, neighbors
+from bbzide.vm import fastreceive, messages, neighbors
 from bbzide.vm.host import HostCall
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
@@ -226,6 +227,24 @@ class Robot:
                           elevation)
         except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
             self._fail_host(exc)
+
+    def receive_all(self, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+                    ) -> None:
+        """``receive`` of each ``(sender, payload, distance, azimuth, elevation)`` in turn
+        (the engine's deliveries of a step). A Kilobot in the fast mode takes them in one
+        compiled call (:mod:`fastreceive`: its receive path cannot touch the VM)."""
+        vm = self.vm
+        p = self.profile
+        if self.failure is None and self.booted and p.xtreme and not p.neighbors_floats \
+                and fastreceive.COMPILED and not vm.stress_gc and vm.state != State.ERROR:
+            try:
+                if fastreceive.receive_messages(vm, deliveries):
+                    return
+            except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
+                self._fail_host(exc)
+                return
+        for _sender, message, distance, azimuth, elevation in deliveries:
+            self.receive(message, distance, azimuth, elevation)
 
     def _receive(self, payload: bytes, distance: float, azimuth: float,
                  elevation: float) -> None:

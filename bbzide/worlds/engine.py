@@ -326,11 +326,14 @@ class Simulation:
                 counters.dropped[receiver] += len(deliveries)
                 continue
             robot = state.robot
-            receive = robot.receive
-            size = 0
-            for _, message, distance, azimuth, elevation in deliveries:
-                receive(message, distance, azimuth, elevation)
-                size += len(message)
+            receive_all = getattr(robot, "receive_all", None)  # Robot's one-call receive
+            if receive_all is not None:
+                receive_all(deliveries)
+            else:
+                receive = robot.receive
+                for _, message, distance, azimuth, elevation in deliveries:
+                    receive(message, distance, azimuth, elevation)
+            size = sum([len(delivery[1]) for delivery in deliveries])
             counters.received[receiver] += len(deliveries)
             counters.bytes_received[receiver] += size
         world = self.world

@@ -11,7 +11,9 @@ call's objects: Python again). After each control step every observable must be 
 
 from __future__ import annotations
 
+import math
 import pickle
+import random
 
 import pytest
 
@@ -109,3 +111,32 @@ def test_inbox_identical_until_the_heap_is_full(profile) -> None:
             break
     assert reference.failure is not None and reference.failure.reason == "MEM"
     assert logs[0] == logs[1]
+
+
+def test_receive_all_is_receive_after_receive() -> None:
+    """``Robot.receive_all`` (compiled for the Kilobot: ``bbzide/vm/fastreceive.py``) against
+    ``receive`` called per message: truncated and garbage payloads, duplicates of queued
+    broadcasts, a queue and a neighbor ring that overflow, situated values to round (ties
+    to even), clamp, NaN and infinities."""
+    rng = random.Random(4)
+    (_, batch), _logs = _pair(KILOBOT, 0)
+    (_, single), _logs = _pair(KILOBOT, 0)
+    odd = [0.5, 1.5, 2.5, -0.5, 254.5, 255.5, 300.0, -7.0, math.nan, math.inf, -math.inf]
+    for step in range(40):
+        deliveries = []
+        for _ in range(rng.randrange(0, 25)):
+            kind = rng.choice([0, 0, 0, 1, 2, 3, 9])
+            sender = rng.randrange(0, 24)
+            body = bytes([kind, sender, 0, rng.randrange(40, 43), 0, 1, rng.randrange(9), 0, 5])
+            payload = body[:rng.choice([0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 9, 12])]
+            situated = [rng.choice(odd) if rng.random() < 0.2 else rng.uniform(0, 120)
+                        for _ in range(3)]
+            deliveries.append((sender, payload, *situated))
+        batch.receive_all(deliveries)
+        for _sender, payload, distance, azimuth, elevation in deliveries:
+            single.receive(payload, distance, azimuth, elevation)
+        assert _observe(batch) == _observe(single), step
+        if step % 3 == 0:
+            batch.control_step()
+            single.control_step()
+            assert _observe(batch) == _observe(single), step
