@@ -21,6 +21,7 @@ for NaN and infinities. Equality with the reference is by test
 from __future__ import annotations
 
 import math
+from array import array
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -214,19 +215,23 @@ def _neighbors_add(ring: Any, rings: Any, robot: int, distance: int, azimuth: in
 
 @_compile
 def receive_all(records: Any, ring: Any, rings: Any, size: int, payloads: Any,
-                offsets: Any, situated: Any, mark: bool) -> None:
-    """Message ``i`` (``payloads[offsets[i]:offsets[i + 1]]``, at most the wire's bytes)
-    with its (distance, azimuth, elevation) ``situated[i]``: the neighbor ring for a
-    broadcast, then the in-queue — as ``Robot.receive`` does, message after message."""
+                lengths: Any, situated: Any, mark: bool) -> None:
+    """Message ``i`` (the next ``lengths[i]`` bytes of ``payloads``, at most the wire's)
+    with its distance, azimuth and elevation (``situated[i]``, ``situated[count + i]``,
+    ``situated[2 * count + i]``): the neighbor ring for a broadcast, then the in-queue —
+    as ``Robot.receive`` does, message after message."""
     spare = np.empty(len(records), np.uint8)
-    for i in range(len(offsets) - 1):
-        p = offsets[i]
-        n = min(offsets[i + 1] - p, PAYLOAD_RING_CAPACITY - 1)
+    count = len(lengths)
+    p = 0
+    for i in range(count):
+        n = min(_i(lengths[i]), PAYLOAD_RING_CAPACITY - 1)
         if n >= 3 and payloads[p] == _BROADCAST:
             rid = _i(payloads[p + 1]) | (_i(payloads[p + 2]) << 8)
-            _neighbors_add(ring, rings, rid, _to_u8(situated[i, 0]), _to_u8(situated[i, 1]),
-                           _to_u8(situated[i, 2]), mark)
+            _neighbors_add(ring, rings, rid, _to_u8(situated[i]),
+                           _to_u8(situated[count + i]), _to_u8(situated[2 * count + i]),
+                           mark)
         _inmsg_append(records, rings, size, payloads, p, n, spare)
+        p += _i(lengths[i])
 
 
 def receive_messages(vm: VM, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
@@ -238,13 +243,10 @@ def receive_messages(vm: VM, deliveries: Sequence[tuple[Any, bytes, float, float
         return True
     try:
         payloads = [bytes(d[1][:PAYLOAD_SIZE]) for d in deliveries]
-        situated = np.array([(d[2], d[3], d[4]) for d in deliveries], np.float64)
+        situated = array("d", [d[2] for d in deliveries] + [d[3] for d in deliveries]
+                         + [d[4] for d in deliveries])
     except (TypeError, ValueError, IndexError):
         return False
-    if situated.shape != (len(payloads), 3):
-        return False
-    offsets = np.zeros(len(payloads) + 1, np.int64)
-    np.cumsum([len(p) for p in payloads], out=offsets[1:])
     q = vm.queues.inbox
     in_records = q.records
     size = len(in_records[0])
@@ -256,7 +258,9 @@ def receive_messages(vm: VM, deliveries: Sequence[tuple[Any, bytes, float, float
     rings = np.array((q.start, q.end, q.capacity, nb.ring.start, nb.ring.end,
                       nb.ring.capacity), np.int64)
     receive_all(np.frombuffer(packed, np.uint8), ring, rings, size,
-                np.frombuffer(b"".join(payloads), np.uint8), offsets, situated,
+                np.frombuffer(b"".join(payloads), np.uint8),
+                np.frombuffer(bytes([len(p) for p in payloads]), np.uint8),
+                np.frombuffer(situated, np.float64),
                 nb.clear_counter < vm.profile.neighbors_mark_time)
     for k, record in enumerate(in_records):
         record[:] = packed[k * size:(k + 1) * size]

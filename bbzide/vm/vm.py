@@ -130,6 +130,8 @@ class VM:
         self._heap_view = self.heap.view
         self._bcode_view = np.zeros(0, np.uint8)
         self._bcode_of_view = b""
+        #: registers of the compiled ``_ret`` a host function's return uses (fast mode)
+        self._ret_registers = np.zeros(fastloop.REGISTERS, np.int64)
         self.stack_size = profile.stack_size
         self.stackptr = -1
         self.blockptr = -1
@@ -555,7 +557,26 @@ class VM:
         self.pop()
         return True
 
+    def _compiled_ret(self, with_value: bool) -> bool:
+        """``ret0``/``ret1`` of a host function by the instruction kernel's ``_ret`` (fast
+        mode): its happy path, or False with nothing done (Python then runs it; ``_ret``
+        also refuses a return pc past the code, which only ``op_ret*`` would check)."""
+        if self.stress_gc or _KERNEL is None:
+            return False
+        regs = self._ret_registers
+        regs[fastloop.R_NIL] = self.nil
+        h = self.heap
+        if not fastloop._ret(self._heap_view, self._stack_view, regs, with_value,
+                             self.stackptr, self.blockptr, self.lsyms, self.bcode_size,
+                             h.obj_size, h.elems):
+            return False
+        self.pc, self.stackptr, self.blockptr, _rtobj, _ltseg, self.lsyms = \
+            regs[0:6].tolist()
+        return True
+
     def ret0(self) -> None:
+        if self._compiled_ret(False):
+            return
         if not self.assert_stack(3):
             return
         self._unwind()
@@ -568,6 +589,8 @@ class VM:
         self.push(self.nil)
 
     def ret1(self) -> None:
+        if self._compiled_ret(True):
+            return
         if not self.assert_stack(4):
             return
         ret = self.stack[self.stackptr]
