@@ -73,8 +73,9 @@ _FLAG2 = 0x80
 _NO_ACTREC = 0xFF
 _NO_NEXT = 0x3FFF
 
-#: skip rules by opcode — the same table as ``vm._SKIP_RULES`` (checked equal by a test)
-_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW = 1, 2, 3
+#: skip rules by opcode — the same table as ``vm._SKIP_RULES`` (checked equal by a test;
+#: the last two, _REPLACED_TOP and _POPPED_TWO_NEW, only this kernel applies: see there)
+_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 RULES = np.zeros(256, np.int64)
 for _op in (0, 34, 44):
     RULES[_op] = _PC_ONLY
@@ -82,6 +83,9 @@ for _op in (2, 41):
     RULES[_op] = _PUSHED_OLD
 for _op in (3, 35, 36, 37, 38, 39):
     RULES[_op] = _PUSHED_NEW
+RULES[28] = _REPLACED_TOP  # gload
+for _op in (7, 8, 9, 10, 11, 12, 14, 15, 17, 18, 22, 23, 24, 25, 26, 27):
+    RULES[_op] = _POPPED_TWO_NEW  # arithmetic, logic and comparisons of two operands
 
 
 @_compile
@@ -588,6 +592,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             break
         op = _i(bcode[pc])
         nxt_pc = pc + 1
+        # the roots an instruction may pop (for _REPLACED_TOP and _POPPED_TWO_NEW)
+        top_before = _i(stack[sp]) if sp >= 0 else nobj
+        below_before = _i(stack[sp - 1]) if sp >= 1 else nobj
         arg = 0
         if op >= 35:
             if op > 46 or pc + 3 > bsize:
@@ -857,13 +864,20 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         rule = rules[op]
         if rule >= _PUSHED_OLD and _i(stack[sp]) >= nobj:
             fixed = False
-        elif rule == _PUSHED_NEW:
+        elif rule == _REPLACED_TOP and not (
+                top_before < nobj and _i(info[top_before]) & PERMANENT_PHASE):
+            fixed = False  # gload dropped a root the permanent roots may not keep
+        elif rule == _POPPED_TWO_NEW and not (
+                top_before < nobj and _i(info[top_before]) & PERMANENT_PHASE
+                and below_before < nobj and _i(info[below_before]) & PERMANENT_PHASE):
+            fixed = False  # an operand the permanent roots may not keep was dropped
+        elif rule == _PUSHED_NEW or rule == _POPPED_TWO_NEW:
             pending = _i(stack[sp]) * s
             t = _i(d[pending]) & 7
             prior = regs[R_PRIOR]
             fixed = t != _TABLE and (t != _CLOSURE or not _i(d[pending]) & _FLAG2) and \
                 ((prior & _VALID) != 0 or (prior & _GC_MARK) == 0)
-        elif rule == _PUSHED_OLD:
+        elif rule == _PUSHED_OLD or rule == _REPLACED_TOP:
             top = _i(stack[sp])
             m = _i(d[top * s])
             t = m & 7

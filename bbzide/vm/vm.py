@@ -1326,7 +1326,16 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 #   (found by the hypothesis test; the rule skipped it until session 3).
 # None of these changes how non-leaves are traversed, so ``gc_info`` stays true. Every
 # other instruction (pops, stores, calls, tables, lambdas) is followed by a collection.
-_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW = 1, 2, 3
+#
+# Two more rules only the compiled kernel applies (fastloop.run; this loop, running an
+# instruction the kernel handed back, collects after them — always exact):
+# * _REPLACED_TOP: gload replaced the top root (a name string) by a global's value; the
+#   dropped root was first marked from the permanent roots (``gc_info``, exact for every
+#   object a skipped step did not allocate: those have no PERMANENT_PHASE), so as a stack
+#   root it marked nothing, and the pushed value is accepted as by _PUSHED_OLD;
+# * _POPPED_TWO_NEW: a two-operand operation dropped two such roots and pushed its new
+#   result, a leaf accepted as by _PUSHED_NEW (pending mark included).
+_PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 _SKIP_RULES: list[int] = [0] * 256
 for _op in _PC_ONLY_OPCODES:
     _SKIP_RULES[_op] = _PC_ONLY
@@ -1334,6 +1343,9 @@ for _op in (2, 41):
     _SKIP_RULES[_op] = _PUSHED_OLD
 for _op in (3, 35, 36, 37, 38, 39):
     _SKIP_RULES[_op] = _PUSHED_NEW
+_SKIP_RULES[28] = _REPLACED_TOP  # gload
+for _op in (7, 8, 9, 10, 11, 12, 14, 15, 17, 18, 22, 23, 24, 25, 26, 27):
+    _SKIP_RULES[_op] = _POPPED_TWO_NEW
 
 #: the compiled instruction kernel, when numba is installed (else the Python loop alone)
 _KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None
