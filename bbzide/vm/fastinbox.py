@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import _compile, _i, collect_with
+from bbzide.vm.fastgc import COMPILED, _compile, _i, collect_with
 from bbzide.vm.fastloop import (
     EXIT,
     NONE,
@@ -44,6 +44,7 @@ from bbzide.vm.fastloop import (
     R_CALL_FIRST,
     R_FIXED,
     R_GC_RUNS,
+    R_GSYMS,
     R_LTSEG,
     R_MARK_DEPTH,
     R_N,
@@ -189,4 +190,53 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         inq[Q_COLLECTED] = 1
 
 
-__all__ = ["process_broadcasts", "DONE", "PYTHON_MESSAGE", "IN_CALL", "QUEUE_SLOTS", "NONE"]
+#: pushes of a global's call: the name (then popped), nil, the closure, the argument count
+_CALL_PUSHES = 3
+#: objects it allocates before its callc: the name string, the argument count
+_CALL_OBJECTS = 2
+# Results of call_global.
+NOT_DEFINED = 3     # no such global: the name was pushed and popped, nothing called
+CALLED = 4          # the call ran to its return; its result is on the stack
+CALL_UNDER_WAY = 8  # + fastloop.run's status (all below 8): Python goes on with the call
+
+
+@_compile
+def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+                rules: Any, s: int, elems: int, reserved: int, sid: int) -> int:
+    """``Robot.call_global`` of string ``sid`` with no argument (``bbzkilo_func_call``:
+    pushs, pop, look the global up, push nil and the closure, ``closure_call(0)``) on the
+    happy path; the VM must be READY. Returns :data:`PYTHON_MESSAGE` with nothing done
+    (no room on the stack or in the heap: Python calls it), :data:`NOT_DEFINED`,
+    :data:`CALLED`, or ``CALL_UNDER_WAY + status`` where ``status`` is what
+    :func:`fastloop.run` returned, for ``VM._loop``'s ``resume``."""
+    sp = regs[R_SP]
+    if sp + _CALL_PUSHES >= regs[R_STACK_SIZE] \
+            or not _room_for_objects(d, regs, s, reserved, _CALL_OBJECTS):
+        return PYTHON_MESSAGE
+    name = _obj_alloc(d, regs, s, reserved, _STRING, sid)
+    d[name * s + 1] = sid & 0xFF
+    d[name * s + 2] = sid >> 8
+    stack[sp + 1] = name  # push + pop: the slot above the top keeps it
+    closure = table_lookup(d, regs[R_GSYMS], name, s, elems)
+    if closure < 0:
+        return NOT_DEFINED
+    stack[sp + 1] = regs[R_NIL]
+    stack[sp + 2] = closure
+    argc = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[argc * s + 1] = 0
+    d[argc * s + 2] = 0
+    stack[sp + 3] = argc
+    regs[R_SP] = sp + _CALL_PUSHES
+    regs[R_SAVED] = regs[R_BP]
+    regs[R_N] = 0
+    regs[R_FIXED] = 0
+    regs[R_PENDING] = -1
+    regs[R_CALL_FIRST] = 1
+    status = run(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved)
+    if status != EXIT:
+        return CALL_UNDER_WAY + status
+    return CALLED
+
+
+__all__ = ["COMPILED", "process_broadcasts", "call_global", "DONE", "PYTHON_MESSAGE", "IN_CALL",
+           "NOT_DEFINED", "CALLED", "CALL_UNDER_WAY", "QUEUE_SLOTS", "NONE"]

@@ -42,7 +42,7 @@ from typing import Any
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import fastreceive, messages, neighbors
+from bbzide.vm import fastinbox, fastloop, fastreceive, messages, neighbors
 from bbzide.vm.host import HostCall
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
@@ -203,6 +203,12 @@ class Robot:
         """``bbzkilo_func_call``: look the global up (pushs, pop) and call it with self nil;
         in ``pop`` mode the returned value is popped. False when it is not defined."""
         vm = self.vm
+        if fastinbox.COMPILED and not vm.stress_gc and vm.state == State.READY:
+            defined = _call_global_compiled(vm, sid)
+            if defined is not None:
+                if defined and self.loop == "pop" and vm.state == State.READY:
+                    vm.pop()
+                return defined
         vm.push(vm.new_string_obj(sid))
         name = vm.stack[vm.stackptr] if vm.stackptr >= 0 else vm.nil
         vm.pop()
@@ -322,6 +328,24 @@ class Robot:
     @property
     def error(self) -> Error:
         return self.vm.error
+
+
+def _call_global_compiled(vm: VM, sid: int) -> bool | None:
+    """``call_global``'s lookup and ``closure_call(0)`` by :func:`fastinbox.call_global`
+    (fast mode), a call it leaves under way finished by ``VM._loop`` (``resume``); None
+    when it did nothing (no room: the caller then does it all in Python)."""
+    saved, budget = vm.blockptr, vm.instruction_budget
+    regs = vm.kernel_registers(saved, budget)
+    h = vm.heap
+    status = fastinbox.call_global(h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info,
+                                   h.gc_traversed, fastloop.RULES, h.obj_size, h.elems,
+                                   h.reserved, sid)
+    if status == fastinbox.PYTHON_MESSAGE:
+        return None
+    vm.take_kernel_registers(regs)
+    if status >= fastinbox.CALL_UNDER_WAY:
+        vm._loop(saved, budget, resume=(status - fastinbox.CALL_UNDER_WAY, regs))
+    return status != fastinbox.NOT_DEFINED
 
 
 def _to_bbzfloat(x: float) -> int:
