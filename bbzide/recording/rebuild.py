@@ -24,13 +24,9 @@ from collections.abc import Callable
 from typing import Any
 
 from bbzide.diagnostics import SourceLocation
+from bbzide.recording import keyframes
 from bbzide.recording.reader import Keyframe, Recording
-from bbzide.recording.recorder import (
-    FULL_KEYFRAME_EVERY,
-    RecordingError,
-    build_robot,
-    xor_bytes,
-)
+from bbzide.recording.recorder import RecordingError, build_robot
 from bbzide.vm.input_log import (
     InputLogError,
     ReplayDivergence,
@@ -227,21 +223,22 @@ class RobotRebuilder:
         return robot, host
 
     def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
-        """The keyframe's `Robot.snapshot()` bytes (a delta chain is undone from its last full
+        """The keyframe's `Robot.snapshot()` bytes (a delta chain is applied from its last full
         keyframe), checked against the allow-list."""
         chain = [keyframe]
         by_step = {k.step: k for k in self.recording.keyframes[index]}
         while chain[-1].base >= 0:
             base = by_step.get(chain[-1].base)
-            if base is None or base.step >= chain[-1].step or len(chain) > 4 * FULL_KEYFRAME_EVERY:
+            if (base is None or base.step >= chain[-1].step
+                    or len(chain) > 4 * keyframes.FULL_KEYFRAME_EVERY):
                 raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
                                      f"refers to a missing keyframe (step {chain[-1].base})")
             chain.append(base)
         try:
-            snapshot = zlib.decompress(chain[-1].snapshot)
+            snapshot = keyframes.decode_full(chain[-1].snapshot)
             for delta in reversed(chain[:-1]):
-                snapshot = xor_bytes(zlib.decompress(delta.snapshot), snapshot)
-        except zlib.error as error:
+                snapshot = keyframes.decode_delta(delta.snapshot, snapshot)
+        except keyframes.KeyframeError as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None
         check_snapshot(snapshot, f"keyframe of robot #{index} at step {keyframe.step}")

@@ -30,13 +30,14 @@ import time
 import uuid
 import zlib
 from collections.abc import Callable
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from bbzide.diagnostics import UserError
-from bbzide.recording import layout
+from bbzide.recording import keyframes, layout
 from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
 #: A robot is keyframed at least every 25 steps (cheap firmware: 25 robots' compressed
@@ -66,19 +67,16 @@ BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: found" events land on their step, but in between only its found count is compared (the JSON
 #: of an M300's overlays, ~1 ms, was a fifth of the recorder's time when done every step).
 OVERLAY_EVERY = 10
-#: zlib level for snapshots: level 1. On an M300's 69 KB SAR snapshot it takes 0.3-0.4 ms
-#: against level 6's 1.0 ms for 3-4 % more bytes (6.2 vs 5.8 KB), and keyframes were the
-#: recorder's largest cost; on 3 KB Kilobot snapshots both take 40-80 us.
-SNAPSHOT_COMPRESSION = 1
 #: zlib level for each step's input blob: level 1 halves it (a broadcast reaches several
 #: robots, so payloads repeat; bearings of 0 and distance exponents are alike) for ~20 us.
 INPUT_COMPRESSION = 1
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
-#: Every 16th keyframe of a robot is full; the others are XOR deltas against the previous one;
-#: decoding one needs at most 16 inflates + XORs (~0.3 ms each for an M300's 69 KB snapshot).
-FULL_KEYFRAME_EVERY = 16
+
+#: Robot ids below this map to indexes through an array (65,536 ids: 256 KB at most; ids are
+#: u16 on the wire, so every real swarm fits).
+MAX_ID_TABLE = 1 << 16
 
 
 class RecordingError(UserError):
@@ -119,13 +117,6 @@ class Recordable:
     def _booted(self, robot: CapturingRobot) -> None:
         if self.listener is not None:
             self.listener(robot)
-
-
-def xor_bytes(data: bytes, base: bytes) -> bytes:
-    """`data` XOR `base` (cut or zero-padded to len(data)); XOR with `base` again undoes it."""
-    n = len(data)
-    padded = base[:n].ljust(n, b"\0")
-    return (np.frombuffer(data, np.uint8) ^ np.frombuffer(padded, np.uint8)).tobytes()
 
 
 def check_output_path(path: Path, force: bool) -> Path:
@@ -227,11 +218,22 @@ class MissionRecorder:
         self._source_of = source_of or (lambda program: None)
         self.count = len(sim.robots)
         self._index_of = {s.robot_id: s.index for s in sim.robots}
+        #: robot id -> index as an array, when ids are small non-negative numbers (as usual)
+        self._index_by_id: np.ndarray | None = None
+        if self._index_of and 0 <= min(self._index_of) and max(self._index_of) < MAX_ID_TABLE:
+            self._index_by_id = np.full(max(self._index_of) + 1, -1, dtype=np.int32)
+            for robot_id, index in self._index_of.items():
+                self._index_by_id[robot_id] = index
         self._capturing: dict[int, CapturingRobot] = {}
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
+        # Rare rows wait here until the next flush and leave as columns with the steps (one
+        # `log` call per row cost ~0.5 ms of Rerun's Python-side conversion).
+        self._keyframe_rows: list[tuple[int, list[int], list[bytes], list[int], list[int]]] = []
+        self._event_rows: list[tuple[int, str, int, str]] = []
+        self._overlay_rows: list[tuple[int, str, np.ndarray | None]] = []
         for state in sim.robots:
             if isinstance(state.robot, CapturingRobot):
                 self._capturing[state.index] = state.robot
@@ -356,11 +358,8 @@ class MissionRecorder:
 
     def _keyframe(self, indexes: list[int], step: int, full: bool = False) -> None:
         """Snapshot robots `indexes` now. A robot's first keyframe after (re)boot and every
-        `FULL_KEYFRAME_EVERY`-th are full; the others store the XOR with the robot's previous
-        keyframe (`bases` = its step), zlib-compressed: the heap sits at a fixed offset of the
-        pickle and changes little between keyframes, so the XOR is mostly zeros (Kilobot
-        1,050 -> 100 B; a zlib preset dictionary would only reach back 32 KB of an M300's
-        60 KB heap)."""
+        `keyframes.FULL_KEYFRAME_EVERY`-th are full; the others store the blocks that changed
+        since the robot's previous keyframe (`bases` = its step; see keyframes.py)."""
         if not indexes:
             return
         snapshots, programs, bases = [], [], []
@@ -372,31 +371,20 @@ class MissionRecorder:
             snapshot = state.robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
             previous = self._bases.get(index)
-            if full or previous is None or count % FULL_KEYFRAME_EVERY == 0:
-                snapshots.append(zlib.compress(snapshot, SNAPSHOT_COMPRESSION))
+            if full or previous is None or count % keyframes.FULL_KEYFRAME_EVERY == 0:
+                snapshots.append(keyframes.encode_full(snapshot))
                 bases.append(-1)
             else:
-                snapshots.append(zlib.compress(xor_bytes(snapshot, previous[1]),
-                                               SNAPSHOT_COMPRESSION))
+                snapshots.append(keyframes.encode_delta(snapshot, previous[1]))
                 bases.append(previous[0])
             self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
             self._snapshot_seconds[index] = time.perf_counter() - started
             programs.append(self._program_id(state.program, step))
-        import pyarrow as pa
-
-        self._set_time(step)
-        self.rec.log(layout.KEYFRAMES, self.rr.AnyValues(
-            robots=np.array(indexes, dtype=np.int32),
-            snapshots=pa.array(snapshots, type=pa.binary()),
-            programs=np.array(programs, dtype=np.int32),
-            bases=np.array(bases, dtype=np.int32)))
+        self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
 
     def _event(self, step: int, kind: str, robot: int, text: str) -> None:
-        self._set_time(step)
-        level = "ERROR" if kind == layout.EVENT_ERROR else "INFO"
-        self.rec.log(layout.EVENTS, self.rr.TextLog(text, level=level),
-                     self.rr.AnyValues(kind=kind, robot=int(robot)))
+        self._event_rows.append((step, kind, int(robot), text))
 
     # ---- per step -------------------------------------------------------------------------------
     def record_step(self) -> None:
@@ -432,42 +420,58 @@ class MissionRecorder:
         self.seconds_spent += time.perf_counter() - started
 
     def _buffer_frame(self, step: int, inputs_of_previous_step: bytes) -> None:
-        """The state at `step`; the inputs blob is the one that led here (from step - 1)."""
+        """The state at `step`; the inputs blob is the one that led here (from step - 1).
+        Per-robot figures are gathered in one pass into lists and become arrays at once (a
+        numpy assignment per robot and figure cost more than the figures themselves)."""
         sim = self.sim
         n = self.count
-        heap = np.zeros((len(layout.HEAP_FIGURES), n), dtype=np.int32)
-        failed = np.zeros(n, dtype=bool)
         labels: dict[str, list[str]] = {name: [""] * n for name in sim.watch}
+        failed = []
+        heap_rows = []
+        no_heap = (0, 0, 0, 0, 0, 0)
         for state in sim.robots:
-            i = state.index
-            failed[i] = state.failure is not None
+            failed.append(state.failure is not None)
             robot = state.robot
-            if robot is not None:
-                h = robot.vm.heap
-                used = h.rtobj + (h.size - h.ltseg)
-                heap[:, i] = (used, h.size - used, h.peak_used, h.rtobj, h.ltseg, h.gc_runs)
+            if robot is None:
+                heap_rows.append(no_heap)
+            else:
+                # A CapturingRobot forwards `.vm` through __getattr__: go round it.
+                h = getattr(robot, "robot", robot).vm.heap
+                heap_rows.append((h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1))
             if labels:
                 current = self._labels_of(state)
                 for name in labels:
                     value = current.get(name)
-                    labels[name][i] = "" if value is None else str(value)
+                    if value is not None:
+                        labels[name][state.index] = str(value)
+        size, rop, lsp, peak, gc_runs, has_vm = np.array(heap_rows, dtype=np.int64).T
+        used = (rop + size - lsp) * has_vm
+        heap = np.stack([used, size - used, peak, rop, lsp, gc_runs]).astype(np.int32)
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
         buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
-        buffer.setdefault("failed", []).append(failed)
+        buffer.setdefault("failed", []).append(np.array(failed, dtype=bool))
         buffer.setdefault("heap", []).append(heap)
         buffer.setdefault("labels", []).append(labels)
         buffer.setdefault("messages", []).append(np.stack(
             [stats.sent, stats.received, stats.bytes_sent]).astype(np.int32))
         buffer.setdefault("totals", []).append(
             (stats.total_sent, stats.total_received, stats.total_dropped, stats.total_bytes))
-        index_of = self._index_of
-        buffer.setdefault("links", []).append(np.array(
-            [(index_of[a], index_of[c]) for a, c in sim.links], dtype=np.int32).reshape(-1, 2))
+        buffer.setdefault("links", []).append(self._link_indexes(sim.links))
         buffer.setdefault("inputs", []).append(inputs_of_previous_step)
+
+    def _link_indexes(self, links: list[tuple[int, int]]) -> np.ndarray:
+        """The engine's (sender id, receiver id) links as an (M, 2) array of robot indexes:
+        the ids flattened in C, then mapped through a lookup array (hundreds of links a step
+        in a 25-drone swarm; a dict look-up per id was a tenth of the recorder's time)."""
+        ids = np.fromiter(chain.from_iterable(links), dtype=np.int64, count=2 * len(links))
+        if self._index_by_id is not None:
+            return self._index_by_id[ids].reshape(-1, 2)
+        index_of = self._index_of
+        return np.array([index_of[i] for i in ids.tolist()], dtype=np.int32).reshape(-1, 2)
 
     def _labels_of(self, state: Any) -> dict[str, Any]:
         """The robot's labels. Reading them makes the engine look each watched name up in the
@@ -515,12 +519,7 @@ class MissionRecorder:
         if text == self._last_overlays:
             return
         self._last_overlays = text
-        self._set_time(step)
-        self.rec.log(layout.OVERLAYS, self.rr.AnyValues(overlays=text))
-        points = _target_points(overlays)
-        if points is not None:
-            self.rec.log(layout.TARGETS, self.rr.Points3D(points, radii=0.02,
-                                                          colors=(230, 60, 60)))
+        self._overlay_rows.append((step, text, _target_points(overlays)))
         found = found_targets(overlays)
         if found > self._targets_found:
             self._event(step, layout.EVENT_TARGET, -1, f"target found ({found} so far)")
@@ -597,10 +596,60 @@ class MissionRecorder:
                 scalars=heap[:, f].reshape(-1).astype(np.float64)).partition(per_robot))
         send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
             inputs=pa.array(b["inputs"], type=pa.binary())).partition([1] * rows))
+        self._send_rare_rows()
         self._steps = []
         self._buffer = {}
         self.rec.flush()
         self._last_flush = time.monotonic()
+
+    def _time_columns(self, steps: list[int]) -> list[Any]:
+        at = np.array(steps, dtype=np.int64)
+        dt = float(self.sim.world.step_seconds)
+        return [self.rr.TimeColumn(layout.TIMELINE, sequence=at),
+                self.rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+
+    def _send_rare_rows(self) -> None:
+        """Keyframes, events and overlays since the last flush, one chunk per entity."""
+        rr, send = self.rr, self.rec.send_columns
+        import pyarrow as pa
+
+        rows = self._keyframe_rows
+        if rows:
+            sizes = [len(row[1]) for row in rows]
+            send(layout.KEYFRAMES, indexes=self._time_columns([row[0] for row in rows]),
+                 columns=rr.AnyValues.columns(
+                     robots=pa.array([i for row in rows for i in row[1]], type=pa.int32()),
+                     snapshots=pa.array([b for row in rows for b in row[2]], type=pa.binary()),
+                     programs=pa.array([p for row in rows for p in row[3]], type=pa.int32()),
+                     bases=pa.array([b for row in rows for b in row[4]], type=pa.int32()),
+                 ).partition(sizes))
+        events = self._event_rows
+        if events:
+            indexes = self._time_columns([e[0] for e in events])
+            ones = [1] * len(events)
+            send(layout.EVENTS, indexes=indexes, columns=rr.TextLog.columns(
+                text=[e[3] for e in events],
+                level=["ERROR" if e[1] == layout.EVENT_ERROR else "INFO" for e in events],
+            ).partition(ones))
+            send(layout.EVENTS, indexes=indexes, columns=rr.AnyValues.columns(
+                kind=pa.array([e[1] for e in events], type=pa.string()),
+                robot=pa.array([e[2] for e in events], type=pa.int64())).partition(ones))
+        overlays = self._overlay_rows
+        if overlays:
+            send(layout.OVERLAYS, indexes=self._time_columns([o[0] for o in overlays]),
+                 columns=rr.AnyValues.columns(
+                     overlays=pa.array([o[1] for o in overlays], type=pa.string()),
+                 ).partition([1] * len(overlays)))
+            targets = [o for o in overlays if o[2] is not None]
+            if targets:
+                points = np.concatenate([o[2] for o in targets])
+                send(layout.TARGETS, indexes=self._time_columns([o[0] for o in targets]),
+                     columns=rr.Points3D.columns(
+                         positions=points, radii=np.full(len(points), 0.02, np.float32),
+                         colors=np.tile(np.array([230, 60, 60, 255], np.uint8),
+                                        (len(points), 1)),
+                     ).partition([len(o[2]) for o in targets]))
+        self._keyframe_rows, self._event_rows, self._overlay_rows = [], [], []
 
     def close(self) -> None:
         """Send what is buffered, write the file's footer, stop capturing."""

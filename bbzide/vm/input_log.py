@@ -25,9 +25,12 @@ fixed little-endian layout (no pickle: a recording is a file a user may get from
 from __future__ import annotations
 
 import struct
+import sys
 import time
+from array import array
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import accumulate, chain
 from typing import Any
 
 #: One host-call effect: ("expect", n) | ("ret", value) | ("fail", kind) | ("ret0",).
@@ -132,9 +135,8 @@ class CapturingRobot:
             self._on_boot(self)
 
     def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
-        if self.capturing:
-            self.current.received.append(
-                (bytes(message), float(distance), float(azimuth), float(elevation)))
+        if self.capturing:  # as given: `encode_step` converts them in bulk, in C
+            self.current.received.append((message, distance, azimuth, elevation))
         self.robot.receive(message, distance, azimuth, elevation)
 
     def control_step(self) -> list[bytes]:
@@ -252,29 +254,43 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
 
 # ---- bytes -------------------------------------------------------------------------------------
 # Layout of one step (all little-endian):
-#   u16 robot records
-#   per record: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
-#     message: u16 length, bytes, u8 which (1 = azimuth, 2 = elevation follow), f64 distance,
-#              [f64 azimuth], [f64 elevation]   (a Kilobot has no bearing: both are 0.0)
+#   u16 robot records (r)
+#   r headers: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
+#   the messages of all records, in record order (M in all), as columns:
+#     u8 which (1 = an azimuth column follows, 2 = an elevation column follows; a column of
+#     zeros is left out: a Kilobot has no bearings), u16 length[M], the M payloads back to
+#     back, f64 distance[M], [f64 azimuth[M]], [f64 elevation[M]]
+#   the host calls of all records, in record order:
 #     host call: u8 name length, name (UTF-8), u8 effects
 #       effect: b"E" u8 n | b"F" u8 length, kind | b"R" value
 #       value:  b"N" | b"I" i64 | b"D" f64 | b"T" u8 entries, (u8 length, key, value)*
+# Step-wide columns, not one packed struct per message: an M300 swarm receives ~300 messages
+# a step, and a handful of C-level joins for the whole step cost a fraction of ~300 `pack`
+# calls (the encoding was one of the recorder's largest costs); like values side by side
+# also compress better.
 _U16 = struct.Struct("<H")
 _HEAD = struct.Struct("<HBHH")
 _I64 = struct.Struct("<q")
 _F64 = struct.Struct("<d")
+_STEPPED = 1
+_AZIMUTHS, _ELEVATIONS = 1, 2
+#: `array` writes the machine's byte order; the layout is little-endian.
+_SWAP = sys.byteorder != "little"
 
 
-#: One received message in one `pack` call (the same bytes as the layout above), by (payload
-#: length, which): an M300 swarm receives hundreds of messages a step, and three packs and
-#: four concatenations each were most of the encoding time.
-_MESSAGE_LAYOUTS: dict[tuple[int, int], struct.Struct] = {}
+def _column(typecode: str, values: Sequence[Any]) -> bytes:
+    column = array(typecode, values)
+    if _SWAP:
+        column.byteswap()
+    return column.tobytes()
 
 
-def _message_layout(length: int, which: int) -> struct.Struct:
-    extra = "d" * (bin(which).count("1"))
-    layout = _MESSAGE_LAYOUTS[(length, which)] = struct.Struct(f"<H{length}sBd{extra}")
-    return layout
+def _read_column(typecode: str, data: bytes) -> list[Any]:
+    column = array(typecode)
+    column.frombytes(data)
+    if _SWAP:
+        column.byteswap()
+    return column.tolist()
 
 
 class InputLogError(ValueError):
@@ -302,20 +318,25 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
     """The inputs of the robots of one step (robots with none may be left out)."""
     out = bytearray(_U16.pack(len(records)))
     for index, inputs in records:
-        out += _HEAD.pack(index, 1 if inputs.stepped else 0, len(inputs.received),
+        out += _HEAD.pack(index, _STEPPED if inputs.stepped else 0, len(inputs.received),
                           len(inputs.host_calls))
-        for message, distance, azimuth, elevation in inputs.received:
-            which = (1 if azimuth != 0.0 else 0) | (2 if elevation != 0.0 else 0)
-            layout = _MESSAGE_LAYOUTS.get((len(message), which)) or _message_layout(
-                len(message), which)
-            if which == 0:
-                out += layout.pack(len(message), message, which, distance)
-            elif which == 1:
-                out += layout.pack(len(message), message, which, distance, azimuth)
-            elif which == 2:
-                out += layout.pack(len(message), message, which, distance, elevation)
-            else:
-                out += layout.pack(len(message), message, which, distance, azimuth, elevation)
+    received = list(chain.from_iterable(inputs.received for _, inputs in records))
+    if received:
+        payloads, distances, azimuths, elevations = zip(*received, strict=True)
+        azimuth_column = _column("d", azimuths)
+        elevation_column = _column("d", elevations)
+        # Bits, not `!= 0.0`: a -0.0 bearing is kept exactly.
+        which = ((_AZIMUTHS if azimuth_column.strip(b"\0") else 0)
+                 | (_ELEVATIONS if elevation_column.strip(b"\0") else 0))
+        out.append(which)
+        out += _column("H", [len(p) for p in payloads])
+        out += b"".join(payloads)
+        out += _column("d", distances)
+        if which & _AZIMUTHS:
+            out += azimuth_column
+        if which & _ELEVATIONS:
+            out += elevation_column
+    for _, inputs in records:
         for call in inputs.host_calls:
             name = call.name.encode()
             out += bytes([len(name)]) + name + bytes([len(call.effects)])
@@ -380,14 +401,10 @@ def _skip_value(data: bytes, at: int) -> int:
     return at + 1
 
 
-def _skip_record(reader: _Reader, messages: int, calls: int) -> None:
-    """Step over one robot's record without building it (a seek needs one robot of 25)."""
+def _skip_calls(reader: _Reader, calls: int) -> None:
+    """Step over one robot's host calls without building them (a seek needs one robot of 25)."""
     data, at = reader.data, reader.at
     try:
-        for _ in range(messages):
-            length = data[at] | data[at + 1] << 8
-            which = data[at + 2 + length]
-            at += 3 + length + 8 * (1 + (which & 1) + (which >> 1 & 1))
         for _ in range(calls):
             at += 1 + data[at]
             effects = data[at]
@@ -409,41 +426,79 @@ def _skip_record(reader: _Reader, messages: int, calls: int) -> None:
     reader.at = at
 
 
+def _read_calls(reader: _Reader, calls: int) -> list[HostCallRecord]:
+    records = []
+    for _ in range(calls):
+        try:
+            record = HostCallRecord(reader.take(reader.byte()).decode())
+        except UnicodeDecodeError:
+            raise InputLogError("host function name is not UTF-8") from None
+        for _ in range(reader.byte()):
+            tag = reader.take(1)
+            if tag == b"E":
+                record.effects.append(("expect", reader.byte()))
+            elif tag == b"F":
+                record.effects.append(("fail", reader.take(reader.byte()).decode()))
+            elif tag == b"R":
+                record.effects.append(("ret", reader.value()))
+            else:
+                raise InputLogError(f"unknown host effect {tag!r} in input log")
+        records.append(record)
+    return records
+
+
+def _read_messages(reader: _Reader, total: int, first: int, count: int
+                   ) -> list[tuple[bytes, float, float, float]]:
+    """Messages `first`..`first + count` of the step's `total` (the whole block is stepped
+    over; only those are built)."""
+    which = reader.byte()
+    lengths = _read_column("H", reader.take(2 * total))
+    floats = 1 + (which & _AZIMUTHS) + (which & _ELEVATIONS) // _ELEVATIONS
+    payload_bytes = sum(lengths)
+    block = reader.take(payload_bytes + 8 * floats * total)
+    if not count:
+        return []
+    at = sum(lengths[:first])
+    payloads = []
+    for length in lengths[first:first + count]:
+        payloads.append(block[at:at + length])
+        at += length
+
+    def floats_column(number: int) -> list[float]:
+        start = payload_bytes + 8 * (number * total + first)
+        return _read_column("d", block[start:start + 8 * count])
+
+    zeros = [0.0] * count
+    distances = floats_column(0)
+    azimuths = floats_column(1) if which & _AZIMUTHS else zeros
+    elevations = floats_column(1 + (which & _AZIMUTHS)) if which & _ELEVATIONS else zeros
+    return list(zip(payloads, distances, azimuths, elevations, strict=True))
+
+
 def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
     """`encode_step`'s bytes back: robot index -> its inputs (with `only`, just that robot's:
     the other records are stepped over, not built)."""
     reader = _Reader(data)
+    heads = [reader.unpack(_HEAD) for _ in range(reader.unpack(_U16)[0])]
+    total = sum(head[2] for head in heads)
+    firsts = list(accumulate((head[2] for head in heads), initial=0))
+    received: dict[int, list[tuple[bytes, float, float, float]]] = {}
+    if total and only is None:  # everything: one pass over the columns
+        everything = _read_messages(reader, total, 0, total)
+        received = {i: everything[firsts[i]:firsts[i + 1]] for i in range(len(heads))}
+    elif total:  # one robot's slice of the columns (if it has a record)
+        mine = next((i for i, head in enumerate(heads) if head[0] == only), None)
+        first, count = (0, 0) if mine is None else (firsts[mine], heads[mine][2])
+        messages = _read_messages(reader, total, first, count)
+        if mine is not None:
+            received[mine] = messages
     result: dict[int, StepInputs] = {}
-    for _ in range(reader.unpack(_U16)[0]):
-        index, flags, messages, calls = reader.unpack(_HEAD)
+    for i, (index, flags, _messages, calls) in enumerate(heads):
         if only is not None and index != only:
-            _skip_record(reader, messages, calls)
+            _skip_calls(reader, calls)
             continue
-        inputs = StepInputs(stepped=bool(flags & 1))
-        for _ in range(messages):
-            message = reader.take(reader.unpack(_U16)[0])
-            which = reader.byte()
-            distance = reader.unpack(_F64)[0]
-            azimuth = reader.unpack(_F64)[0] if which & 1 else 0.0
-            elevation = reader.unpack(_F64)[0] if which & 2 else 0.0
-            inputs.received.append((message, distance, azimuth, elevation))
-        for _ in range(calls):
-            try:
-                record = HostCallRecord(reader.take(reader.byte()).decode())
-            except UnicodeDecodeError:
-                raise InputLogError("host function name is not UTF-8") from None
-            for _ in range(reader.byte()):
-                tag = reader.take(1)
-                if tag == b"E":
-                    record.effects.append(("expect", reader.byte()))
-                elif tag == b"F":
-                    record.effects.append(("fail", reader.take(reader.byte()).decode()))
-                elif tag == b"R":
-                    record.effects.append(("ret", reader.value()))
-                else:
-                    raise InputLogError(f"unknown host effect {tag!r} in input log")
-            inputs.host_calls.append(record)
-        result[index] = inputs
+        result[index] = StepInputs(received.get(i, []), stepped=bool(flags & _STEPPED),
+                                   host_calls=_read_calls(reader, calls))
     if reader.at != len(data):
         raise InputLogError(f"{len(data) - reader.at} stray bytes after the input log")
     return result

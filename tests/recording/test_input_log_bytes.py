@@ -47,3 +47,14 @@ def test_a_torn_record_is_an_error_even_when_skipped() -> None:
         decode_step(data[:-3], only=1)
     with pytest.raises(InputLogError):
         decode_step(data[:20], only=1)  # cut inside robot 0's record, which is stepped over
+
+
+def test_a_negative_zero_bearing_keeps_its_sign() -> None:
+    """A bearing column of zeros is left out of the bytes; -0.0 is not zero bits, and a
+    bbzfloat conversion keeps the sign, so it must come back as -0.0."""
+    import math
+
+    inputs = StepInputs([(b"\x00\x01\x00", 2.0, -0.0, 0.0)], stepped=True)
+    (message, distance, azimuth, elevation), = decode_step(encode_step([(5, inputs)]))[5].received
+    assert (message, distance, elevation) == (b"\x00\x01\x00", 2.0, 0.0)
+    assert math.copysign(1.0, azimuth) == -1.0
