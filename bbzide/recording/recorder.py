@@ -42,7 +42,7 @@ from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
 #: A robot is keyframed at least every 25 steps (cheap firmware: 25 robots' compressed
 #: snapshots every 25 steps stay a small share of the file)...
-KEYFRAME_EVERY = 25
+KEYFRAME_EVERY = 50
 #: ...and sooner once its control steps since the last keyframe took 40 ms: a seek re-executes
 #: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
 #: whatever the script costs per step (the issue's seek goal).
@@ -53,7 +53,7 @@ KEYFRAME_BUDGET_SECONDS = 0.040
 #: longer seeks for such robots (measured in benchmarks/record_bench.py).
 KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
-FLUSH_EVERY = 50
+FLUSH_EVERY = 100
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
 #: swarm made that framing most of the file.)

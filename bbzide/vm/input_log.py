@@ -336,20 +336,39 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
             out += azimuth_column
         if which & _ELEVATIONS:
             out += elevation_column
+    names = _NAMES
     for _, inputs in records:
         for call in inputs.host_calls:
-            name = call.name.encode()
-            out += bytes([len(name)]) + name + bytes([len(call.effects)])
+            name = names.get(call.name)
+            if name is None:
+                name = names[call.name] = _length_prefixed(call.name)
+            out += name
+            out.append(len(call.effects))
             for effect in call.effects:
-                if effect[0] == "expect":
-                    out += b"E" + bytes([effect[1] & 0xFF])
-                elif effect[0] == "fail":
-                    kind = effect[1].encode()
-                    out += b"F" + bytes([len(kind)]) + kind
+                kind = effect[0]
+                if kind == "ret":
+                    value = effect[1]
+                    if type(value) is int:  # the usual answer: no call, no isinstance chain
+                        out += b"RI"
+                        out += _I64.pack(value)
+                    else:
+                        out += b"R"
+                        _encode_value(value, out)
+                elif kind == "expect":
+                    out += _EXPECT[effect[1] & 0xFF]
                 else:
-                    out += b"R"
-                    _encode_value(effect[1], out)
+                    out += b"F" + _length_prefixed(effect[1])
     return bytes(out)
+
+
+def _length_prefixed(text: str) -> bytes:
+    data = text.encode()
+    return bytes([len(data)]) + data
+
+
+#: Encoded host-function names (a swarm calls the same few names every step).
+_NAMES: dict[str, bytes] = {}
+_EXPECT = [b"E" + bytes([n]) for n in range(256)]
 
 
 class _Reader:
