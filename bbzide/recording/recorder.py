@@ -79,6 +79,10 @@ LINK_ARROWS_EVERY = 5
 MAX_ID_TABLE = 1 << 16
 
 
+#: Heap figures of a robot without a VM (a passive body): size, ROP, LSP, peak, GC runs, has VM.
+_NO_HEAP = (0, 0, 0, 0, 0, 0)
+
+
 class RecordingError(UserError):
     """A recording that cannot be written or read (exists, not writable, corrupt, foreign)."""
 
@@ -274,10 +278,7 @@ class MissionRecorder:
         self._keyframe(list(self._capturing), self.start_step)
         self._event(self.start_step, layout.EVENT_PROGRAM, -1,
                     f"recording starts at step {self.start_step}")
-        self._buffer_frame(self.start_step, b"")
-        for name, values in self._buffer["labels"][-1].items():
-            for i, value in enumerate(values):
-                self._last_labels[i][name] = value
+        self._frame(self.start_step, first=True)
         self._flush()
 
     # ---- static parts ---------------------------------------------------------------------------
@@ -392,76 +393,84 @@ class MissionRecorder:
         if self.closed:
             return
         started = time.perf_counter()
-        sim = self.sim
-        step = int(sim.step_count)
-        records = []
-        for index, robot in self._capturing.items():
-            inputs = robot.take_inputs()
-            if not inputs.empty:
-                records.append((index, inputs))
-        blob = zlib.compress(encode_step(records), INPUT_COMPRESSION)
-        self._buffer_frame(step, blob)
-        due = []
-        for i, robot in self._capturing.items():
-            state = sim.robots[i]
-            if state.robot is not robot or state.failure is not None:
-                continue
-            budget = max(KEYFRAME_BUDGET_SECONDS,
-                         KEYFRAME_COST_FACTOR * self._snapshot_seconds.get(i, 0.0))
-            if (step - self._keyframed.get(i, self.start_step) >= self.keyframe_every
-                    or robot.busy_seconds >= budget):
-                due.append(i)
-        self._keyframe(due, step)
-        self._watch_events(step)
+        self._frame(int(self.sim.step_count))
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
             self._flush()
         self.steps_recorded += 1
         self.seconds_spent += time.perf_counter() - started
 
-    def _buffer_frame(self, step: int, inputs_of_previous_step: bytes) -> None:
-        """The state at `step`; the inputs blob is the one that led here (from step - 1).
-        Per-robot figures are gathered in one pass into lists and become arrays at once (a
-        numpy assignment per robot and figure cost more than the figures themselves)."""
+    def _frame(self, step: int, first: bool = False) -> None:
+        """The state at `step` and the inputs that led here (from step - 1), in one pass over
+        the robots: their inputs, failure, heap figures and labels, whether a keyframe is due,
+        and the events (new failure, label change). The first frame takes no inputs and only
+        notes the labels. Figures stay Python lists until the flush turns 100 steps of them
+        into arrays at once (numpy calls per robot and step cost more than the figures)."""
         sim = self.sim
-        n = self.count
-        labels: dict[str, list[str]] = {name: [""] * n for name in sim.watch}
-        failed = []
-        heap_rows = []
-        no_heap = (0, 0, 0, 0, 0, 0)
+        watch = sim.watch
+        labels: dict[str, list[str]] = {name: [""] * self.count for name in watch}
+        capturing = self._capturing
+        records: list[tuple[int, Any]] = []
+        due: list[int] = []
+        failed: list[bool] = []
+        heap_rows: list[tuple[int, ...]] = []
         for state in sim.robots:
-            failed.append(state.failure is not None)
+            i = state.index
+            failure = state.failure
+            failed.append(failure is not None)
             robot = state.robot
+            capture = capturing.get(i)
+            if capture is not None and not first:
+                inputs = capture.take_inputs()
+                if not inputs.empty:
+                    records.append((i, inputs))
+                if robot is capture and failure is None and self._keyframe_due(i, capture, step):
+                    due.append(i)
             if robot is None:
-                heap_rows.append(no_heap)
+                heap_rows.append(_NO_HEAP)
             else:
                 # A CapturingRobot forwards `.vm` through __getattr__: go round it.
                 h = getattr(robot, "robot", robot).vm.heap
                 heap_rows.append((h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1))
-            if labels:
+            if failure is not None and i not in self._known_failures:
+                self._known_failures.add(i)
+                self._event(step, layout.EVENT_ERROR, i,
+                            f"robot {state.robot_id}: {_failure_text(failure)}")
+            if watch:
                 current = self._labels_of(state)
-                for name in labels:
+                last = self._last_labels[i]
+                for name in watch:
                     value = current.get(name)
-                    if value is not None:
-                        labels[name][state.index] = str(value)
-        size, rop, lsp, peak, gc_runs, has_vm = np.array(heap_rows, dtype=np.int64).T
-        used = (rop + size - lsp) * has_vm
-        heap = np.stack([used, size - used, peak, rop, lsp, gc_runs]).astype(np.int32)
+                    text = "" if value is None else str(value)
+                    labels[name][i] = text
+                    before = last.get(name)
+                    if before is not None and before != text and not first:
+                        self._event(step, layout.EVENT_ROLE, i,
+                                    f"robot {state.robot_id} {name}: {before} -> {text}")
+                    last[name] = text
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
         buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
-        buffer.setdefault("failed", []).append(np.array(failed, dtype=bool))
-        buffer.setdefault("heap", []).append(heap)
+        buffer.setdefault("failed", []).append(failed)
+        buffer.setdefault("heap", []).append(heap_rows)
         buffer.setdefault("labels", []).append(labels)
-        buffer.setdefault("messages", []).append(np.stack(
-            [stats.sent, stats.received, stats.bytes_sent]).astype(np.int32))
-        buffer.setdefault("totals", []).append(
-            (stats.total_sent, stats.total_received, stats.total_dropped, stats.total_bytes))
+        buffer.setdefault("traffic", []).append(np.stack(
+            [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
         buffer.setdefault("links", []).append(self._link_indexes(sim.links))
-        buffer.setdefault("inputs", []).append(inputs_of_previous_step)
+        buffer.setdefault("inputs", []).append(
+            b"" if first else zlib.compress(encode_step(records), INPUT_COMPRESSION))
+        self._keyframe(due, step)
+        if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
+            self._record_overlays(step)
+
+    def _keyframe_due(self, index: int, robot: CapturingRobot, step: int) -> bool:
+        budget = max(KEYFRAME_BUDGET_SECONDS,
+                     KEYFRAME_COST_FACTOR * self._snapshot_seconds.get(index, 0.0))
+        return (step - self._keyframed.get(index, self.start_step) >= self.keyframe_every
+                or robot.busy_seconds >= budget)
 
     def _link_indexes(self, links: list[tuple[int, int]]) -> np.ndarray:
         """The engine's (sender id, receiver id) links as an (M, 2) array of robot indexes:
@@ -488,24 +497,6 @@ class MissionRecorder:
         if can_have or not hasattr(state, "_labels"):
             return state.labels
         return dict(state._labels)  # the world's labels, without the global look-ups
-
-    def _watch_events(self, step: int) -> None:
-        sim = self.sim
-        for state in sim.robots:
-            if state.failure is not None and state.index not in self._known_failures:
-                self._known_failures.add(state.index)
-                self._event(step, layout.EVENT_ERROR, state.index,
-                            f"robot {state.robot_id}: {_failure_text(state.failure)}")
-        latest = self._buffer["labels"][-1]
-        for name, values in latest.items():
-            for i, value in enumerate(values):
-                before = self._last_labels[i].get(name)
-                if before is not None and before != value:
-                    self._event(step, layout.EVENT_ROLE, i,
-                                f"robot {sim.robots[i].robot_id} {name}: {before} -> {value}")
-                self._last_labels[i][name] = value
-        if self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0:
-            self._record_overlays(step)
 
     def _record_overlays(self, step: int) -> None:
         overlays = self.sim.world.overlays()
@@ -558,7 +549,7 @@ class MissionRecorder:
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
         extra = {"heading": pa.array(headings),
-                 "failed": pa.array(np.stack(b["failed"]).reshape(-1))}
+                 "failed": pa.array(np.array(b["failed"], dtype=bool).reshape(-1))}
         for name in watch:
             extra[f"label:{name}"] = pa.array(
                 [v for labels in b["labels"] for v in labels[name]], type=pa.string())
@@ -582,18 +573,21 @@ class MissionRecorder:
                       else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
             pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
-        messages = np.stack(b["messages"])  # rows, 3, n
+        traffic = np.stack(b["traffic"])  # rows, (sent, received, dropped, bytes_sent), n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
-            sent=pa.array(messages[:, 0].reshape(-1)),
-            received=pa.array(messages[:, 1].reshape(-1)),
-            bytes_sent=pa.array(messages[:, 2].reshape(-1))).partition(per_robot))
-        totals = np.array(b["totals"], dtype=np.float64)
+            sent=pa.array(traffic[:, 0].reshape(-1).astype(np.int32)),
+            received=pa.array(traffic[:, 1].reshape(-1).astype(np.int32)),
+            bytes_sent=pa.array(traffic[:, 3].reshape(-1).astype(np.int32))).partition(per_robot))
+        totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        heap = np.stack(b["heap"])  # rows, figures, n
-        for f, figure in enumerate(layout.HEAP_FIGURES):
+        size, rop, lsp, peak, gc_runs, has_vm = np.array(b["heap"], dtype=np.int64).transpose(
+            2, 0, 1)  # each: rows, n
+        used = (rop + size - lsp) * has_vm
+        for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,
+                                                        gc_runs), strict=True):
             send(f"{layout.HEAP}/{figure}", indexes=indexes, columns=rr.Scalars.columns(
-                scalars=heap[:, f].reshape(-1).astype(np.float64)).partition(per_robot))
+                scalars=values.reshape(-1).astype(np.float64)).partition(per_robot))
         send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
             inputs=pa.array(b["inputs"], type=pa.binary())).partition([1] * rows))
         self._send_rare_rows()
