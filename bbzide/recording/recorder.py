@@ -413,7 +413,8 @@ class MissionRecorder:
         records: list[tuple[int, Any]] = []
         due: list[int] = []
         failed: list[bool] = []
-        heap_rows: list[tuple[int, ...]] = []
+        heap_figures: list[int] = []  # 6 per robot, flat: one list, not 25 tuples, stays
+        # alive until the flush (objects kept alive make the garbage collector run more often)
         for state in sim.robots:
             i = state.index
             failure = state.failure
@@ -427,11 +428,11 @@ class MissionRecorder:
                 if robot is capture and failure is None and self._keyframe_due(i, capture, step):
                     due.append(i)
             if robot is None:
-                heap_rows.append(_NO_HEAP)
+                heap_figures += _NO_HEAP
             else:
                 # A CapturingRobot forwards `.vm` through __getattr__: go round it.
                 h = getattr(robot, "robot", robot).vm.heap
-                heap_rows.append((h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1))
+                heap_figures += (h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1)
             if failure is not None and i not in self._known_failures:
                 self._known_failures.add(i)
                 self._event(step, layout.EVENT_ERROR, i,
@@ -455,7 +456,7 @@ class MissionRecorder:
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
         buffer.setdefault("failed", []).append(failed)
-        buffer.setdefault("heap", []).append(heap_rows)
+        buffer.setdefault("heap", []).append(heap_figures)
         buffer.setdefault("labels", []).append(labels)
         buffer.setdefault("traffic", []).append(np.stack(
             [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
@@ -581,8 +582,8 @@ class MissionRecorder:
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        size, rop, lsp, peak, gc_runs, has_vm = np.array(b["heap"], dtype=np.int64).transpose(
-            2, 0, 1)  # each: rows, n
+        size, rop, lsp, peak, gc_runs, has_vm = np.array(b["heap"], dtype=np.int64).reshape(
+            rows, n, len(_NO_HEAP)).transpose(2, 0, 1)  # each: rows, n
         used = (rop + size - lsp) * has_vm
         for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,
                                                         gc_runs), strict=True):

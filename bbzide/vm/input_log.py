@@ -47,15 +47,39 @@ class HostCallRecord:
 
 @dataclass
 class StepInputs:
-    """What entered one robot during one control step of the engine."""
+    """What entered one robot during one control step of the engine.
 
-    received: list[tuple[bytes, float, float, float]] = field(default_factory=list)
+    The received messages are two columns, not a tuple each: `payloads` and `situation`, the
+    situated data of message k at `situation[3k:3k + 3]` (distance, azimuth, elevation). An
+    M300 swarm receives ~300 messages a step: capturing is two appends per message, and
+    writing them out is one copy per robot instead of a conversion per message.
+    """
+
+    payloads: list[bytes] = field(default_factory=list)
+    situation: array = field(default_factory=lambda: array("d"))
     stepped: bool = False  # control_step() ran (False: asleep, failed, or passive)
     host_calls: list[HostCallRecord] = field(default_factory=list)
 
+    @classmethod
+    def of(cls, received: Sequence[tuple[bytes, float, float, float]], stepped: bool = False,
+           host_calls: list[HostCallRecord] | None = None) -> StepInputs:
+        """From (message, distance, azimuth, elevation) tuples."""
+        inputs = cls(stepped=stepped, host_calls=list(host_calls or []))
+        for message, distance, azimuth, elevation in received:
+            inputs.payloads.append(bytes(message))
+            inputs.situation.extend((distance, azimuth, elevation))
+        return inputs
+
+    @property
+    def received(self) -> list[tuple[bytes, float, float, float]]:
+        """The messages as (message, distance, azimuth, elevation) tuples."""
+        s = self.situation
+        return [(message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
+                for k, message in enumerate(self.payloads)]
+
     @property
     def empty(self) -> bool:
-        return not self.received and not self.stepped
+        return not self.payloads and not self.stepped
 
 
 class ReplayDivergence(Exception):
@@ -135,8 +159,10 @@ class CapturingRobot:
             self._on_boot(self)
 
     def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
-        if self.capturing:  # as given: `encode_step` converts them in bulk, in C
-            self.current.received.append((message, distance, azimuth, elevation))
+        if self.capturing:
+            current = self.current
+            current.payloads.append(message)
+            current.situation.extend((distance, azimuth, elevation))
         self.robot.receive(message, distance, azimuth, elevation)
 
     def control_step(self) -> list[bytes]:
@@ -238,8 +264,9 @@ class ReplayHostFunctions:
 
 def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> None:
     """Apply one recorded control step to `robot` (restored to the state before that step)."""
-    for message, distance, azimuth, elevation in inputs.received:
-        robot.receive(message, distance, azimuth, elevation)
+    s = inputs.situation
+    for k, message in enumerate(inputs.payloads):
+        robot.receive(message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
     if inputs.stepped:
         host.load(inputs.host_calls)
         try:
@@ -257,40 +284,22 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
 #   u16 robot records (r)
 #   r headers: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
 #   the messages of all records, in record order (M in all), as columns:
-#     u8 which (1 = an azimuth column follows, 2 = an elevation column follows; a column of
-#     zeros is left out: a Kilobot has no bearings), u16 length[M], the M payloads back to
-#     back, f64 distance[M], [f64 azimuth[M]], [f64 elevation[M]]
+#     u16 length[M], the M payloads back to back, f64 situation[3M] (distance, azimuth,
+#     elevation of each message; a Kilobot's zero bearings cost zlib next to nothing)
 #   the host calls of all records, in record order:
 #     host call: u8 name length, name (UTF-8), u8 effects
 #       effect: b"E" u8 n | b"F" u8 length, kind | b"R" value
 #       value:  b"N" | b"I" i64 | b"D" f64 | b"T" u8 entries, (u8 length, key, value)*
-# Step-wide columns, not one packed struct per message: an M300 swarm receives ~300 messages
-# a step, and a handful of C-level joins for the whole step cost a fraction of ~300 `pack`
-# calls (the encoding was one of the recorder's largest costs); like values side by side
-# also compress better.
+# Step-wide columns copied from the captured ones, not one packed struct per message: an M300
+# swarm receives ~300 messages a step, and ~300 `pack` calls were one of the recorder's
+# largest costs; like values side by side also compress better.
 _U16 = struct.Struct("<H")
 _HEAD = struct.Struct("<HBHH")
 _I64 = struct.Struct("<q")
 _F64 = struct.Struct("<d")
 _STEPPED = 1
-_AZIMUTHS, _ELEVATIONS = 1, 2
 #: `array` writes the machine's byte order; the layout is little-endian.
 _SWAP = sys.byteorder != "little"
-
-
-def _column(typecode: str, values: Sequence[Any]) -> bytes:
-    column = array(typecode, values)
-    if _SWAP:
-        column.byteswap()
-    return column.tobytes()
-
-
-def _read_column(typecode: str, data: bytes) -> list[Any]:
-    column = array(typecode)
-    column.frombytes(data)
-    if _SWAP:
-        column.byteswap()
-    return column.tolist()
 
 
 class InputLogError(ValueError):
@@ -318,24 +327,20 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
     """The inputs of the robots of one step (robots with none may be left out)."""
     out = bytearray(_U16.pack(len(records)))
     for index, inputs in records:
-        out += _HEAD.pack(index, _STEPPED if inputs.stepped else 0, len(inputs.received),
+        out += _HEAD.pack(index, _STEPPED if inputs.stepped else 0, len(inputs.payloads),
                           len(inputs.host_calls))
-    received = list(chain.from_iterable(inputs.received for _, inputs in records))
-    if received:
-        payloads, distances, azimuths, elevations = zip(*received, strict=True)
-        azimuth_column = _column("d", azimuths)
-        elevation_column = _column("d", elevations)
-        # Bits, not `!= 0.0`: a -0.0 bearing is kept exactly.
-        which = ((_AZIMUTHS if azimuth_column.strip(b"\0") else 0)
-                 | (_ELEVATIONS if elevation_column.strip(b"\0") else 0))
-        out.append(which)
-        out += _column("H", [len(p) for p in payloads])
+    payloads = list(chain.from_iterable(inputs.payloads for _, inputs in records))
+    if payloads:
+        lengths = array("H", map(len, payloads))
+        situation = array("d")
+        for _, inputs in records:
+            situation += inputs.situation
+        if _SWAP:
+            lengths.byteswap()
+            situation.byteswap()
+        out += lengths.tobytes()
         out += b"".join(payloads)
-        out += _column("d", distances)
-        if which & _AZIMUTHS:
-            out += azimuth_column
-        if which & _ELEVATIONS:
-            out += elevation_column
+        out += situation.tobytes()
     names = _NAMES
     for _, inputs in records:
         for call in inputs.host_calls:
@@ -467,31 +472,26 @@ def _read_calls(reader: _Reader, calls: int) -> list[HostCallRecord]:
 
 
 def _read_messages(reader: _Reader, total: int, first: int, count: int
-                   ) -> list[tuple[bytes, float, float, float]]:
-    """Messages `first`..`first + count` of the step's `total` (the whole block is stepped
-    over; only those are built)."""
-    which = reader.byte()
-    lengths = _read_column("H", reader.take(2 * total))
-    floats = 1 + (which & _AZIMUTHS) + (which & _ELEVATIONS) // _ELEVATIONS
+                   ) -> tuple[list[bytes], array]:
+    """Payloads and situated data of messages `first`..`first + count` of the step's `total`
+    (the whole block is stepped over; only those are built)."""
+    lengths = array("H")
+    lengths.frombytes(reader.take(2 * total))
+    if _SWAP:
+        lengths.byteswap()
     payload_bytes = sum(lengths)
-    block = reader.take(payload_bytes + 8 * floats * total)
-    if not count:
-        return []
+    block = reader.take(payload_bytes + 24 * total)
     at = sum(lengths[:first])
     payloads = []
     for length in lengths[first:first + count]:
         payloads.append(block[at:at + length])
         at += length
-
-    def floats_column(number: int) -> list[float]:
-        start = payload_bytes + 8 * (number * total + first)
-        return _read_column("d", block[start:start + 8 * count])
-
-    zeros = [0.0] * count
-    distances = floats_column(0)
-    azimuths = floats_column(1) if which & _AZIMUTHS else zeros
-    elevations = floats_column(1 + (which & _AZIMUTHS)) if which & _ELEVATIONS else zeros
-    return list(zip(payloads, distances, azimuths, elevations, strict=True))
+    situation = array("d")
+    start = payload_bytes + 24 * first
+    situation.frombytes(block[start:start + 24 * count])
+    if _SWAP:
+        situation.byteswap()
+    return payloads, situation
 
 
 def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
@@ -501,10 +501,11 @@ def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
     heads = [reader.unpack(_HEAD) for _ in range(reader.unpack(_U16)[0])]
     total = sum(head[2] for head in heads)
     firsts = list(accumulate((head[2] for head in heads), initial=0))
-    received: dict[int, list[tuple[bytes, float, float, float]]] = {}
+    received: dict[int, tuple[list[bytes], array]] = {}
     if total and only is None:  # everything: one pass over the columns
-        everything = _read_messages(reader, total, 0, total)
-        received = {i: everything[firsts[i]:firsts[i + 1]] for i in range(len(heads))}
+        payloads, situation = _read_messages(reader, total, 0, total)
+        received = {i: (payloads[firsts[i]:firsts[i + 1]],
+                        situation[3 * firsts[i]:3 * firsts[i + 1]]) for i in range(len(heads))}
     elif total:  # one robot's slice of the columns (if it has a record)
         mine = next((i for i, head in enumerate(heads) if head[0] == only), None)
         first, count = (0, 0) if mine is None else (firsts[mine], heads[mine][2])
@@ -516,7 +517,8 @@ def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
         if only is not None and index != only:
             _skip_calls(reader, calls)
             continue
-        result[index] = StepInputs(received.get(i, []), stepped=bool(flags & _STEPPED),
+        payloads, situation = received.get(i, ([], array("d")))
+        result[index] = StepInputs(payloads, situation, stepped=bool(flags & _STEPPED),
                                    host_calls=_read_calls(reader, calls))
     if reader.at != len(data):
         raise InputLogError(f"{len(data) - reader.at} stray bytes after the input log")

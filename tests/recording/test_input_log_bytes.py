@@ -29,7 +29,7 @@ def inputs_of(robot: int) -> StepInputs:
         HostCallRecord("rand", [("ret", -robot * 1000)]),
         HostCallRecord("nested", [("ret", {"a": {"b": 1.0}, "c": 3})]),
     ][: robot % 5]
-    return StepInputs(received, stepped=robot % 3 != 0, host_calls=calls)
+    return StepInputs.of(received, stepped=robot % 3 != 0, host_calls=calls)
 
 
 def test_every_input_round_trips_and_one_robot_decodes_alone() -> None:
@@ -50,11 +50,11 @@ def test_a_torn_record_is_an_error_even_when_skipped() -> None:
 
 
 def test_a_negative_zero_bearing_keeps_its_sign() -> None:
-    """A bearing column of zeros is left out of the bytes; -0.0 is not zero bits, and a
-    bbzfloat conversion keeps the sign, so it must come back as -0.0."""
+    """Situated data is stored as its exact bits: a bbzfloat conversion keeps the sign of
+    -0.0, so it must come back as -0.0."""
     import math
 
-    inputs = StepInputs([(b"\x00\x01\x00", 2.0, -0.0, 0.0)], stepped=True)
+    inputs = StepInputs.of([(b"\x00\x01\x00", 2.0, -0.0, 0.0)], stepped=True)
     (message, distance, azimuth, elevation), = decode_step(encode_step([(5, inputs)]))[5].received
     assert (message, distance, elevation) == (b"\x00\x01\x00", 2.0, 0.0)
     assert math.copysign(1.0, azimuth) == -1.0
