@@ -7,12 +7,12 @@ keyframes are stored as a *block delta* against the robot's previous keyframe: t
 into `BLOCK`-byte blocks, and only the blocks that differ are kept, with their numbers.
 
 Finding them is a few numpy operations over the bytes (tens of microseconds), and only the
-changed blocks go through zlib. The former XOR delta ran zlib over all 70 KB of the mostly-zero
-XOR (and the reader inflated 70 KB per link of a chain); this costs a fraction of that.
+changed blocks are compressed (compression.py). The former XOR delta ran zlib over all 70 KB
+of the mostly-zero XOR (and the reader inflated 70 KB per link of a chain).
 A chain is bounded by the recorder (a full keyframe every `FULL_KEYFRAME_EVERY`), and
 decoding one link is a numpy scatter.
 
-Delta layout (little-endian), then zlib: u32 snapshot length, u32 changed blocks (k),
+Delta layout (little-endian), then compressed: u32 snapshot length, u32 changed blocks (k),
 u32 block number[k] (ascending), then the k blocks back to back (the last block of a snapshot
 whose length is not a multiple of `BLOCK` is zero-padded).
 """
@@ -20,18 +20,17 @@ whose length is not a multiple of `BLOCK` is zero-padded).
 from __future__ import annotations
 
 import struct
-import zlib
 
 import numpy as np
 
-#: 64-byte blocks: an 8-byte pointer-sized heap object is 9 bytes, a table segment 2 + 6 x 9 =
-#: 56 on an M300, so one changed value dirties one or two blocks. Measured on SAR keyframes
-#: 25 steps apart: 64-byte blocks keep ~15 KB of 70, 256-byte ones ~30 KB, and a smaller
-#: block makes the number list longer than what it saves.
+from bbzide.recording.compression import KEYFRAME_LEVEL, CompressionError, Compressor, decompress
+
+#: 64-byte blocks: an M300 table segment is 2 + 6 x 9 = 56 bytes, so one changed value dirties
+#: one or two blocks. Measured on SAR keyframes 25 steps apart, 32- to 256-byte blocks all keep
+#: 10.4-11.4 KB of 70 (most of it the records pickled after the heap, which shift when they
+#: grow), so the size hardly decides; 64 = 8 words lets `encode_delta` read each block's 8
+#: word comparisons as one u64 (the code relies on it).
 BLOCK = 64
-#: zlib level for keyframe bytes: level 1. On an M300's 69 KB SAR snapshot it takes 0.3 ms
-#: against level 6's 1.0 ms for 3-4 % more bytes; deltas are a few KB and take tens of us.
-COMPRESSION = 1
 #: A full keyframe every 16 of a robot; the others are deltas, so decoding one applies at most
 #: 15 deltas (a numpy scatter each) to one inflated snapshot.
 FULL_KEYFRAME_EVERY = 16
@@ -52,14 +51,17 @@ def _blocks(data: bytes, length: int) -> np.ndarray:
     return padded.reshape(count, BLOCK)
 
 
+_COMPRESSOR = Compressor(KEYFRAME_LEVEL)
+
+
 def encode_full(snapshot: bytes) -> bytes:
-    return zlib.compress(snapshot, COMPRESSION)
+    return _COMPRESSOR.compress(snapshot)
 
 
 def decode_full(stored: bytes) -> bytes:
     try:
-        return zlib.decompress(stored)
-    except zlib.error as error:
+        return decompress(stored)
+    except CompressionError as error:
         raise KeyframeError(str(error)) from None
 
 
@@ -72,8 +74,8 @@ def encode_delta(snapshot: bytes, base: bytes) -> bytes:
     differs = new.view(np.uint64) != old.view(np.uint64)
     changed = np.flatnonzero(differs.view(np.uint64))
     numbers = changed.astype("<u4")
-    return zlib.compress(_HEAD.pack(len(snapshot), len(numbers)) + numbers.tobytes()
-                         + new[changed].tobytes(), COMPRESSION)
+    return _COMPRESSOR.compress(_HEAD.pack(len(snapshot), len(numbers)) + numbers.tobytes()
+                                + new[changed].tobytes())
 
 
 def decode_delta(stored: bytes, base: bytes) -> bytes:

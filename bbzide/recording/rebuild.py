@@ -19,12 +19,12 @@ import base64
 import bisect
 import io
 import pickle
-import zlib
 from collections.abc import Callable
 from typing import Any
 
 from bbzide.diagnostics import SourceLocation
 from bbzide.recording import keyframes
+from bbzide.recording.compression import CompressionError, decompress
 from bbzide.recording.reader import Keyframe, Recording
 from bbzide.recording.recorder import RecordingError, build_robot
 from bbzide.vm.input_log import (
@@ -252,8 +252,8 @@ class RobotRebuilder:
         if decoded is None:
             try:
                 blob = self.recording.inputs[self.recording.row(step)]
-                decoded = decode_step(zlib.decompress(blob), only=index) if blob else {}
-            except (InputLogError, zlib.error) as error:
+                decoded = decode_step(decompress(blob), only=index) if blob else {}
+            except (InputLogError, CompressionError) as error:
                 raise RecordingError(f"corrupt inputs at step {step}: {error}") from None
             if len(self._decoded) > 4096:  # a bounded memo: seeks revisit nearby steps
                 self._decoded.clear()

@@ -16,10 +16,11 @@ step: 50-100x cheaper, ui-stack-notes §4) and the stream is flushed to disk, so
 killed mid-run leaves a file readable up to its last flush.
 
 Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
-zlib-compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
+compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
 then after `keyframe_every` steps or `KEYFRAME_BUDGET_SECONDS` of its control steps, whichever
-comes first) plus the recorded inputs re-executed (`rebuild.py`). Rare
-things (keyframes, programs, events, overlays when they change) are logged as single rows.
+comes first) plus the recorded inputs re-executed (`rebuild.py`). Rare things (keyframes,
+events, overlays when they change) wait for the next flush and leave as columns too; only a
+program is logged as a single row when first used.
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ import base64
 import json
 import time
 import uuid
-import zlib
 from collections.abc import Callable
 from itertools import chain
 from pathlib import Path
@@ -38,6 +38,7 @@ import numpy as np
 
 from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
+from bbzide.recording.compression import INPUT_LEVEL, Compressor
 from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
 #: A robot is keyframed at least every 25 steps (cheap firmware: 25 robots' compressed
@@ -67,9 +68,6 @@ BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: found" events land on their step, but in between only its found count is compared (the JSON
 #: of an M300's overlays, ~1 ms, was a fifth of the recorder's time when done every step).
 OVERLAY_EVERY = 10
-#: zlib level for each step's input blob: level 1 halves it (a broadcast reaches several
-#: robots, so payloads repeat; bearings of 0 and distance exponents are alike) for ~20 us.
-INPUT_COMPRESSION = 1
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
@@ -233,6 +231,7 @@ class MissionRecorder:
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
+        self._inputs_compressor = Compressor(INPUT_LEVEL)
         # Rare rows wait here until the next flush and leave as columns with the steps (one
         # `log` call per row cost ~0.5 ms of Rerun's Python-side conversion).
         self._keyframe_rows: list[tuple[int, list[int], list[bytes], list[int], list[int]]] = []
@@ -462,7 +461,7 @@ class MissionRecorder:
             [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
         buffer.setdefault("links", []).append(self._link_indexes(sim.links))
         buffer.setdefault("inputs", []).append(
-            b"" if first else zlib.compress(encode_step(records), INPUT_COMPRESSION))
+            b"" if first else self._inputs_compressor.compress(encode_step(records)))
         self._keyframe(due, step)
         if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
             self._record_overlays(step)

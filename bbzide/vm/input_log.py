@@ -285,7 +285,7 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
 #   r headers: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
 #   the messages of all records, in record order (M in all), as columns:
 #     u16 length[M], the M payloads back to back, f64 situation[3M] (distance, azimuth,
-#     elevation of each message; a Kilobot's zero bearings cost zlib next to nothing)
+#     elevation of each message; a Kilobot's zero bearings compress to next to nothing)
 #   the host calls of all records, in record order:
 #     host call: u8 name length, name (UTF-8), u8 effects
 #       effect: b"E" u8 n | b"F" u8 length, kind | b"R" value
