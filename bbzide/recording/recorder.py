@@ -26,6 +26,7 @@ program is logged as a single row when first used.
 from __future__ import annotations
 
 import base64
+import gc
 import json
 import time
 import uuid
@@ -41,26 +42,31 @@ from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
 from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
-#: A robot is keyframed at least every 25 steps (cheap firmware: 25 robots' compressed
-#: snapshots every 25 steps stay a small share of the file)...
-KEYFRAME_EVERY = 50
+#: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
+KEYFRAME_EVERY = 100
 #: ...and sooner once its control steps since the last keyframe took 40 ms: a seek re-executes
 #: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
-#: whatever the script costs per step (the issue's seek goal).
+#: whatever the script costs per step (the issue's seek goal). So the step bound only decides
+#: for cheap firmware, whose 100 steps re-execute in well under 40 ms; for the SAR drones
+#: (~0.4 ms a step) the budget comes first, after ~90 steps. A keyframe of an M300 drone costs
+#: ~0.3 ms (snapshot, block delta, zstd), a Kilobot's ~0.05 ms: every 100 steps this is
+#: ~3 us per robot and step, against ~12 us when keyframing every 25 steps, which made
+#: keyframes the recorder's largest cost (measured in benchmarks/record_bench.py).
 KEYFRAME_BUDGET_SECONDS = 0.040
-#: ...unless keyframing that robot costs more than 1/12 of that (snapshot + compression: ~7 ms
-#: for an M300 with its 60 KB heap): then the budget grows to 12x the keyframe's cost, which
-#: keeps keyframes under ~8 % of the VM time (the recording goal is <= 10 %) at the price of
-#: longer seeks for such robots (measured in benchmarks/record_bench.py).
+#: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
+#: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of the
+#: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
 KEYFRAME_COST_FACTOR = 12
-#: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
+#: Columns are sent and flushed every 100 steps (10 s of Kilobot time, ~1 s of a 25-drone SAR
+#: swarm): each flush costs ~18 `send_columns` calls of Rerun's Python-side conversion
+#: (several ms), so fewer, larger chunks...
 FLUSH_EVERY = 100
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
 #: swarm made that framing most of the file.)
 FLUSH_SECONDS = 10.0
-#: Rare rows (keyframes, events, overlays) wait in Rerun's batcher until our flush, so they too
-#: leave in one chunk per entity and flush instead of one per row.
+#: Program rows (logged when first used) wait in Rerun's batcher until our flush, so they too
+#: leave with the flush instead of one chunk each.
 BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: World overlays (light field, targets, belief map) are recorded every 10 steps when they
 #: changed: they change slowly and some are costly to build (the Kilobot light raster is
@@ -228,6 +234,8 @@ class MissionRecorder:
                 self._index_by_id[robot_id] = index
         self._capturing: dict[int, CapturingRobot] = {}
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
+        #: robot index -> (step, busy seconds) at which its next keyframe is due
+        self._due: dict[int, tuple[int, float]] = {}
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
@@ -279,6 +287,10 @@ class MissionRecorder:
                     f"recording starts at step {self.start_step}")
         self._frame(self.start_step, first=True)
         self._flush()
+        # Starting a recording imports Rerun and pyarrow (~100,000 new objects): the garbage
+        # collector's next full pass, ~100-150 ms, would otherwise fall on some step soon after
+        # (measured); pay it here, with the rest of the start.
+        gc.collect()
 
     # ---- static parts ---------------------------------------------------------------------------
     def _write_meta(self) -> None:
@@ -379,7 +391,9 @@ class MissionRecorder:
                 bases.append(previous[0])
             self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
-            self._snapshot_seconds[index] = time.perf_counter() - started
+            cost = self._snapshot_seconds[index] = time.perf_counter() - started
+            self._due[index] = (step + self.keyframe_every,
+                                max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost))
             programs.append(self._program_id(state.program, step))
         self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
 
@@ -412,8 +426,7 @@ class MissionRecorder:
         records: list[tuple[int, Any]] = []
         due: list[int] = []
         failed: list[bool] = []
-        heap_figures: list[int] = []  # 6 per robot, flat: one list, not 25 tuples, stays
-        # alive until the flush (objects kept alive make the garbage collector run more often)
+        heap_figures: list[int] = []  # 6 per robot, flat
         for state in sim.robots:
             i = state.index
             failure = state.failure
@@ -424,8 +437,10 @@ class MissionRecorder:
                 inputs = capture.take_inputs()
                 if not inputs.empty:
                     records.append((i, inputs))
-                if robot is capture and failure is None and self._keyframe_due(i, capture, step):
-                    due.append(i)
+                if robot is capture and failure is None:
+                    due_step, budget = self._due.get(i, (step, 0.0))
+                    if step >= due_step or capture.busy_seconds >= budget:
+                        due.append(i)
             if robot is None:
                 heap_figures += _NO_HEAP
             else:
@@ -454,9 +469,12 @@ class MissionRecorder:
         buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
-        buffer.setdefault("failed", []).append(failed)
-        buffer.setdefault("heap", []).append(heap_figures)
-        buffer.setdefault("labels", []).append(labels)
+        # Kept as numpy arrays, which the garbage collector does not track: lists kept alive
+        # until the flush made it run (full passes of ~100 ms) several times more often.
+        buffer.setdefault("failed", []).append(np.array(failed, dtype=bool))
+        buffer.setdefault("heap", []).append(np.array(heap_figures, dtype=np.int64))
+        buffer.setdefault("labels", []).append(
+            {name: np.array(values, dtype=object) for name, values in labels.items()})
         buffer.setdefault("traffic", []).append(np.stack(
             [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
         buffer.setdefault("links", []).append(self._link_indexes(sim.links))
@@ -465,12 +483,6 @@ class MissionRecorder:
         self._keyframe(due, step)
         if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
             self._record_overlays(step)
-
-    def _keyframe_due(self, index: int, robot: CapturingRobot, step: int) -> bool:
-        budget = max(KEYFRAME_BUDGET_SECONDS,
-                     KEYFRAME_COST_FACTOR * self._snapshot_seconds.get(index, 0.0))
-        return (step - self._keyframed.get(index, self.start_step) >= self.keyframe_every
-                or robot.busy_seconds >= budget)
 
     def _link_indexes(self, links: list[tuple[int, int]]) -> np.ndarray:
         """The engine's (sender id, receiver id) links as an (M, 2) array of robot indexes:
@@ -496,7 +508,7 @@ class MissionRecorder:
             self._watch_in_program[key] = can_have
         if can_have or not hasattr(state, "_labels"):
             return state.labels
-        return dict(state._labels)  # the world's labels, without the global look-ups
+        return state._labels  # the world's labels, without the global look-ups (read only)
 
     def _record_overlays(self, step: int) -> None:
         overlays = self.sim.world.overlays()
@@ -549,7 +561,7 @@ class MissionRecorder:
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
         extra = {"heading": pa.array(headings),
-                 "failed": pa.array(np.array(b["failed"], dtype=bool).reshape(-1))}
+                 "failed": pa.array(np.concatenate(b["failed"]))}
         for name in watch:
             extra[f"label:{name}"] = pa.array(
                 [v for labels in b["labels"] for v in labels[name]], type=pa.string())
@@ -581,7 +593,7 @@ class MissionRecorder:
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        size, rop, lsp, peak, gc_runs, has_vm = np.array(b["heap"], dtype=np.int64).reshape(
+        size, rop, lsp, peak, gc_runs, has_vm = np.concatenate(b["heap"]).reshape(
             rows, n, len(_NO_HEAP)).transpose(2, 0, 1)  # each: rows, n
         used = (rop + size - lsp) * has_vm
         for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,

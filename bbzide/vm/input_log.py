@@ -33,11 +33,13 @@ from dataclasses import dataclass, field
 from itertools import accumulate, chain
 from typing import Any
 
+from bbzide.vm.host import HostCall
+
 #: One host-call effect: ("expect", n) | ("ret", value) | ("fail", kind) | ("ret0",).
 HostEffect = tuple[Any, ...]
 
 
-@dataclass
+@dataclass(slots=True)
 class HostCallRecord:
     """One call of a world host function: its name and its effects on the VM, in order."""
 
@@ -45,7 +47,7 @@ class HostCallRecord:
     effects: list[HostEffect] = field(default_factory=list)
 
 
-@dataclass
+@dataclass(slots=True)  # one per robot and step: slots make it cheaper to build and read
 class StepInputs:
     """What entered one robot during one control step of the engine.
 
@@ -112,6 +114,33 @@ class _CapturingCall:
         return getattr(self._call, name)
 
 
+class _CapturingHostCall(HostCall):
+    """The same for a real `HostCall`, as a subclass: reading arguments (`arg`, `args`,
+    `robot_id`, `vm`) is then a plain attribute or method of the call, not a `__getattr__`
+    forward per access (an M300 SAR step makes ~20 host calls with several reads each).
+    Effects go to the original call, whose `finish` the robot runs."""
+
+    def __init__(self, call: HostCall, record: HostCallRecord) -> None:
+        self.__dict__.update(call.__dict__)
+        self._call = call
+        self._record = record
+
+    def expect_args(self, n: int) -> bool:
+        self._record.effects.append(("expect", int(n)))
+        return self._call.expect_args(n)
+
+    def ret(self, value: Any = None) -> None:
+        self._record.effects.append(("ret", value))
+        self._call.ret(value)
+
+    def fail(self, kind: str) -> None:
+        self._record.effects.append(("fail", str(kind)))
+        self._call.fail(kind)
+
+    def ret_object(self, index: int) -> None:
+        self._call.ret_object(index)  # as before: not recorded (no world host returns objects)
+
+
 class HostCallTap:
     """Wraps a robot's world host functions; while `log` is a list, each call is noted in it."""
 
@@ -126,7 +155,10 @@ class HostCallTap:
                 return
             record = HostCallRecord(name)
             log.append(record)
-            function(_CapturingCall(call, record))
+            if type(call) is HostCall:
+                function(_CapturingHostCall(call, record))
+            else:
+                function(_CapturingCall(call, record))
 
         return tapped
 
