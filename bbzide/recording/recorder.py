@@ -417,8 +417,8 @@ class MissionRecorder:
         """The state at `step` and the inputs that led here (from step - 1), in one pass over
         the robots: their inputs, failure, heap figures and labels, whether a keyframe is due,
         and the events (new failure, label change). The first frame takes no inputs and only
-        notes the labels. Figures stay Python lists until the flush turns 100 steps of them
-        into arrays at once (numpy calls per robot and step cost more than the figures)."""
+        notes the labels. Figures are gathered into lists and become one array each per step
+        (numpy calls per robot and step cost more than the figures)."""
         sim = self.sim
         watch = sim.watch
         labels: dict[str, list[str]] = {name: [""] * self.count for name in watch}
@@ -427,6 +427,8 @@ class MissionRecorder:
         due: list[int] = []
         failed: list[bool] = []
         heap_figures: list[int] = []  # 6 per robot, flat
+        keyframes_due, known_failures, last_labels = self._due, self._known_failures, \
+            self._last_labels
         for state in sim.robots:
             i = state.index
             failure = state.failure
@@ -438,22 +440,23 @@ class MissionRecorder:
                 if not inputs.empty:
                     records.append((i, inputs))
                 if robot is capture and failure is None:
-                    due_step, budget = self._due.get(i, (step, 0.0))
+                    due_step, budget = keyframes_due.get(i, (step, 0.0))
                     if step >= due_step or capture.busy_seconds >= budget:
                         due.append(i)
             if robot is None:
                 heap_figures += _NO_HEAP
             else:
                 # A CapturingRobot forwards `.vm` through __getattr__: go round it.
-                h = getattr(robot, "robot", robot).vm.heap
+                h = (capture.robot if robot is capture else getattr(robot, "robot", robot)
+                     ).vm.heap
                 heap_figures += (h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1)
-            if failure is not None and i not in self._known_failures:
-                self._known_failures.add(i)
+            if failure is not None and i not in known_failures:
+                known_failures.add(i)
                 self._event(step, layout.EVENT_ERROR, i,
                             f"robot {state.robot_id}: {_failure_text(failure)}")
             if watch:
                 current = self._labels_of(state)
-                last = self._last_labels[i]
+                last = last_labels[i]
                 for name in watch:
                     value = current.get(name)
                     text = "" if value is None else str(value)

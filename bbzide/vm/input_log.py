@@ -339,20 +339,41 @@ class InputLogError(ValueError):
 
 
 def _encode_value(value: Any, out: bytearray) -> None:
-    if value is None:
+    kind = type(value)  # exact types first: a host call returns ints, floats and small tables
+    if kind is int:
+        out += b"I"
+        out += _I64.pack(value)
+    elif kind is float:
+        out += b"D"
+        out += _F64.pack(value)
+    elif value is None:
         out += b"N"
     elif isinstance(value, bool | int):
-        out += b"I" + _I64.pack(int(value))
+        out += b"I"
+        out += _I64.pack(int(value))
     elif isinstance(value, float):
-        out += b"D" + _F64.pack(value)
+        out += b"D"
+        out += _F64.pack(value)
     elif isinstance(value, dict):
-        out += b"T" + bytes([len(value)])
+        out += b"T"
+        out.append(len(value))
         for key, item in value.items():
-            name = str(key).encode()
-            out += bytes([len(name)]) + name
+            # Only str keys are cached: True == 1 as dict keys, but not as text.
+            name = _KEYS.get(key) if type(key) is str else None
+            if name is None:
+                name = _length_prefixed(str(key))
+                if type(key) is str and len(_KEYS) < _MAX_KEYS:
+                    _KEYS[key] = name
+            out += name
             _encode_value(item, out)
     else:
         out += b"N"  # HostCall.ret turns anything else into nil too
+
+
+#: Encoded table keys of host-call answers ("x", "y", ...: the same few every step), at most
+#: 1,024 of them (a world that made up new keys every call cannot grow this without bound).
+_KEYS: dict[Any, bytes] = {}
+_MAX_KEYS = 1024
 
 
 def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
