@@ -70,9 +70,10 @@ FLUSH_SECONDS = 10.0
 BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: World overlays (light field, targets, belief map) are recorded every 10 steps when they
 #: changed: they change slowly and some are costly to build (the Kilobot light raster is
-#: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step, so "target
-#: found" events land on their step, but in between only its found count is compared (the JSON
-#: of an M300's overlays, ~1 ms, was a fifth of the recorder's time when done every step).
+#: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step until all
+#: are found, so "target found" events land on their step, but in between only its found count
+#: is compared (the JSON of an M300's overlays, ~1 ms, was a fifth of the recorder's time when
+#: done every step; building the overlays alone is still ~50 us a step).
 OVERLAY_EVERY = 10
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
@@ -273,7 +274,7 @@ class MissionRecorder:
         self._last_overlays: str | None = None
         self._targets_found = 0
         self._watch_in_program: dict[int, bool] = {}
-        self._has_targets = False  # a world with targets is polled every step (found events)
+        self._has_targets = False  # targets still to find: poll every step (found events)
         self.closed = False
         self.steps_recorded = 0
         self.seconds_spent = 0.0
@@ -517,7 +518,10 @@ class MissionRecorder:
         overlays = self.sim.world.overlays()
         if not overlays:
             return
-        self._has_targets = "targets" in overlays
+        targets = overlays.get("targets")
+        # Polled every step while a target may still be found (none are lost again).
+        self._has_targets = (isinstance(targets, list)
+                             and found_targets(overlays) < len(targets))
         due = (step - self.start_step) % OVERLAY_EVERY == 0
         if not due and found_targets(overlays) <= self._targets_found:
             return  # a poll between two recordings: only "target found" matters now
