@@ -44,17 +44,18 @@ from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
 #: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
 KEYFRAME_EVERY = 100
-#: ...and sooner once its control steps since the last keyframe took 40 ms: a seek re-executes
-#: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
-#: whatever the script costs per step (the issue's seek goal). So the step bound only decides
-#: for cheap firmware, whose 100 steps re-execute in well under 40 ms; for the SAR drones
-#: (~0.4 ms a step) the budget comes first, after ~90 steps. A keyframe of an M300 drone costs
-#: ~0.3 ms (snapshot, block delta, zstd), a Kilobot's ~0.05 ms: every 100 steps this is
-#: ~3 us per robot and step, against ~12 us when keyframing every 25 steps, which made
-#: keyframes the recorder's largest cost (measured in benchmarks/record_bench.py).
-KEYFRAME_BUDGET_SECONDS = 0.040
+#: ...and sooner once its control steps since the last keyframe took 25 ms: a seek re-executes
+#: at most that much live VM time, which replays in up to ~2x as long (each step's inputs are
+#: decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so with
+#: restoring and the inspector a seek stays well under 100 ms whatever the script costs per
+#: step (the issue's seek goal; the machine's load adds to both). The step bound decides for
+#: cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the budget first, after
+#: ~55 steps. A keyframe of an M300 drone costs ~0.3 ms (snapshot, block delta, zstd), so this
+#: is ~6 us per drone and step, against ~12 us when keyframing every 25 steps, which made
+#: keyframes the recorder's largest cost (benchmarks/record_bench.py).
+KEYFRAME_BUDGET_SECONDS = 0.025
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
-#: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of the
+#: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
 KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 100 steps (10 s of Kilobot time, ~1 s of a 25-drone SAR
