@@ -247,6 +247,8 @@ class MissionRecorder:
         self._keyframe_rows: list[tuple[int, list[int], list[bytes], list[int], list[int]]] = []
         self._event_rows: list[tuple[int, str, int, str]] = []
         self._overlay_rows: list[tuple[int, str, np.ndarray | None]] = []
+        self._viewer_labels: list[str] | None = None  # the labels last sent to the viewer
+        self._radii_sent = False
         for state in sim.robots:
             if isinstance(state.robot, CapturingRobot):
                 self._capturing[state.index] = state.robot
@@ -556,16 +558,10 @@ class MissionRecorder:
         colors = (np.clip(np.stack(b["leds"]).reshape(-1, 3), 0, 1) * 255).astype(np.uint8)
         radius = float(self.sim.world.robot_radius)
         watch = list(b["labels"][0])
-        first = watch[0] if watch else None
-        text_labels = [
-            f"{self.sim.robots[i].robot_id} {labels[first][i]}".rstrip() if first
-            else str(self.sim.robots[i].robot_id)
-            for labels in b["labels"] for i in range(n)
-        ]
         send = self.rec.send_columns
         send(layout.ROBOTS, indexes=indexes, columns=rr.Points3D.columns(
-            positions=positions, colors=colors, radii=np.full(rows * n, radius, np.float32),
-            labels=text_labels).partition(per_robot))
+            positions=positions, colors=colors).partition(per_robot))
+        self._send_viewer_labels(steps, b["labels"], radius)
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
         extra = {"heading": pa.array(headings),
@@ -615,6 +611,33 @@ class MissionRecorder:
         self._buffer = {}
         self.rec.flush()
         self._last_flush = time.monotonic()
+
+    def _send_viewer_labels(self, steps: np.ndarray, labels: list[dict[str, np.ndarray]],
+                            radius: float) -> None:
+        """The Rerun viewer's point labels ("id role") and radii, only at the steps where they
+        change: the viewer shows a component's latest value, and a label per robot and step
+        was ~20 % of a flush (the radii never change)."""
+        n = self.count
+        ids = [str(s.robot_id) for s in self.sim.robots]
+        first = next(iter(labels[0]), None)
+        rows: list[int] = []
+        texts: list[str] = []
+        for row, step_labels in enumerate(labels):
+            current = ([f"{ids[i]} {step_labels[first][i]}".rstrip() for i in range(n)]
+                       if first else ids)
+            if current != self._viewer_labels:
+                self._viewer_labels = current
+                rows.append(row)
+                texts.extend(current)
+        if not rows:
+            return
+        columns: dict[str, Any] = {"labels": texts}
+        if not self._radii_sent:  # once, with the first labels: at the recording's first step
+            self._radii_sent = True
+            columns["radii"] = np.full(len(texts), radius, np.float32)
+        self.rec.send_columns(layout.ROBOTS, indexes=self._time_columns(steps[rows].tolist()),
+                              columns=self.rr.Points3D.columns(**columns).partition(
+                                  [n] * len(rows)))
 
     def _time_columns(self, steps: list[int]) -> list[Any]:
         at = np.array(steps, dtype=np.int64)
