@@ -58,3 +58,32 @@ def test_a_negative_zero_bearing_keeps_its_sign() -> None:
     (message, distance, azimuth, elevation), = decode_step(encode_step([(5, inputs)]))[5].received
     assert (message, distance, elevation) == (b"\x00\x01\x00", 2.0, 0.0)
     assert math.copysign(1.0, azimuth) == -1.0
+
+
+class _Inner:
+    """A firmware loop that notes how its messages arrived."""
+
+    def __init__(self, bulk: bool) -> None:
+        self.got: list[tuple] = []
+        if bulk:
+            self.receive_all = lambda deliveries: self.got.append(("all", list(deliveries)))
+
+    def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
+        self.got.append(("one", message, distance, azimuth, elevation))
+
+
+def test_bulk_deliveries_are_noted_and_reach_the_robot_its_way() -> None:
+    """The engine hands a step's messages over in one `receive_all` call when the robot has
+    one: the capture must note them (forwarding the call unnoted would make every rebuild
+    diverge) and pass them on as the robot takes them."""
+    from bbzide.vm.input_log import CapturingRobot, HostCallTap
+
+    deliveries = [(7, b"\x00\x07\x00\x01", 1.5, -0.25, 0.0), (9, b"\x01\x09", 3.0, 0.5, 0.125)]
+    for bulk in (True, False):
+        inner = _Inner(bulk)
+        robot = CapturingRobot(inner, HostCallTap())
+        robot.capturing = True
+        robot.receive_all(deliveries)
+        assert robot.take_inputs().received == [d[1:] for d in deliveries]
+        assert inner.got == ([("all", deliveries)] if bulk
+                             else [("one", *d[1:]) for d in deliveries])
