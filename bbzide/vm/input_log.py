@@ -231,7 +231,7 @@ class CapturingRobot:
 
     def take_inputs(self) -> StepInputs:
         """The inputs since the last call (one engine step), and start a new record."""
-        inputs, self.current = self.current, StepInputs()
+        inputs, self.current = self.current, StepInputs([], array("d"), False, [])
         return inputs
 
     @property
