@@ -15,8 +15,10 @@ from __future__ import annotations
 
 #: `/mission` static component `meta` (JSON) starts with this; anything else is foreign.
 FORMAT = "bbzide-mission"
-#: Bumped when the layout changes incompatibly; the reader refuses newer versions.
-FORMAT_VERSION = 1
+#: Bumped when the layout changes incompatibly; the reader refuses other versions. 2: input
+#: log in columns, keyframe deltas as changed blocks, zstd (version 1: packed messages, XOR
+#: deltas, zlib).
+FORMAT_VERSION = 2
 APPLICATION_ID = "bbzide"
 
 TIMELINE = "step"
@@ -36,8 +38,10 @@ MESSAGE_TOTALS = "/stats/messages"         # Scalars sent, received, dropped, by
 HEAP = "/robots/heap"                      # /robots/heap/<figure>: Scalars, one per robot
 HEAP_FIGURES = ("used", "free", "peak", "rop", "lsp", "gc_runs")
 EVENTS = "/events"                         # TextLog + AnyValues kind, robot
-INPUTS = "/vm/inputs"                      # AnyValues inputs: one blob per step (input_log)
-KEYFRAMES = "/vm/keyframes"                # AnyValues robots, snapshots (zlib), programs
+INPUTS = "/vm/inputs"                      # AnyValues inputs: one blob per step (input_log,
+#                                            zstd)
+KEYFRAMES = "/vm/keyframes"                # AnyValues robots, snapshots, programs, bases
+#                                            (keyframes.py: full or block delta, zstd)
 
 #: Event kinds (the replay's jump buttons): a robot's VM stopped; a watched label changed;
 #: a world overlay reports one more target found; recording started or a program was loaded.

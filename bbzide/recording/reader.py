@@ -9,7 +9,8 @@ chunk's Arrow record batch (no DataFusion needed).
 Checks, each a `RecordingError` that says what is wrong:
 * not starting with Rerun's `RRF2` header: not an `.rrd` at all (foreign file);
 * an `.rrd` without our `/mission` metadata (`layout.FORMAT`): some other program's recording;
-* a newer `layout.FORMAT_VERSION`; rows that do not decode; steps missing in the middle.
+* another `layout.FORMAT_VERSION` (older or newer); rows that do not decode; steps missing
+  in the middle.
 
 A file whose writer was killed ends without Rerun's footer and maybe in the middle of a message.
 `rrd_frames` walks Rerun's framing (12-byte file header; then messages of a u64 kind and a u64
@@ -71,9 +72,9 @@ def rrd_frames(data: bytes) -> tuple[int, bool]:
 @dataclass
 class Keyframe:
     step: int
-    snapshot: bytes  # zlib-compressed Robot.snapshot()
+    snapshot: bytes  # keyframes.py bytes: a Robot.snapshot(), full or a block delta
     program: int
-    base: int = -1   # step of the full keyframe used as zlib dictionary (-1: this one is full)
+    base: int = -1   # step of the keyframe a delta applies to (-1: this one is full)
 
 
 @dataclass
@@ -207,9 +208,13 @@ def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
         raise RecordingError(f"{path}: unreadable mission metadata ({error})") from None
     if not isinstance(meta, dict) or meta.get("format") != layout.FORMAT:
         raise RecordingError(f"{path} is a Rerun recording, but not one of bbzide's")
-    if int(meta.get("version", 0)) > layout.FORMAT_VERSION:
-        raise RecordingError(f"{path} was written by a newer bbzide (format "
-                             f"{meta.get('version')}; this one reads {layout.FORMAT_VERSION})")
+    version = int(meta.get("version", 0))
+    if version > layout.FORMAT_VERSION:
+        raise RecordingError(f"{path} was written by a newer bbzide (format {version}; this "
+                             f"one reads {layout.FORMAT_VERSION})")
+    if version < layout.FORMAT_VERSION:
+        raise RecordingError(f"{path} was written by an older bbzide (format {version}; this "
+                             f"one reads {layout.FORMAT_VERSION}): record the mission again")
     return meta
 
 

@@ -19,18 +19,14 @@ import base64
 import bisect
 import io
 import pickle
-import zlib
 from collections.abc import Callable
 from typing import Any
 
 from bbzide.diagnostics import SourceLocation
+from bbzide.recording import keyframes
+from bbzide.recording.compression import CompressionError, decompress
 from bbzide.recording.reader import Keyframe, Recording
-from bbzide.recording.recorder import (
-    FULL_KEYFRAME_EVERY,
-    RecordingError,
-    build_robot,
-    xor_bytes,
-)
+from bbzide.recording.recorder import RecordingError, build_robot
 from bbzide.vm.input_log import (
     InputLogError,
     ReplayDivergence,
@@ -227,21 +223,22 @@ class RobotRebuilder:
         return robot, host
 
     def snapshot(self, index: int, keyframe: Keyframe) -> bytes:
-        """The keyframe's `Robot.snapshot()` bytes (a delta chain is undone from its last full
+        """The keyframe's `Robot.snapshot()` bytes (a delta chain is applied from its last full
         keyframe), checked against the allow-list."""
         chain = [keyframe]
         by_step = {k.step: k for k in self.recording.keyframes[index]}
         while chain[-1].base >= 0:
             base = by_step.get(chain[-1].base)
-            if base is None or base.step >= chain[-1].step or len(chain) > 4 * FULL_KEYFRAME_EVERY:
+            if (base is None or base.step >= chain[-1].step
+                    or len(chain) > 4 * keyframes.FULL_KEYFRAME_EVERY):
                 raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} "
                                      f"refers to a missing keyframe (step {chain[-1].base})")
             chain.append(base)
         try:
-            snapshot = zlib.decompress(chain[-1].snapshot)
+            snapshot = keyframes.decode_full(chain[-1].snapshot)
             for delta in reversed(chain[:-1]):
-                snapshot = xor_bytes(zlib.decompress(delta.snapshot), snapshot)
-        except zlib.error as error:
+                snapshot = keyframes.decode_delta(delta.snapshot, snapshot)
+        except keyframes.KeyframeError as error:
             raise RecordingError(f"corrupt keyframe of robot #{index} at step "
                                  f"{keyframe.step}: {error}") from None
         check_snapshot(snapshot, f"keyframe of robot #{index} at step {keyframe.step}")
@@ -255,8 +252,8 @@ class RobotRebuilder:
         if decoded is None:
             try:
                 blob = self.recording.inputs[self.recording.row(step)]
-                decoded = decode_step(zlib.decompress(blob), only=index) if blob else {}
-            except (InputLogError, zlib.error) as error:
+                decoded = decode_step(decompress(blob), only=index) if blob else {}
+            except (InputLogError, CompressionError) as error:
                 raise RecordingError(f"corrupt inputs at step {step}: {error}") from None
             if len(self._decoded) > 4096:  # a bounded memo: seeks revisit nearby steps
                 self._decoded.clear()

@@ -16,69 +16,77 @@ step: 50-100x cheaper, ui-stack-notes §4) and the stream is flushed to disk, so
 killed mid-run leaves a file readable up to its last flush.
 
 Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
-zlib-compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
+compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
 then after `keyframe_every` steps or `KEYFRAME_BUDGET_SECONDS` of its control steps, whichever
-comes first) plus the recorded inputs re-executed (`rebuild.py`). Rare
-things (keyframes, programs, events, overlays when they change) are logged as single rows.
+comes first) plus the recorded inputs re-executed (`rebuild.py`). Rare things (keyframes,
+events, overlays when they change) wait for the next flush and leave as columns too; only a
+program is logged as a single row when first used.
 """
 
 from __future__ import annotations
 
 import base64
+import gc
 import json
 import time
 import uuid
-import zlib
 from collections.abc import Callable
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from bbzide.diagnostics import UserError
-from bbzide.recording import layout
+from bbzide.recording import keyframes, layout
+from bbzide.recording.compression import INPUT_LEVEL, Compressor
 from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
-#: A robot is keyframed at least every 25 steps (cheap firmware: 25 robots' compressed
-#: snapshots every 25 steps stay a small share of the file)...
-KEYFRAME_EVERY = 25
-#: ...and sooner once its control steps since the last keyframe took 40 ms: a seek re-executes
-#: at most that much VM time, which with restoring and decoding the heap keeps it <= 100 ms
-#: whatever the script costs per step (the issue's seek goal).
-KEYFRAME_BUDGET_SECONDS = 0.040
-#: ...unless keyframing that robot costs more than 1/12 of that (snapshot + compression: ~7 ms
-#: for an M300 with its 60 KB heap): then the budget grows to 12x the keyframe's cost, which
-#: keeps keyframes under ~8 % of the VM time (the recording goal is <= 10 %) at the price of
-#: longer seeks for such robots (measured in benchmarks/record_bench.py).
+#: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
+KEYFRAME_EVERY = 100
+#: ...and sooner once its control steps since the last keyframe took 25 ms: a seek re-executes
+#: at most that much live VM time, which replays in up to ~2x as long (each step's inputs are
+#: decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so with
+#: restoring and the inspector a seek stays well under 100 ms whatever the script costs per
+#: step (the issue's seek goal; the machine's load adds to both). The step bound decides for
+#: cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the budget first, after
+#: ~55 steps. A keyframe of an M300 drone costs ~0.3 ms (snapshot, block delta, zstd), so this
+#: is ~6 us per drone and step, against ~12 us when keyframing every 25 steps, which made
+#: keyframes the recorder's largest cost (benchmarks/record_bench.py).
+KEYFRAME_BUDGET_SECONDS = 0.025
+#: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
+#: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
+#: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
 KEYFRAME_COST_FACTOR = 12
-#: Columns are sent and flushed every 50 steps (5 s of Kilobot time): few, large chunks...
-FLUSH_EVERY = 50
+#: Columns are sent and flushed every 100 steps (10 s of Kilobot time, ~1 s of a 25-drone SAR
+#: swarm): each flush costs ~18 `send_columns` calls of Rerun's Python-side conversion
+#: (several ms), so fewer, larger chunks...
+FLUSH_EVERY = 100
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
 #: swarm made that framing most of the file.)
 FLUSH_SECONDS = 10.0
-#: Rare rows (keyframes, events, overlays) wait in Rerun's batcher until our flush, so they too
-#: leave in one chunk per entity and flush instead of one per row.
+#: Program rows (logged when first used) wait in Rerun's batcher until our flush, so they too
+#: leave with the flush instead of one chunk each.
 BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: World overlays (light field, targets, belief map) are recorded every 10 steps when they
 #: changed: they change slowly and some are costly to build (the Kilobot light raster is
-#: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step, so "target
-#: found" events land on their step, but in between only its found count is compared (the JSON
-#: of an M300's overlays, ~1 ms, was a fifth of the recorder's time when done every step).
+#: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step until all
+#: are found, so "target found" events land on their step, but in between only its found count
+#: is compared (the JSON of an M300's overlays, ~1 ms, was a fifth of the recorder's time when
+#: done every step; building the overlays alone is still ~50 us a step).
 OVERLAY_EVERY = 10
-#: zlib level for snapshots: level 1. On an M300's 69 KB SAR snapshot it takes 0.3-0.4 ms
-#: against level 6's 1.0 ms for 3-4 % more bytes (6.2 vs 5.8 KB), and keyframes were the
-#: recorder's largest cost; on 3 KB Kilobot snapshots both take 40-80 us.
-SNAPSHOT_COMPRESSION = 1
-#: zlib level for each step's input blob: level 1 halves it (a broadcast reaches several
-#: robots, so payloads repeat; bearings of 0 and distance exponents are alike) for ~20 us.
-INPUT_COMPRESSION = 1
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
-#: Every 16th keyframe of a robot is full; the others are XOR deltas against the previous one;
-#: decoding one needs at most 16 inflates + XORs (~0.3 ms each for an M300's 69 KB snapshot).
-FULL_KEYFRAME_EVERY = 16
+
+#: Robot ids below this map to indexes through an array (65,536 ids: 256 KB at most; ids are
+#: u16 on the wire, so every real swarm fits).
+MAX_ID_TABLE = 1 << 16
+
+
+#: Heap figures of a robot without a VM (a passive body): size, ROP, LSP, peak, GC runs, has VM.
+_NO_HEAP = (0, 0, 0, 0, 0, 0)
 
 
 class RecordingError(UserError):
@@ -119,13 +127,6 @@ class Recordable:
     def _booted(self, robot: CapturingRobot) -> None:
         if self.listener is not None:
             self.listener(robot)
-
-
-def xor_bytes(data: bytes, base: bytes) -> bytes:
-    """`data` XOR `base` (cut or zero-padded to len(data)); XOR with `base` again undoes it."""
-    n = len(data)
-    padded = base[:n].ljust(n, b"\0")
-    return (np.frombuffer(data, np.uint8) ^ np.frombuffer(padded, np.uint8)).tobytes()
 
 
 def check_output_path(path: Path, force: bool) -> Path:
@@ -227,11 +228,27 @@ class MissionRecorder:
         self._source_of = source_of or (lambda program: None)
         self.count = len(sim.robots)
         self._index_of = {s.robot_id: s.index for s in sim.robots}
+        #: robot id -> index as an array, when ids are small non-negative numbers (as usual)
+        self._index_by_id: np.ndarray | None = None
+        if self._index_of and 0 <= min(self._index_of) and max(self._index_of) < MAX_ID_TABLE:
+            self._index_by_id = np.full(max(self._index_of) + 1, -1, dtype=np.int32)
+            for robot_id, index in self._index_of.items():
+                self._index_by_id[robot_id] = index
         self._capturing: dict[int, CapturingRobot] = {}
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
+        #: robot index -> (step, busy seconds) at which its next keyframe is due
+        self._due: dict[int, tuple[int, float]] = {}
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
+        self._inputs_compressor = Compressor(INPUT_LEVEL)
+        # Rare rows wait here until the next flush and leave as columns with the steps (one
+        # `log` call per row cost ~0.5 ms of Rerun's Python-side conversion).
+        self._keyframe_rows: list[tuple[int, list[int], list[bytes], list[int], list[int]]] = []
+        self._event_rows: list[tuple[int, str, int, str]] = []
+        self._overlay_rows: list[tuple[int, str, np.ndarray | None]] = []
+        self._viewer_labels: list[str] | None = None  # the labels last sent to the viewer
+        self._radii_sent = False
         for state in sim.robots:
             if isinstance(state.robot, CapturingRobot):
                 self._capturing[state.index] = state.robot
@@ -260,7 +277,7 @@ class MissionRecorder:
         self._last_overlays: str | None = None
         self._targets_found = 0
         self._watch_in_program: dict[int, bool] = {}
-        self._has_targets = False  # a world with targets is polled every step (found events)
+        self._has_targets = False  # targets still to find: poll every step (found events)
         self.closed = False
         self.steps_recorded = 0
         self.seconds_spent = 0.0
@@ -272,11 +289,12 @@ class MissionRecorder:
         self._keyframe(list(self._capturing), self.start_step)
         self._event(self.start_step, layout.EVENT_PROGRAM, -1,
                     f"recording starts at step {self.start_step}")
-        self._buffer_frame(self.start_step, b"")
-        for name, values in self._buffer["labels"][-1].items():
-            for i, value in enumerate(values):
-                self._last_labels[i][name] = value
+        self._frame(self.start_step, first=True)
         self._flush()
+        # Starting a recording imports Rerun and pyarrow (~100,000 new objects): the garbage
+        # collector's next full pass, ~100-150 ms, would otherwise fall on some step soon after
+        # (measured); pay it here, with the rest of the start.
+        gc.collect()
 
     # ---- static parts ---------------------------------------------------------------------------
     def _write_meta(self) -> None:
@@ -356,11 +374,8 @@ class MissionRecorder:
 
     def _keyframe(self, indexes: list[int], step: int, full: bool = False) -> None:
         """Snapshot robots `indexes` now. A robot's first keyframe after (re)boot and every
-        `FULL_KEYFRAME_EVERY`-th are full; the others store the XOR with the robot's previous
-        keyframe (`bases` = its step), zlib-compressed: the heap sits at a fixed offset of the
-        pickle and changes little between keyframes, so the XOR is mostly zeros (Kilobot
-        1,050 -> 100 B; a zlib preset dictionary would only reach back 32 KB of an M300's
-        60 KB heap)."""
+        `keyframes.FULL_KEYFRAME_EVERY`-th are full; the others store the blocks that changed
+        since the robot's previous keyframe (`bases` = its step; see keyframes.py)."""
         if not indexes:
             return
         snapshots, programs, bases = [], [], []
@@ -372,31 +387,22 @@ class MissionRecorder:
             snapshot = state.robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
             previous = self._bases.get(index)
-            if full or previous is None or count % FULL_KEYFRAME_EVERY == 0:
-                snapshots.append(zlib.compress(snapshot, SNAPSHOT_COMPRESSION))
+            if full or previous is None or count % keyframes.FULL_KEYFRAME_EVERY == 0:
+                snapshots.append(keyframes.encode_full(snapshot))
                 bases.append(-1)
             else:
-                snapshots.append(zlib.compress(xor_bytes(snapshot, previous[1]),
-                                               SNAPSHOT_COMPRESSION))
+                snapshots.append(keyframes.encode_delta(snapshot, previous[1]))
                 bases.append(previous[0])
             self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
-            self._snapshot_seconds[index] = time.perf_counter() - started
+            cost = self._snapshot_seconds[index] = time.perf_counter() - started
+            self._due[index] = (step + self.keyframe_every,
+                                max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost))
             programs.append(self._program_id(state.program, step))
-        import pyarrow as pa
-
-        self._set_time(step)
-        self.rec.log(layout.KEYFRAMES, self.rr.AnyValues(
-            robots=np.array(indexes, dtype=np.int32),
-            snapshots=pa.array(snapshots, type=pa.binary()),
-            programs=np.array(programs, dtype=np.int32),
-            bases=np.array(bases, dtype=np.int32)))
+        self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
 
     def _event(self, step: int, kind: str, robot: int, text: str) -> None:
-        self._set_time(step)
-        level = "ERROR" if kind == layout.EVENT_ERROR else "INFO"
-        self.rec.log(layout.EVENTS, self.rr.TextLog(text, level=level),
-                     self.rr.AnyValues(kind=kind, robot=int(robot)))
+        self._event_rows.append((step, kind, int(robot), text))
 
     # ---- per step -------------------------------------------------------------------------------
     def record_step(self) -> None:
@@ -404,70 +410,96 @@ class MissionRecorder:
         if self.closed:
             return
         started = time.perf_counter()
-        sim = self.sim
-        step = int(sim.step_count)
-        records = []
-        for index, robot in self._capturing.items():
-            inputs = robot.take_inputs()
-            if not inputs.empty:
-                records.append((index, inputs))
-        blob = zlib.compress(encode_step(records), INPUT_COMPRESSION)
-        self._buffer_frame(step, blob)
-        due = []
-        for i, robot in self._capturing.items():
-            state = sim.robots[i]
-            if state.robot is not robot or state.failure is not None:
-                continue
-            budget = max(KEYFRAME_BUDGET_SECONDS,
-                         KEYFRAME_COST_FACTOR * self._snapshot_seconds.get(i, 0.0))
-            if (step - self._keyframed.get(i, self.start_step) >= self.keyframe_every
-                    or robot.busy_seconds >= budget):
-                due.append(i)
-        self._keyframe(due, step)
-        self._watch_events(step)
+        self._frame(int(self.sim.step_count))
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
             self._flush()
         self.steps_recorded += 1
         self.seconds_spent += time.perf_counter() - started
 
-    def _buffer_frame(self, step: int, inputs_of_previous_step: bytes) -> None:
-        """The state at `step`; the inputs blob is the one that led here (from step - 1)."""
+    def _frame(self, step: int, first: bool = False) -> None:
+        """The state at `step` and the inputs that led here (from step - 1), in one pass over
+        the robots: their inputs, failure, heap figures and labels, whether a keyframe is due,
+        and the events (new failure, label change). The first frame takes no inputs and only
+        notes the labels. Figures are gathered into lists and become one array each per step
+        (numpy calls per robot and step cost more than the figures)."""
         sim = self.sim
-        n = self.count
-        heap = np.zeros((len(layout.HEAP_FIGURES), n), dtype=np.int32)
-        failed = np.zeros(n, dtype=bool)
-        labels: dict[str, list[str]] = {name: [""] * n for name in sim.watch}
+        watch = sim.watch
+        labels: dict[str, list[str]] = {name: [""] * self.count for name in watch}
+        capturing = self._capturing
+        records: list[tuple[int, Any]] = []
+        due: list[int] = []
+        failed: list[bool] = []
+        heap_figures: list[int] = []  # 6 per robot, flat
+        keyframes_due, known_failures, last_labels = self._due, self._known_failures, \
+            self._last_labels
         for state in sim.robots:
             i = state.index
-            failed[i] = state.failure is not None
+            failure = state.failure
+            failed.append(failure is not None)
             robot = state.robot
-            if robot is not None:
-                h = robot.vm.heap
-                used = h.rtobj + (h.size - h.ltseg)
-                heap[:, i] = (used, h.size - used, h.peak_used, h.rtobj, h.ltseg, h.gc_runs)
-            if labels:
+            capture = capturing.get(i)
+            if capture is not None and not first:
+                inputs = capture.take_inputs()
+                if inputs.stepped or inputs.payloads:  # not `.empty`: a property call less
+                    records.append((i, inputs))
+                if robot is capture and failure is None:
+                    due_step, budget = keyframes_due.get(i, (step, 0.0))
+                    if step >= due_step or capture.busy_seconds >= budget:
+                        due.append(i)
+            if robot is None:
+                heap_figures += _NO_HEAP
+            else:
+                # A CapturingRobot forwards `.vm` through __getattr__: go round it.
+                h = (capture.robot if robot is capture else getattr(robot, "robot", robot)
+                     ).vm.heap
+                heap_figures += (h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1)
+            if failure is not None and i not in known_failures:
+                known_failures.add(i)
+                self._event(step, layout.EVENT_ERROR, i,
+                            f"robot {state.robot_id}: {_failure_text(failure)}")
+            if watch:
                 current = self._labels_of(state)
-                for name in labels:
+                last = last_labels[i]
+                for name in watch:
                     value = current.get(name)
-                    labels[name][i] = "" if value is None else str(value)
+                    text = "" if value is None else str(value)
+                    labels[name][i] = text
+                    before = last.get(name)
+                    if before is not None and before != text and not first:
+                        self._event(step, layout.EVENT_ROLE, i,
+                                    f"robot {state.robot_id} {name}: {before} -> {text}")
+                    last[name] = text
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
         buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
-        buffer.setdefault("failed", []).append(failed)
-        buffer.setdefault("heap", []).append(heap)
-        buffer.setdefault("labels", []).append(labels)
-        buffer.setdefault("messages", []).append(np.stack(
-            [stats.sent, stats.received, stats.bytes_sent]).astype(np.int32))
-        buffer.setdefault("totals", []).append(
-            (stats.total_sent, stats.total_received, stats.total_dropped, stats.total_bytes))
+        # Kept as numpy arrays, which the garbage collector does not track: lists kept alive
+        # until the flush made it run (full passes of ~100 ms) several times more often.
+        buffer.setdefault("failed", []).append(np.array(failed, dtype=bool))
+        buffer.setdefault("heap", []).append(np.array(heap_figures, dtype=np.int64))
+        buffer.setdefault("labels", []).append(
+            {name: np.array(values, dtype=object) for name, values in labels.items()})
+        buffer.setdefault("traffic", []).append(np.stack(
+            [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
+        buffer.setdefault("links", []).append(self._link_indexes(sim.links))
+        buffer.setdefault("inputs", []).append(
+            b"" if first else self._inputs_compressor.compress(encode_step(records)))
+        self._keyframe(due, step)
+        if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
+            self._record_overlays(step)
+
+    def _link_indexes(self, links: list[tuple[int, int]]) -> np.ndarray:
+        """The engine's (sender id, receiver id) links as an (M, 2) array of robot indexes:
+        the ids flattened in C, then mapped through a lookup array (hundreds of links a step
+        in a 25-drone swarm; a dict look-up per id was a tenth of the recorder's time)."""
+        ids = np.fromiter(chain.from_iterable(links), dtype=np.int64, count=2 * len(links))
+        if self._index_by_id is not None:
+            return self._index_by_id[ids].reshape(-1, 2)
         index_of = self._index_of
-        buffer.setdefault("links", []).append(np.array(
-            [(index_of[a], index_of[c]) for a, c in sim.links], dtype=np.int32).reshape(-1, 2))
-        buffer.setdefault("inputs", []).append(inputs_of_previous_step)
+        return np.array([index_of[i] for i in ids.tolist()], dtype=np.int32).reshape(-1, 2)
 
     def _labels_of(self, state: Any) -> dict[str, Any]:
         """The robot's labels. Reading them makes the engine look each watched name up in the
@@ -483,31 +515,16 @@ class MissionRecorder:
             self._watch_in_program[key] = can_have
         if can_have or not hasattr(state, "_labels"):
             return state.labels
-        return dict(state._labels)  # the world's labels, without the global look-ups
-
-    def _watch_events(self, step: int) -> None:
-        sim = self.sim
-        for state in sim.robots:
-            if state.failure is not None and state.index not in self._known_failures:
-                self._known_failures.add(state.index)
-                self._event(step, layout.EVENT_ERROR, state.index,
-                            f"robot {state.robot_id}: {_failure_text(state.failure)}")
-        latest = self._buffer["labels"][-1]
-        for name, values in latest.items():
-            for i, value in enumerate(values):
-                before = self._last_labels[i].get(name)
-                if before is not None and before != value:
-                    self._event(step, layout.EVENT_ROLE, i,
-                                f"robot {sim.robots[i].robot_id} {name}: {before} -> {value}")
-                self._last_labels[i][name] = value
-        if self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0:
-            self._record_overlays(step)
+        return state._labels  # the world's labels, without the global look-ups (read only)
 
     def _record_overlays(self, step: int) -> None:
         overlays = self.sim.world.overlays()
         if not overlays:
             return
-        self._has_targets = "targets" in overlays
+        targets = overlays.get("targets")
+        # Polled every step while a target may still be found (none are lost again).
+        self._has_targets = (isinstance(targets, list)
+                             and found_targets(overlays) < len(targets))
         due = (step - self.start_step) % OVERLAY_EVERY == 0
         if not due and found_targets(overlays) <= self._targets_found:
             return  # a poll between two recordings: only "target found" matters now
@@ -515,12 +532,7 @@ class MissionRecorder:
         if text == self._last_overlays:
             return
         self._last_overlays = text
-        self._set_time(step)
-        self.rec.log(layout.OVERLAYS, self.rr.AnyValues(overlays=text))
-        points = _target_points(overlays)
-        if points is not None:
-            self.rec.log(layout.TARGETS, self.rr.Points3D(points, radii=0.02,
-                                                          colors=(230, 60, 60)))
+        self._overlay_rows.append((step, text, _target_points(overlays)))
         found = found_targets(overlays)
         if found > self._targets_found:
             self._event(step, layout.EVENT_TARGET, -1, f"target found ({found} so far)")
@@ -546,20 +558,14 @@ class MissionRecorder:
         colors = (np.clip(np.stack(b["leds"]).reshape(-1, 3), 0, 1) * 255).astype(np.uint8)
         radius = float(self.sim.world.robot_radius)
         watch = list(b["labels"][0])
-        first = watch[0] if watch else None
-        text_labels = [
-            f"{self.sim.robots[i].robot_id} {labels[first][i]}".rstrip() if first
-            else str(self.sim.robots[i].robot_id)
-            for labels in b["labels"] for i in range(n)
-        ]
         send = self.rec.send_columns
         send(layout.ROBOTS, indexes=indexes, columns=rr.Points3D.columns(
-            positions=positions, colors=colors, radii=np.full(rows * n, radius, np.float32),
-            labels=text_labels).partition(per_robot))
+            positions=positions, colors=colors).partition(per_robot))
+        self._send_viewer_labels(steps, b["labels"], radius)
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
         extra = {"heading": pa.array(headings),
-                 "failed": pa.array(np.stack(b["failed"]).reshape(-1))}
+                 "failed": pa.array(np.concatenate(b["failed"]))}
         for name in watch:
             extra[f"label:{name}"] = pa.array(
                 [v for labels in b["labels"] for v in labels[name]], type=pa.string())
@@ -583,24 +589,104 @@ class MissionRecorder:
                       else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
             pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
-        messages = np.stack(b["messages"])  # rows, 3, n
+        traffic = np.stack(b["traffic"])  # rows, (sent, received, dropped, bytes_sent), n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
-            sent=pa.array(messages[:, 0].reshape(-1)),
-            received=pa.array(messages[:, 1].reshape(-1)),
-            bytes_sent=pa.array(messages[:, 2].reshape(-1))).partition(per_robot))
-        totals = np.array(b["totals"], dtype=np.float64)
+            sent=pa.array(traffic[:, 0].reshape(-1).astype(np.int32)),
+            received=pa.array(traffic[:, 1].reshape(-1).astype(np.int32)),
+            bytes_sent=pa.array(traffic[:, 3].reshape(-1).astype(np.int32))).partition(per_robot))
+        totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        heap = np.stack(b["heap"])  # rows, figures, n
-        for f, figure in enumerate(layout.HEAP_FIGURES):
+        size, rop, lsp, peak, gc_runs, has_vm = np.concatenate(b["heap"]).reshape(
+            rows, n, len(_NO_HEAP)).transpose(2, 0, 1)  # each: rows, n
+        used = (rop + size - lsp) * has_vm
+        for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,
+                                                        gc_runs), strict=True):
             send(f"{layout.HEAP}/{figure}", indexes=indexes, columns=rr.Scalars.columns(
-                scalars=heap[:, f].reshape(-1).astype(np.float64)).partition(per_robot))
+                scalars=values.reshape(-1).astype(np.float64)).partition(per_robot))
         send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
             inputs=pa.array(b["inputs"], type=pa.binary())).partition([1] * rows))
+        self._send_rare_rows()
         self._steps = []
         self._buffer = {}
         self.rec.flush()
         self._last_flush = time.monotonic()
+
+    def _send_viewer_labels(self, steps: np.ndarray, labels: list[dict[str, np.ndarray]],
+                            radius: float) -> None:
+        """The Rerun viewer's point labels ("id role") and radii, only at the steps where they
+        change: the viewer shows a component's latest value, and a label per robot and step
+        was ~20 % of a flush (the radii never change)."""
+        n = self.count
+        ids = [str(s.robot_id) for s in self.sim.robots]
+        first = next(iter(labels[0]), None)
+        rows: list[int] = []
+        texts: list[str] = []
+        for row, step_labels in enumerate(labels):
+            current = ([f"{ids[i]} {step_labels[first][i]}".rstrip() for i in range(n)]
+                       if first else ids)
+            if current != self._viewer_labels:
+                self._viewer_labels = current
+                rows.append(row)
+                texts.extend(current)
+        if not rows:
+            return
+        columns: dict[str, Any] = {"labels": texts}
+        if not self._radii_sent:  # once, with the first labels: at the recording's first step
+            self._radii_sent = True
+            columns["radii"] = np.full(len(texts), radius, np.float32)
+        self.rec.send_columns(layout.ROBOTS, indexes=self._time_columns(steps[rows].tolist()),
+                              columns=self.rr.Points3D.columns(**columns).partition(
+                                  [n] * len(rows)))
+
+    def _time_columns(self, steps: list[int]) -> list[Any]:
+        at = np.array(steps, dtype=np.int64)
+        dt = float(self.sim.world.step_seconds)
+        return [self.rr.TimeColumn(layout.TIMELINE, sequence=at),
+                self.rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+
+    def _send_rare_rows(self) -> None:
+        """Keyframes, events and overlays since the last flush, one chunk per entity."""
+        rr, send = self.rr, self.rec.send_columns
+        import pyarrow as pa
+
+        rows = self._keyframe_rows
+        if rows:
+            sizes = [len(row[1]) for row in rows]
+            send(layout.KEYFRAMES, indexes=self._time_columns([row[0] for row in rows]),
+                 columns=rr.AnyValues.columns(
+                     robots=pa.array([i for row in rows for i in row[1]], type=pa.int32()),
+                     snapshots=pa.array([b for row in rows for b in row[2]], type=pa.binary()),
+                     programs=pa.array([p for row in rows for p in row[3]], type=pa.int32()),
+                     bases=pa.array([b for row in rows for b in row[4]], type=pa.int32()),
+                 ).partition(sizes))
+        events = self._event_rows
+        if events:
+            indexes = self._time_columns([e[0] for e in events])
+            ones = [1] * len(events)
+            send(layout.EVENTS, indexes=indexes, columns=rr.TextLog.columns(
+                text=[e[3] for e in events],
+                level=["ERROR" if e[1] == layout.EVENT_ERROR else "INFO" for e in events],
+            ).partition(ones))
+            send(layout.EVENTS, indexes=indexes, columns=rr.AnyValues.columns(
+                kind=pa.array([e[1] for e in events], type=pa.string()),
+                robot=pa.array([e[2] for e in events], type=pa.int64())).partition(ones))
+        overlays = self._overlay_rows
+        if overlays:
+            send(layout.OVERLAYS, indexes=self._time_columns([o[0] for o in overlays]),
+                 columns=rr.AnyValues.columns(
+                     overlays=pa.array([o[1] for o in overlays], type=pa.string()),
+                 ).partition([1] * len(overlays)))
+            targets = [o for o in overlays if o[2] is not None]
+            if targets:
+                points = np.concatenate([o[2] for o in targets])
+                send(layout.TARGETS, indexes=self._time_columns([o[0] for o in targets]),
+                     columns=rr.Points3D.columns(
+                         positions=points, radii=np.full(len(points), 0.02, np.float32),
+                         colors=np.tile(np.array([230, 60, 60, 255], np.uint8),
+                                        (len(points), 1)),
+                     ).partition([len(o[2]) for o in targets]))
+        self._keyframe_rows, self._event_rows, self._overlay_rows = [], [], []
 
     def close(self) -> None:
         """Send what is buffered, write the file's footer, stop capturing."""

@@ -25,16 +25,21 @@ fixed little-endian layout (no pickle: a recording is a file a user may get from
 from __future__ import annotations
 
 import struct
+import sys
 import time
+from array import array
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import accumulate, chain
 from typing import Any
+
+from bbzide.vm.host import HostCall
 
 #: One host-call effect: ("expect", n) | ("ret", value) | ("fail", kind) | ("ret0",).
 HostEffect = tuple[Any, ...]
 
 
-@dataclass
+@dataclass(slots=True)
 class HostCallRecord:
     """One call of a world host function: its name and its effects on the VM, in order."""
 
@@ -42,17 +47,41 @@ class HostCallRecord:
     effects: list[HostEffect] = field(default_factory=list)
 
 
-@dataclass
+@dataclass(slots=True)  # one per robot and step: slots make it cheaper to build and read
 class StepInputs:
-    """What entered one robot during one control step of the engine."""
+    """What entered one robot during one control step of the engine.
 
-    received: list[tuple[bytes, float, float, float]] = field(default_factory=list)
+    The received messages are two columns, not a tuple each: `payloads` and `situation`, the
+    situated data of message k at `situation[3k:3k + 3]` (distance, azimuth, elevation). An
+    M300 swarm receives ~300 messages a step: capturing is two appends per message, and
+    writing them out is one copy per robot instead of a conversion per message.
+    """
+
+    payloads: list[bytes] = field(default_factory=list)
+    situation: array = field(default_factory=lambda: array("d"))
     stepped: bool = False  # control_step() ran (False: asleep, failed, or passive)
     host_calls: list[HostCallRecord] = field(default_factory=list)
 
+    @classmethod
+    def of(cls, received: Sequence[tuple[bytes, float, float, float]], stepped: bool = False,
+           host_calls: list[HostCallRecord] | None = None) -> StepInputs:
+        """From (message, distance, azimuth, elevation) tuples."""
+        inputs = cls(stepped=stepped, host_calls=list(host_calls or []))
+        for message, distance, azimuth, elevation in received:
+            inputs.payloads.append(bytes(message))
+            inputs.situation.extend((distance, azimuth, elevation))
+        return inputs
+
+    @property
+    def received(self) -> list[tuple[bytes, float, float, float]]:
+        """The messages as (message, distance, azimuth, elevation) tuples."""
+        s = self.situation
+        return [(message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
+                for k, message in enumerate(self.payloads)]
+
     @property
     def empty(self) -> bool:
-        return not self.received and not self.stepped
+        return not self.payloads and not self.stepped
 
 
 class ReplayDivergence(Exception):
@@ -85,6 +114,33 @@ class _CapturingCall:
         return getattr(self._call, name)
 
 
+class _CapturingHostCall(HostCall):
+    """The same for a real `HostCall`, as a subclass: reading arguments (`arg`, `args`,
+    `robot_id`, `vm`) is then a plain attribute or method of the call, not a `__getattr__`
+    forward per access (an M300 SAR step makes ~20 host calls with several reads each).
+    Effects go to the original call, whose `finish` the robot runs."""
+
+    def __init__(self, call: HostCall, record: HostCallRecord) -> None:
+        self.__dict__.update(call.__dict__)
+        self._call = call
+        self._record = record
+
+    def expect_args(self, n: int) -> bool:
+        self._record.effects.append(("expect", int(n)))
+        return self._call.expect_args(n)
+
+    def ret(self, value: Any = None) -> None:
+        self._record.effects.append(("ret", value))
+        self._call.ret(value)
+
+    def fail(self, kind: str) -> None:
+        self._record.effects.append(("fail", str(kind)))
+        self._call.fail(kind)
+
+    def ret_object(self, index: int) -> None:
+        self._call.ret_object(index)  # as before: not recorded (no world host returns objects)
+
+
 class HostCallTap:
     """Wraps a robot's world host functions; while `log` is a list, each call is noted in it."""
 
@@ -99,7 +155,10 @@ class HostCallTap:
                 return
             record = HostCallRecord(name)
             log.append(record)
-            function(_CapturingCall(call, record))
+            if type(call) is HostCall:
+                function(_CapturingHostCall(call, record))
+            else:
+                function(_CapturingCall(call, record))
 
         return tapped
 
@@ -133,9 +192,28 @@ class CapturingRobot:
 
     def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
         if self.capturing:
-            self.current.received.append(
-                (bytes(message), float(distance), float(azimuth), float(elevation)))
+            current = self.current
+            current.payloads.append(message)
+            current.situation.extend((distance, azimuth, elevation))
         self.robot.receive(message, distance, azimuth, elevation)
+
+    def receive_all(self, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+                    ) -> None:
+        """The engine's deliveries of a step, `(sender, message, distance, azimuth,
+        elevation)` each: noted in bulk, then handed to the robot's own `receive_all` when it
+        has one (a compiled receive), else to `receive` one by one. (Defined here, not left
+        to `__getattr__`: forwarding it would hand the messages to the robot unnoted.)"""
+        if self.capturing:
+            current = self.current
+            current.payloads.extend([d[1] for d in deliveries])
+            current.situation.extend([x for d in deliveries for x in (d[2], d[3], d[4])])
+        receive_all = getattr(self.robot, "receive_all", None)
+        if receive_all is not None:
+            receive_all(deliveries)
+            return
+        receive = self.robot.receive
+        for _sender, message, distance, azimuth, elevation in deliveries:
+            receive(message, distance, azimuth, elevation)
 
     def control_step(self) -> list[bytes]:
         if not self.capturing:
@@ -153,7 +231,7 @@ class CapturingRobot:
 
     def take_inputs(self) -> StepInputs:
         """The inputs since the last call (one engine step), and start a new record."""
-        inputs, self.current = self.current, StepInputs()
+        inputs, self.current = self.current, StepInputs([], array("d"), False, [])
         return inputs
 
     @property
@@ -236,8 +314,14 @@ class ReplayHostFunctions:
 
 def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> None:
     """Apply one recorded control step to `robot` (restored to the state before that step)."""
-    for message, distance, azimuth, elevation in inputs.received:
-        robot.receive(message, distance, azimuth, elevation)
+    s = inputs.situation
+    receive_all = getattr(robot, "receive_all", None)
+    if receive_all is not None and inputs.payloads:  # the engine's way, when the robot has it
+        receive_all([(None, message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
+                     for k, message in enumerate(inputs.payloads)])
+    else:
+        for k, message in enumerate(inputs.payloads):
+            robot.receive(message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
     if inputs.stepped:
         host.load(inputs.host_calls)
         try:
@@ -252,29 +336,25 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
 
 # ---- bytes -------------------------------------------------------------------------------------
 # Layout of one step (all little-endian):
-#   u16 robot records
-#   per record: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
-#     message: u16 length, bytes, u8 which (1 = azimuth, 2 = elevation follow), f64 distance,
-#              [f64 azimuth], [f64 elevation]   (a Kilobot has no bearing: both are 0.0)
+#   u16 robot records (r)
+#   r headers: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
+#   the messages of all records, in record order (M in all), as columns:
+#     u16 length[M], the M payloads back to back, f64 situation[3M] (distance, azimuth,
+#     elevation of each message; a Kilobot's zero bearings compress to next to nothing)
+#   the host calls of all records, in record order:
 #     host call: u8 name length, name (UTF-8), u8 effects
 #       effect: b"E" u8 n | b"F" u8 length, kind | b"R" value
 #       value:  b"N" | b"I" i64 | b"D" f64 | b"T" u8 entries, (u8 length, key, value)*
+# Step-wide columns copied from the captured ones, not one packed struct per message: an M300
+# swarm receives ~300 messages a step, and ~300 `pack` calls were one of the recorder's
+# largest costs; like values side by side also compress better.
 _U16 = struct.Struct("<H")
 _HEAD = struct.Struct("<HBHH")
 _I64 = struct.Struct("<q")
 _F64 = struct.Struct("<d")
-
-
-#: One received message in one `pack` call (the same bytes as the layout above), by (payload
-#: length, which): an M300 swarm receives hundreds of messages a step, and three packs and
-#: four concatenations each were most of the encoding time.
-_MESSAGE_LAYOUTS: dict[tuple[int, int], struct.Struct] = {}
-
-
-def _message_layout(length: int, which: int) -> struct.Struct:
-    extra = "d" * (bin(which).count("1"))
-    layout = _MESSAGE_LAYOUTS[(length, which)] = struct.Struct(f"<H{length}sBd{extra}")
-    return layout
+_STEPPED = 1
+#: `array` writes the machine's byte order; the layout is little-endian.
+_SWAP = sys.byteorder != "little"
 
 
 class InputLogError(ValueError):
@@ -282,53 +362,94 @@ class InputLogError(ValueError):
 
 
 def _encode_value(value: Any, out: bytearray) -> None:
-    if value is None:
+    kind = type(value)  # exact types first: a host call returns ints, floats and small tables
+    if kind is int:
+        out += b"I"
+        out += _I64.pack(value)
+    elif kind is float:
+        out += b"D"
+        out += _F64.pack(value)
+    elif value is None:
         out += b"N"
     elif isinstance(value, bool | int):
-        out += b"I" + _I64.pack(int(value))
+        out += b"I"
+        out += _I64.pack(int(value))
     elif isinstance(value, float):
-        out += b"D" + _F64.pack(value)
+        out += b"D"
+        out += _F64.pack(value)
     elif isinstance(value, dict):
-        out += b"T" + bytes([len(value)])
+        out += b"T"
+        out.append(len(value))
         for key, item in value.items():
-            name = str(key).encode()
-            out += bytes([len(name)]) + name
+            # Only str keys are cached: True == 1 as dict keys, but not as text.
+            name = _KEYS.get(key) if type(key) is str else None
+            if name is None:
+                name = _length_prefixed(str(key))
+                if type(key) is str and len(_KEYS) < _MAX_KEYS:
+                    _KEYS[key] = name
+            out += name
             _encode_value(item, out)
     else:
         out += b"N"  # HostCall.ret turns anything else into nil too
+
+
+#: Encoded table keys of host-call answers ("x", "y", ...: the same few every step), at most
+#: 1,024 of them (a world that made up new keys every call cannot grow this without bound).
+_KEYS: dict[Any, bytes] = {}
+_MAX_KEYS = 1024
 
 
 def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
     """The inputs of the robots of one step (robots with none may be left out)."""
     out = bytearray(_U16.pack(len(records)))
     for index, inputs in records:
-        out += _HEAD.pack(index, 1 if inputs.stepped else 0, len(inputs.received),
+        out += _HEAD.pack(index, _STEPPED if inputs.stepped else 0, len(inputs.payloads),
                           len(inputs.host_calls))
-        for message, distance, azimuth, elevation in inputs.received:
-            which = (1 if azimuth != 0.0 else 0) | (2 if elevation != 0.0 else 0)
-            layout = _MESSAGE_LAYOUTS.get((len(message), which)) or _message_layout(
-                len(message), which)
-            if which == 0:
-                out += layout.pack(len(message), message, which, distance)
-            elif which == 1:
-                out += layout.pack(len(message), message, which, distance, azimuth)
-            elif which == 2:
-                out += layout.pack(len(message), message, which, distance, elevation)
-            else:
-                out += layout.pack(len(message), message, which, distance, azimuth, elevation)
+    payloads = list(chain.from_iterable(inputs.payloads for _, inputs in records))
+    if payloads:
+        lengths = array("H", map(len, payloads))
+        situation = array("d")
+        for _, inputs in records:
+            situation += inputs.situation
+        if _SWAP:
+            lengths.byteswap()
+            situation.byteswap()
+        out += lengths.tobytes()
+        out += b"".join(payloads)
+        out += situation.tobytes()
+    names = _NAMES
+    for _, inputs in records:
         for call in inputs.host_calls:
-            name = call.name.encode()
-            out += bytes([len(name)]) + name + bytes([len(call.effects)])
+            name = names.get(call.name)
+            if name is None:
+                name = names[call.name] = _length_prefixed(call.name)
+            out += name
+            out.append(len(call.effects))
             for effect in call.effects:
-                if effect[0] == "expect":
-                    out += b"E" + bytes([effect[1] & 0xFF])
-                elif effect[0] == "fail":
-                    kind = effect[1].encode()
-                    out += b"F" + bytes([len(kind)]) + kind
+                kind = effect[0]
+                if kind == "ret":
+                    value = effect[1]
+                    if type(value) is int:  # the usual answer: no call, no isinstance chain
+                        out += b"RI"
+                        out += _I64.pack(value)
+                    else:
+                        out += b"R"
+                        _encode_value(value, out)
+                elif kind == "expect":
+                    out += _EXPECT[effect[1] & 0xFF]
                 else:
-                    out += b"R"
-                    _encode_value(effect[1], out)
+                    out += b"F" + _length_prefixed(effect[1])
     return bytes(out)
+
+
+def _length_prefixed(text: str) -> bytes:
+    data = text.encode()
+    return bytes([len(data)]) + data
+
+
+#: Encoded host-function names (a swarm calls the same few names every step).
+_NAMES: dict[str, bytes] = {}
+_EXPECT = [b"E" + bytes([n]) for n in range(256)]
 
 
 class _Reader:
@@ -380,14 +501,10 @@ def _skip_value(data: bytes, at: int) -> int:
     return at + 1
 
 
-def _skip_record(reader: _Reader, messages: int, calls: int) -> None:
-    """Step over one robot's record without building it (a seek needs one robot of 25)."""
+def _skip_calls(reader: _Reader, calls: int) -> None:
+    """Step over one robot's host calls without building them (a seek needs one robot of 25)."""
     data, at = reader.data, reader.at
     try:
-        for _ in range(messages):
-            length = data[at] | data[at + 1] << 8
-            which = data[at + 2 + length]
-            at += 3 + length + 8 * (1 + (which & 1) + (which >> 1 & 1))
         for _ in range(calls):
             at += 1 + data[at]
             effects = data[at]
@@ -409,41 +526,76 @@ def _skip_record(reader: _Reader, messages: int, calls: int) -> None:
     reader.at = at
 
 
+def _read_calls(reader: _Reader, calls: int) -> list[HostCallRecord]:
+    records = []
+    for _ in range(calls):
+        try:
+            record = HostCallRecord(reader.take(reader.byte()).decode())
+        except UnicodeDecodeError:
+            raise InputLogError("host function name is not UTF-8") from None
+        for _ in range(reader.byte()):
+            tag = reader.take(1)
+            if tag == b"E":
+                record.effects.append(("expect", reader.byte()))
+            elif tag == b"F":
+                record.effects.append(("fail", reader.take(reader.byte()).decode()))
+            elif tag == b"R":
+                record.effects.append(("ret", reader.value()))
+            else:
+                raise InputLogError(f"unknown host effect {tag!r} in input log")
+        records.append(record)
+    return records
+
+
+def _read_messages(reader: _Reader, total: int, first: int, count: int
+                   ) -> tuple[list[bytes], array]:
+    """Payloads and situated data of messages `first`..`first + count` of the step's `total`
+    (the whole block is stepped over; only those are built)."""
+    lengths = array("H")
+    lengths.frombytes(reader.take(2 * total))
+    if _SWAP:
+        lengths.byteswap()
+    payload_bytes = sum(lengths)
+    block = reader.take(payload_bytes + 24 * total)
+    at = sum(lengths[:first])
+    payloads = []
+    for length in lengths[first:first + count]:
+        payloads.append(block[at:at + length])
+        at += length
+    situation = array("d")
+    start = payload_bytes + 24 * first
+    situation.frombytes(block[start:start + 24 * count])
+    if _SWAP:
+        situation.byteswap()
+    return payloads, situation
+
+
 def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
     """`encode_step`'s bytes back: robot index -> its inputs (with `only`, just that robot's:
     the other records are stepped over, not built)."""
     reader = _Reader(data)
+    heads = [reader.unpack(_HEAD) for _ in range(reader.unpack(_U16)[0])]
+    total = sum(head[2] for head in heads)
+    firsts = list(accumulate((head[2] for head in heads), initial=0))
+    received: dict[int, tuple[list[bytes], array]] = {}
+    if total and only is None:  # everything: one pass over the columns
+        payloads, situation = _read_messages(reader, total, 0, total)
+        received = {i: (payloads[firsts[i]:firsts[i + 1]],
+                        situation[3 * firsts[i]:3 * firsts[i + 1]]) for i in range(len(heads))}
+    elif total:  # one robot's slice of the columns (if it has a record)
+        mine = next((i for i, head in enumerate(heads) if head[0] == only), None)
+        first, count = (0, 0) if mine is None else (firsts[mine], heads[mine][2])
+        messages = _read_messages(reader, total, first, count)
+        if mine is not None:
+            received[mine] = messages
     result: dict[int, StepInputs] = {}
-    for _ in range(reader.unpack(_U16)[0]):
-        index, flags, messages, calls = reader.unpack(_HEAD)
+    for i, (index, flags, _messages, calls) in enumerate(heads):
         if only is not None and index != only:
-            _skip_record(reader, messages, calls)
+            _skip_calls(reader, calls)
             continue
-        inputs = StepInputs(stepped=bool(flags & 1))
-        for _ in range(messages):
-            message = reader.take(reader.unpack(_U16)[0])
-            which = reader.byte()
-            distance = reader.unpack(_F64)[0]
-            azimuth = reader.unpack(_F64)[0] if which & 1 else 0.0
-            elevation = reader.unpack(_F64)[0] if which & 2 else 0.0
-            inputs.received.append((message, distance, azimuth, elevation))
-        for _ in range(calls):
-            try:
-                record = HostCallRecord(reader.take(reader.byte()).decode())
-            except UnicodeDecodeError:
-                raise InputLogError("host function name is not UTF-8") from None
-            for _ in range(reader.byte()):
-                tag = reader.take(1)
-                if tag == b"E":
-                    record.effects.append(("expect", reader.byte()))
-                elif tag == b"F":
-                    record.effects.append(("fail", reader.take(reader.byte()).decode()))
-                elif tag == b"R":
-                    record.effects.append(("ret", reader.value()))
-                else:
-                    raise InputLogError(f"unknown host effect {tag!r} in input log")
-            inputs.host_calls.append(record)
-        result[index] = inputs
+        payloads, situation = received.get(i, ([], array("d")))
+        result[index] = StepInputs(payloads, situation, stepped=bool(flags & _STEPPED),
+                                   host_calls=_read_calls(reader, calls))
     if reader.at != len(data):
         raise InputLogError(f"{len(data) - reader.at} stray bytes after the input log")
     return result

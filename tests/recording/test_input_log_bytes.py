@@ -29,7 +29,7 @@ def inputs_of(robot: int) -> StepInputs:
         HostCallRecord("rand", [("ret", -robot * 1000)]),
         HostCallRecord("nested", [("ret", {"a": {"b": 1.0}, "c": 3})]),
     ][: robot % 5]
-    return StepInputs(received, stepped=robot % 3 != 0, host_calls=calls)
+    return StepInputs.of(received, stepped=robot % 3 != 0, host_calls=calls)
 
 
 def test_every_input_round_trips_and_one_robot_decodes_alone() -> None:
@@ -47,3 +47,43 @@ def test_a_torn_record_is_an_error_even_when_skipped() -> None:
         decode_step(data[:-3], only=1)
     with pytest.raises(InputLogError):
         decode_step(data[:20], only=1)  # cut inside robot 0's record, which is stepped over
+
+
+def test_a_negative_zero_bearing_keeps_its_sign() -> None:
+    """Situated data is stored as its exact bits: a bbzfloat conversion keeps the sign of
+    -0.0, so it must come back as -0.0."""
+    import math
+
+    inputs = StepInputs.of([(b"\x00\x01\x00", 2.0, -0.0, 0.0)], stepped=True)
+    (message, distance, azimuth, elevation), = decode_step(encode_step([(5, inputs)]))[5].received
+    assert (message, distance, elevation) == (b"\x00\x01\x00", 2.0, 0.0)
+    assert math.copysign(1.0, azimuth) == -1.0
+
+
+class _Inner:
+    """A firmware loop that notes how its messages arrived."""
+
+    def __init__(self, bulk: bool) -> None:
+        self.got: list[tuple] = []
+        if bulk:
+            self.receive_all = lambda deliveries: self.got.append(("all", list(deliveries)))
+
+    def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
+        self.got.append(("one", message, distance, azimuth, elevation))
+
+
+def test_bulk_deliveries_are_noted_and_reach_the_robot_its_way() -> None:
+    """The engine hands a step's messages over in one `receive_all` call when the robot has
+    one: the capture must note them (forwarding the call unnoted would make every rebuild
+    diverge) and pass them on as the robot takes them."""
+    from bbzide.vm.input_log import CapturingRobot, HostCallTap
+
+    deliveries = [(7, b"\x00\x07\x00\x01", 1.5, -0.25, 0.0), (9, b"\x01\x09", 3.0, 0.5, 0.125)]
+    for bulk in (True, False):
+        inner = _Inner(bulk)
+        robot = CapturingRobot(inner, HostCallTap())
+        robot.capturing = True
+        robot.receive_all(deliveries)
+        assert robot.take_inputs().received == [d[1:] for d in deliveries]
+        assert inner.got == ([("all", deliveries)] if bulk
+                             else [("one", *d[1:]) for d in deliveries])

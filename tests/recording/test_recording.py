@@ -209,3 +209,21 @@ def test_crafted_keyframe_is_refused_not_unpickled() -> None:
     for crafted in (pickle.dumps(Payload()), pickle.dumps((1, [pickle.dumps(Payload())]))):
         with pytest.raises(RecordingError, match="not a VM snapshot"):
             check_snapshot(crafted, "keyframe")
+
+
+def test_a_recording_of_another_format_version_is_refused(tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Format 1 (packed messages, XOR deltas, zlib) cannot be rebuilt by this reader."""
+    from bbzide.recording import layout
+
+    for version, word in ((layout.FORMAT_VERSION - 1, "older"),
+                          (layout.FORMAT_VERSION + 1, "newer")):
+        path = tmp_path / f"v{version}.rrd"
+        sim, recordable = toy_swarm()
+        with monkeypatch.context() as patched:
+            patched.setattr(layout, "FORMAT_VERSION", version)
+            with MissionRecorder(path, sim, recordable) as recorder:
+                sim.step()
+                recorder.record_step()
+        with pytest.raises(RecordingError, match=f"written by an {word}|written by a {word}"):
+            read_recording(path)
