@@ -3,7 +3,8 @@
 Design: a BittyBuzz robot is a deterministic machine once its inputs are fixed. Its firmware
 loop (`bbzide.vm.robot.Robot`) takes input from the world through exactly two doors:
 
-* `receive(message, distance, azimuth, elevation)`: one wire message with its situated data;
+* `receive(message, distance, azimuth, elevation)`: one wire message with its situated data
+  (`receive_all(deliveries)`: the same for a step's messages, each noted the same way);
 * the world's host functions (C closures such as `rand`, `light`, `led`), which read the
   world and act on the VM only through their `HostCall`: `expect_args(n)` (may raise LNUM),
   `ret(value)` and `fail(kind)`.
@@ -136,6 +137,22 @@ class CapturingRobot:
             self.current.received.append(
                 (bytes(message), float(distance), float(azimuth), float(elevation)))
         self.robot.receive(message, distance, azimuth, elevation)
+
+    def receive_all(self, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+                    ) -> None:
+        """``receive`` of each ``(sender, message, distance, azimuth, elevation)``, noted one
+        by one (the engine calls this when present; without it ``__getattr__`` would hand
+        the engine the robot's own ``receive_all`` and the messages would go unrecorded)."""
+        if self.capturing:
+            self.current.received.extend(
+                (bytes(message), float(distance), float(azimuth), float(elevation))
+                for _sender, message, distance, azimuth, elevation in deliveries)
+        receive_all = getattr(self.robot, "receive_all", None)
+        if receive_all is not None:
+            receive_all(deliveries)
+            return
+        for _sender, message, distance, azimuth, elevation in deliveries:
+            self.robot.receive(message, distance, azimuth, elevation)
 
     def control_step(self) -> list[bytes]:
         if not self.capturing:
