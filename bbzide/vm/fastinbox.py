@@ -1,4 +1,5 @@
-"""Compiled in-queue processing of the fast VM mode: a robot's broadcasts, in machine code.
+"""Compiled entries of the firmware loop into Buzz code (fast VM mode): the in-queue's
+listener calls and ``call_global`` (``init``, ``step``), in machine code.
 
 With the instruction kernel (:mod:`fastloop`) running the listeners' bytecode, a swarm's
 time went to the Python *around* each listener call: for every received broadcast
@@ -24,10 +25,15 @@ before any side effect it cannot hand over** — at two points of a message:
   ``VM._loop`` resumes the call from that very status (``resume=``), exactly as it would
   have handled it; Python then ends the message (pop, collection).
 
+:func:`call_global` is ``Robot.call_global`` the same way (name string, lookup, pushes,
+``closure_call(0)``): :data:`PYTHON_MESSAGE` with nothing done when the stack or the heap
+lacks room, ``CALL_UNDER_WAY + status`` when the call must go on in Python.
+
 The records travel as one byte array (the in-queue's records, concatenated: record ``k``
 at ``k * record_size``; the last one is the scratch record of ``bbzinmsg_queue_extract``)
 and the ring state in a small int64 array (``Q_*`` below). Equality with the reference
-(stress mode, Python only) is by test: ``tests/vm/test_fast_vm_equivalence.py``.
+(stress mode, Python only) is by test: ``tests/vm/test_fast_inbox_equivalence.py`` and
+``tests/worlds/test_fast_swarm_equivalence.py``.
 """
 
 from __future__ import annotations

@@ -49,6 +49,8 @@ _VS_LAMPORT, _VS_KEY, _VS_DATA = 3, 4, 6
 _BROADCAST_KEY = 5
 #: ``neighbors.MARK``: the refreshed-since-the-last-data-GC bit
 _MARK = 0x01
+#: the object metadata's valid bit (heap.VALID), forced on in a decoded object
+_VALID = 0x08
 #: the most a u8 situated value can be (``robot._to_u8``)
 _U8_MAX = 255
 
@@ -77,7 +79,7 @@ def _read_object(records: Any, m: int, at: int, payload: Any, p: int, n: int) ->
     if n >= 8:
         records[m + at + 1] = payload[p + 6]
         records[m + at + 2] = payload[p + 7]
-    records[m + at] = _i(records[m + at]) | 0x08
+    records[m + at] = _i(records[m + at]) | _VALID
 
 
 @_compile

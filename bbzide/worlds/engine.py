@@ -7,6 +7,8 @@ same fixed order, whatever the world:
 
     1. world.sense           sensor readings for this step
     2. deliver               messages due now -> Robot.receive(msg, distance, azimuth, elevation)
+                             (one `Robot.receive_all(deliveries)` per robot when the firmware
+                             loop has it: the same calls, one entry — a Kilobot's is compiled)
     3. control               each live, awake robot: Robot.control_step() -> outgoing messages;
                              a robot whose VM fails is marked (reason, pc, source line) and stops
     4. radio                 send queues -> range, loss, bandwidth -> in flight for latency steps
@@ -58,6 +60,8 @@ class FirmwareLoop(Protocol):
     def receive(self, message: bytes, distance: float, azimuth: float,
                 elevation: float) -> None: ...
     def control_step(self) -> list[bytes]: ...
+    # optional: receive_all(deliveries) = receive(...) of each (sender, message, distance,
+    # azimuth, elevation) in turn; used when present (bbzide.vm.robot.Robot has it)
 
 
 #: Builds a firmware loop: (program, profile, robot_id, host_functions) -> FirmwareLoop.
