@@ -247,7 +247,7 @@ def receive_messages(vm: VM, deliveries: Sequence[tuple[Any, bytes, float, float
         payloads = [bytes(d[1][:PAYLOAD_SIZE]) for d in deliveries]
         situated = array("d", [d[2] for d in deliveries] + [d[3] for d in deliveries]
                          + [d[4] for d in deliveries])
-    except (TypeError, ValueError, IndexError):
+    except (TypeError, ValueError, IndexError, OverflowError):  # e.g. an int past a double
         return False
     q = vm.queues.inbox
     in_records = q.records

@@ -121,7 +121,8 @@ def test_receive_all_is_receive_after_receive() -> None:
     rng = random.Random(4)
     (_, batch), _logs = _pair(KILOBOT, 0)
     (_, single), _logs = _pair(KILOBOT, 0)
-    odd = [0.5, 1.5, 2.5, -0.5, 254.5, 255.5, 300.0, -7.0, math.nan, math.inf, -math.inf]
+    odd = [0.5, 1.5, 2.5, -0.5, 254.5, 255.5, 300.0, -7.0, math.nan, math.inf, -math.inf,
+           True, 7, 10**400]
     for step in range(40):
         deliveries = []
         for _ in range(rng.randrange(0, 25)):
