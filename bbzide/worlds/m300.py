@@ -18,9 +18,12 @@ out-queue per step.
 A prior belief map (the authorities' knowledge of where the targets are, thesis §5.3.2) is a
 `cells` x `cells` raster over the field with values in [0, 1]; it is either given (an array or
 a .npy/.csv file) or generated from the run seed as a few Gaussian hot spots, and the targets are
-drawn from it (a target is more likely where the belief is high; with `targets_where=likely`
-only cells at or above the search threshold hold targets), so the same seed gives the same map
-and targets whatever the search method (the pairs of the experiments).
+drawn from it in proportion to the belief: by default (`targets_where=likely`) only in cells
+the prior puts at or above the search threshold (the paper's premise: a prior "from the
+authorities, such as the last known locations of the targets", where red cells mean "a
+probability close to 0"; our generator's 5 % floor is ours), or with `targets_where=anywhere`
+in every cell, floor included. The same seed gives the same map and targets whatever the
+search method (the pairs of the experiments).
 
 Host functions (Buzz names). Positions and distances a script sees are integer DECIMETRES in
 the field frame: BittyBuzz compares floats by their raw 16-bit payloads (a wrong order for
@@ -42,6 +45,10 @@ ints; 1 dm is finer than the drones' GPS needs and an int16 holds 3.2 km.
   set_role(code)       the drone's role for the UI (codes: ROLE_NAMES); also sets its LED colour
   know_target(x, y)    the drone knows a target at (x, y) dm (drawn by the UI)
   relay_link(parent)   the drone relays for robot `parent` (-1: none); drawn as the relay tree
+  missed(dm)           percent (0..100) of a belief cell's value left after the camera swept
+                       dm decimetres of flight over the cell without a sighting: 100 x
+                       exp(-swath x length / cell area), Koopman's random-search law (the
+                       chance of having missed a target there); see `miss_percent`
   rand()               0..255
   clock()              the world's control step number (a GPS time stamp)
   doze(n)              skip up to n control steps while the flight controller flies on: woken
@@ -89,10 +96,10 @@ BELIEF_FLOOR = 0.05          # generated maps never say "impossible" (priors can
 TARGET_SEPARATION = 4.0      # m: generated targets at least this far apart (distinct finds)
 DEFAULT_SEARCH_STEPS = 20    # goals per search run between two rendezvous (thesis §5.4.2)
 DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
-#: Where generated targets may lie: "anywhere" (in proportion to the prior, floor included:
-#: ~21 % of a generated map's mass is in cells under the threshold) or "likely" (only in cells
-#: the prior puts at or above the search threshold: the authorities' prior is right).
-TARGETS_WHERE = ("anywhere", "likely")
+#: Where generated targets may lie, in proportion to the prior: "likely" (the default: only in
+#: cells the prior puts at or above the search threshold: the authorities' prior is right) or
+#: "anywhere" (floor included: ~21 % of a generated map's mass is under the threshold).
+TARGETS_WHERE = ("likely", "anywhere")
 
 #: Role codes of `set_role` -> names the UI shows; LED colours per role.
 ROLE_NAMES = ("searcher", "root_candidate", "root", "auctioneer", "networker_bidder",
@@ -211,7 +218,7 @@ class M300Field(World):
         search: str = "belief",
         search_steps: int = DEFAULT_SEARCH_STEPS,
         threshold: int = DEFAULT_THRESHOLD,
-        targets_where: str = "anywhere",
+        targets_where: str = "likely",
         loss: float = 0.0,
         map_seed: int | None = None,
     ) -> None:
@@ -318,6 +325,18 @@ class M300Field(World):
         cx = min(max(int(x / self.field_size * n), 0), n - 1)
         cy = min(max(int(y / self.field_size * n), 0), n - 1)
         return cy * n + cx
+
+    def miss_percent(self, flown_dm: float) -> int:
+        """Percent of a cell's belief left after `flown_dm` dm of flight over it without a
+        sighting: exp(-W L / A) with W the camera swath (2 x footprint radius), L the length
+        flown and A the cell's area (Koopman's random-search law: the probability that a sensor
+        of sweep width W moving L within A misses a target in it). A straight pass through the
+        middle of a cell leaves 13 % in a 20 m field (2 m cells, 4.1 m swath), 36 % in a 40 m
+        one (4 m cells). Computed here because BittyBuzz ints are 16 bits and it has no exp;
+        it is the camera's detection model, the belief update itself is the script's."""
+        cell = self.field_size / self.cells
+        swept = 2 * self.camera_radius * max(float(flown_dm), 0.0) / DM
+        return int(round(100 * math.exp(-swept / cell ** 2)))
 
     def host_functions(self, sim: Simulation, index: int) -> Mapping[str, HostFunction]:
         rng = sim.robot_rngs[index]
@@ -426,6 +445,13 @@ class M300Field(World):
             if parent is not None:
                 world.parents[index] = int(parent)
 
+        def missed(call: HostCall) -> None:
+            if not call.expect_args(1):
+                return
+            flown = _number_arg(call, 1)
+            if flown is not None:
+                call.ret(world.miss_percent(flown))
+
         def random_byte(call: HostCall) -> None:
             call.ret(int(rng.integers(0, 256)))
 
@@ -443,7 +469,8 @@ class M300Field(World):
                 "arrived": arrived, "flying": flying, "camera": camera,
                 "random_goal": random_goal, "prior": prior, "distance": distance,
                 "mission": mission, "set_role": set_role, "know_target": know_target,
-                "relay_link": relay_link, "rand": random_byte, "clock": clock, "doze": doze}
+                "relay_link": relay_link, "missed": missed, "rand": random_byte,
+                "clock": clock, "doze": doze}
 
     # ---- sensors and physics ------------------------------------------------------------------
     def seen_target(self, sim: Simulation, index: int) -> int:

@@ -41,7 +41,7 @@ CRAZYFLIE_HOST_NAMES = (
 M300_HOST_NAMES = (
     "takeoff", "land", "goto", "position", "arrived", "flying", "camera", "random_goal",
     "prior", "distance", "mission", "set_role", "know_target", "relay_link", "rand", "clock",
-    "doze",
+    "doze", "missed",
     "x", "y", "z", "cell", "search", "steps", "size", "rx", "ry", "range", "cells", "threshold",
 )
 

@@ -83,7 +83,7 @@ class RunSpec:
     targets: int | tuple[tuple[float, float], ...] = TARGETS
     belief_map: str | None = None
     search_steps: int = SEARCH_STEPS
-    targets_where: str = "anywhere"
+    targets_where: str = "likely"
 
     @property
     def run_id(self) -> str:
@@ -96,8 +96,7 @@ class RunSpec:
                                                else [list(t) for t in self.targets])}
         if self.belief_map is not None:
             options["belief_map"] = self.belief_map
-        if self.targets_where != "anywhere":
-            options["targets_where"] = self.targets_where
+        options["targets_where"] = self.targets_where
         return options
 
 
@@ -182,8 +181,7 @@ def reproduce_command(spec: RunSpec, steps: int) -> list[str]:
                            else ",".join(f"{x:g}:{y:g}" for x, y in spec.targets))}
     if spec.belief_map is not None:
         options["belief_map"] = spec.belief_map
-    if spec.targets_where != "anywhere":
-        options["targets_where"] = spec.targets_where
+    options["targets_where"] = spec.targets_where
     command = ["run", str(SCRIPT), "--world", "m300", "--robots", str(spec.drones),
                "--seed", str(spec.seed), "--steps", str(steps)]
     for key, value in options.items():
@@ -480,9 +478,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
-    parser.add_argument("--targets-where", choices=["anywhere", "likely"], default="anywhere",
-                        help="generated targets: anywhere (in proportion to the prior belief) "
-                             "or only where the prior reaches the search threshold")
+    parser.add_argument("--targets-where", choices=["likely", "anywhere"], default="likely",
+                        help="generated targets, in proportion to the prior belief: only where "
+                             "it reaches the search threshold (default) or anywhere")
     parser.add_argument("--preset", choices=["field"], default=None,
                         help="field: the paper's field test (36 m, 3 drones, 1 target, "
                              "fixed belief map; 3 trials unless --trials is given)")
@@ -495,8 +493,7 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
         drones=_int_list(args.drones, "drones"), arenas=_float_list(args.arena, "arena"),
         searches=searches, trials=args.trials, seed=args.seed, jobs=args.jobs,
         out=Path(args.out), max_steps=args.max_steps, preset=args.preset)
-    if args.targets_where != "anywhere":
-        settings.extra["targets_where"] = args.targets_where
+    settings.extra["targets_where"] = args.targets_where
     if args.preset == "field":
         settings.drones, settings.arenas = [3], [36.0]
         if "--trials" not in sys.argv:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from bbzide.cli import main
+from bbzide.vm import heap
 from bbzide.worlds import sar_experiment as sx
 from bbzide.worlds.engine import Simulation
 
@@ -60,6 +61,41 @@ def test_random_walk_variant_also_completes_without_stigmergy_traffic(belief_run
     # Same starts, map and targets; the random walk sends no belief-map gossip.
     assert np.array_equal(sim.world.targets, belief_run[0].world.targets)
     assert sent < belief_sent / 3
+
+
+def test_a_searcher_lowers_each_cell_it_crossed_by_what_its_camera_swept_there():
+    """Thesis §5.3.2: a searcher decreases the belief where it saw no target. One drone, no
+    targets: every cell it has left holds prior x missed(length flown in it) in the virtual
+    stigmergy (the length measured here from its track, within a step of 0.2 m at each end)."""
+    spec = sx.RunSpec(drones=1, arena=20.0, search="belief", trial=0, seed=3, targets=0)
+    sim = Simulation("m300", sx._program(), robots=1, seed=3, world_options=spec.world_options())
+    world = sim.world
+    flown: Counter = Counter()
+    cells_left = set()
+    while sim.step_count < 400:
+        before = sim.positions[0, :2].copy()
+        cell = world.cell_of(*before)
+        sim.step()
+        if sim.positions[0, 2] > 4.99:
+            flown[cell] += 10 * np.hypot(*(sim.positions[0, :2] - before))   # dm
+        if world.cell_of(*sim.positions[0, :2]) != cell:
+            cells_left.add(cell)
+    vm = sim.robots[0].robot.vm
+    strings = sx._program().strings
+    lowered = {int(strings[e.key][1:]): vm.heap.int_value(e.value)
+               for e in vm.vstig.entries if vm.heap.obj_type(e.value) == heap.INT}
+    assert len(cells_left) >= 5
+    assert set(lowered) <= cells_left
+    prior = np.round(100 * world.belief.ravel()).astype(int)
+    for cell, value in lowered.items():
+        longest, shortest = flown[cell] + 4, max(flown[cell] - 4, 0)
+        assert (prior[cell] * world.miss_percent(longest) // 100 - 1 <= value
+                <= prior[cell] * world.miss_percent(shortest) // 100 + 1), cell
+        assert value < prior[cell]
+    # Cells it crossed for more than a few decimetres were lowered (a pass too short to change
+    # the rounded percent is not put).
+    assert all(c in lowered for c in cells_left
+               if prior[c] * world.miss_percent(flown[c] + 4) // 100 < prior[c] - 1)
 
 
 def settings(tmp_path, **changes):

@@ -67,6 +67,19 @@ def test_camera_sees_targets_in_its_footprint_only():
     assert sim.world.found_step[0] > 0
 
 
+def test_missed_is_koopmans_random_search_law_for_the_camera_swath():
+    # exp(-W L / A): W = 2 x 2.07 m swath, A = the cell's area.
+    small, large = M300Field(size=20.0), M300Field(size=40.0)
+    assert small.miss_percent(0) == 100
+    assert small.miss_percent(20) == round(100 * np.exp(-4.142 * 2.0 / 4.0))   # 2 m: 13 %
+    assert large.miss_percent(40) == round(100 * np.exp(-4.142 * 4.0 / 16.0))  # 4 m: 36 %
+    assert [small.miss_percent(d) for d in (5, 10, 40)] == sorted(
+        [small.miss_percent(d) for d in (5, 10, 40)], reverse=True)
+    sim, log = one_drone({0: [("missed", 20), ("missed", -3)]})
+    sim.run(1)
+    assert [call.returned for _, call in log] == [[13], [100]]
+
+
 def test_belief_map_generation_is_seeded_and_targets_follow_it():
     a = generate_belief_map(10, np.random.default_rng(5))
     b = generate_belief_map(10, np.random.default_rng(5))
@@ -198,5 +211,16 @@ def test_likely_targets_lie_only_where_the_prior_reaches_the_threshold():
     assert cells.min() >= 0.2
     anywhere = np.vstack([draw_targets(belief, 20.0, 3, rng, keep_out=5.0) for _ in range(100)])
     assert belief[(anywhere[:, 1] // 2).astype(int), (anywhere[:, 0] // 2).astype(int)].min() < 0.2
+    # The world's default is the likely placement; `anywhere` reaches the floor cells.
+    priors: dict[str, list] = {"default": [], "anywhere": []}
+    for where, found in priors.items():
+        options = {"targets_where": where} if where == "anywhere" else {}
+        for seed in range(40):
+            sim, _ = one_drone({}, **options)
+            sim.seed = seed                  # a new map and targets per seed
+            sim.world.attach(sim)
+            world = sim.world
+            found += [world.belief.ravel()[world.cell_of(x, y)] for x, y in world.targets]
+    assert min(priors["default"]) >= 0.2 and min(priors["anywhere"]) < 0.2
     with pytest.raises(WorldConfigError, match="targets_where"):
         M300Field(targets_where="nowhere")
