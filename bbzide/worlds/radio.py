@@ -50,6 +50,12 @@ class RadioLinks:
     distances: np.ndarray  # float64 metres
 
 
+#: Up to this many robots `pairs_within_range` compares every robot's cell with every
+#: other's (an n x n test) instead of the grid's 9-27 searchsorted passes: measured on a
+#: loaded machine, 10-64 robots ~0.1-0.35 ms against ~0.4-0.9 ms; at 100 the two are even.
+ALL_PAIRS_MAX = 64
+
+
 def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
     """Every ordered pair (i, j), i != j, with |p_i - p_j| <= comm_range (grid-binned search).
 
@@ -66,6 +72,8 @@ def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
     if n < 2 or comm_range == 0:
         return RadioLinks(empty, empty, np.empty(0))
     cells = np.floor(points / comm_range).astype(np.int64)
+    if n <= ALL_PAIRS_MAX:
+        return _pairs_in_adjacent_cells(points, cells, comm_range)
     cells -= cells.min(axis=0)
     cells += 1
     dims = cells.max(axis=0) + 2
@@ -96,6 +104,20 @@ def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
                 distances.append(gaps[keep])
     return RadioLinks(np.concatenate(senders), np.concatenate(receivers),
                       np.concatenate(distances))
+
+
+def _pairs_in_adjacent_cells(points: np.ndarray, cells: np.ndarray,
+                             comm_range: float) -> RadioLinks:
+    """`pairs_within_range` for a small swarm: every ordered pair at once, kept by the
+    grid search's own two tests (cells at most one apart on each axis — what its 27 cell
+    offsets reach —, then the distance, computed by the same expression): the same pairs
+    and distances, in sender-major order instead of cell-offset order (callers sort them)."""
+    near = (np.abs(cells[:, None, :] - cells[None, :, :]) <= 1).all(axis=2)
+    np.fill_diagonal(near, False)
+    mine, theirs = np.nonzero(near)
+    gaps = np.linalg.norm(points[mine] - points[theirs], axis=1)
+    keep = gaps <= comm_range
+    return RadioLinks(mine[keep], theirs[keep], gaps[keep])
 
 
 def drop_lost(links: RadioLinks, loss_probability: float, rng: np.random.Generator) -> RadioLinks:
