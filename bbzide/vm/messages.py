@@ -120,7 +120,10 @@ class RingBuffer(Generic[R]):
         """``bbzmsg_sort_priority``: stable insertion sort by message type. An insertion
         sort that swaps while the left neighbour is strictly greater is a stable sort, so
         the records are put in ``sorted`` order (Python's sort is stable) — and left alone
-        when already in order, the common case."""
+        when already in order, the common case (always so for 0 or 1 record: a Kilobot's
+        out-queue after its one broadcast of a step)."""
+        if self.end == self.start or ((self.start + 1) & 0xFF) % self.capacity == self.end:
+            return
         where = self.indices()
         records = self.records
         queued = [records[k] for k in where]

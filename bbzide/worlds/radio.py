@@ -50,6 +50,12 @@ class RadioLinks:
     distances: np.ndarray  # float64 metres
 
 
+#: Up to this many robots `pairs_within_range` compares every robot's cell with every
+#: other's (an n x n test) instead of the grid's 9-27 searchsorted passes: measured on a
+#: loaded machine, 10-64 robots ~0.1-0.35 ms against ~0.4-0.9 ms; at 100 the two are even.
+ALL_PAIRS_MAX = 64
+
+
 def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
     """Every ordered pair (i, j), i != j, with |p_i - p_j| <= comm_range (grid-binned search).
 
@@ -66,6 +72,8 @@ def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
     if n < 2 or comm_range == 0:
         return RadioLinks(empty, empty, np.empty(0))
     cells = np.floor(points / comm_range).astype(np.int64)
+    if n <= ALL_PAIRS_MAX:
+        return _pairs_in_adjacent_cells(points, cells, comm_range)
     cells -= cells.min(axis=0)
     cells += 1
     dims = cells.max(axis=0) + 2
@@ -96,6 +104,20 @@ def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
                 distances.append(gaps[keep])
     return RadioLinks(np.concatenate(senders), np.concatenate(receivers),
                       np.concatenate(distances))
+
+
+def _pairs_in_adjacent_cells(points: np.ndarray, cells: np.ndarray,
+                             comm_range: float) -> RadioLinks:
+    """`pairs_within_range` for a small swarm: every ordered pair at once, kept by the
+    grid search's own two tests (cells at most one apart on each axis — what its 27 cell
+    offsets reach —, then the distance, computed by the same expression): the same pairs
+    and distances, in sender-major order instead of cell-offset order (callers sort them)."""
+    near = (np.abs(cells[:, None, :] - cells[None, :, :]) <= 1).all(axis=2)
+    np.fill_diagonal(near, False)
+    mine, theirs = np.nonzero(near)
+    gaps = np.linalg.norm(points[mine] - points[theirs], axis=1)
+    keep = gaps <= comm_range
+    return RadioLinks(mine[keep], theirs[keep], gaps[keep])
 
 
 def drop_lost(links: RadioLinks, loss_probability: float, rng: np.random.Generator) -> RadioLinks:
@@ -252,14 +274,10 @@ class Radio:
             arrived &= (rank - base) < cap
         np.add.at(counters.dropped, receivers[~arrived], 1)
         keep_links = link_of[arrived]
-        batches = dict(zip(senders, outgoing, strict=True))
         unit = settings.distance_unit
-        arriving: list[list[Delivery]] = [[] for _ in range(self.count)]
-        for number, sender, receiver, dist, az, el in zip(
-                message_no[arrived].tolist(), s_idx[keep_links].tolist(),
-                receivers[arrived].tolist(), (distance[keep_links] * unit).tolist(),
-                azimuth[keep_links].tolist(), elevation[keep_links].tolist(), strict=True):
-            arriving[receiver].append((sender, batches[sender][number], dist, az, el))
+        arriving = self._deliveries(senders, outgoing, s_idx[keep_links], message_no[arrived],
+                                    receivers[arrived], distance[keep_links] * unit,
+                                    azimuth[keep_links], elevation[keep_links])
         due_step = step + settings.latency_steps
         pending = self.in_flight.get(due_step)
         if pending is None:
@@ -267,7 +285,29 @@ class Radio:
         else:
             for receiver, items in enumerate(arriving):
                 pending[receiver].extend(items)
-        return np.unique(np.column_stack([s_idx[keep_links], r_idx[keep_links]]), axis=0)
+        # the used (sender, receiver) pairs, each once, sorted: np.unique over one int key
+        # per pair (sender * count + receiver) is np.unique(axis=0) of the pairs, ~10x faster
+        keys = np.unique(s_idx[keep_links] * self.count + r_idx[keep_links])
+        return np.column_stack([keys // self.count, keys % self.count])
+
+    def _deliveries(self, senders: list[int], outgoing: list[list[bytes]],
+                    sender_of: np.ndarray, number: np.ndarray, receiver_of: np.ndarray,
+                    distance: np.ndarray, azimuth: np.ndarray, elevation: np.ndarray
+                    ) -> list[list[Delivery]]:
+        """Each receiver's deliveries from the arriving (sender, message number, receiver,
+        situated data) rows, which come sorted by receiver: the rows become tuples in one
+        pass (``zip``), then each receiver gets its run of them (a slice) — the same lists,
+        in the same order, as appending row by row (1,000 Kilobots: ~11,000 rows a step)."""
+        flat = [message for batch in outgoing for message in batch]
+        sizes = np.array([len(batch) for batch in outgoing], dtype=np.int64)
+        first = np.zeros(self.count, dtype=np.int64)  # each sender's first message in flat
+        first[senders] = np.cumsum(sizes) - sizes
+        rows = list(zip(sender_of.tolist(),
+                        map(flat.__getitem__, (first[sender_of] + number).tolist()),
+                        distance.tolist(), azimuth.tolist(), elevation.tolist(), strict=True))
+        ends = np.cumsum(np.bincount(receiver_of, minlength=self.count)).tolist()
+        starts = [0, *ends[:-1]]
+        return [rows[a:b] for a, b in zip(starts, ends, strict=True)]
 
     def _situation(
         self, positions: np.ndarray, headings: np.ndarray, s_idx: np.ndarray, r_idx: np.ndarray

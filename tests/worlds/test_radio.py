@@ -1,6 +1,7 @@
 import numpy as np
 import pytest
 
+from bbzide.worlds import radio
 from bbzide.worlds.radio import WorldConfigError, drop_lost, pairs_within_range
 
 
@@ -18,6 +19,25 @@ def test_grid_search_matches_all_pairs(seed):
     found = set(zip(links.senders.tolist(), links.receivers.tolist(), strict=True))
     assert found == brute_force(points, 0.1)
     assert len(found) > 0
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_small_swarm_all_pairs_path_matches_grid(seed, monkeypatch):
+    rng = np.random.default_rng(seed)
+    points = np.column_stack([rng.uniform(0, 0.4, 60), rng.uniform(0, 0.4, 60),
+                              rng.uniform(0, 0.2 * seed, 60)])   # seed 0: one z layer
+    assert len(points) <= radio.ALL_PAIRS_MAX
+    small = pairs_within_range(points, 0.1)
+    monkeypatch.setattr(radio, "ALL_PAIRS_MAX", 0)
+    grid = pairs_within_range(points, 0.1)
+
+    def rows(links):
+        return sorted(zip(links.senders.tolist(), links.receivers.tolist(),
+                          links.distances.tolist(), strict=True))
+
+    assert rows(small) == rows(grid)
+    assert {(a, b) for a, b, _ in rows(small)} == brute_force(points, 0.1)
+    assert len(rows(small)) > 0
 
 
 def test_two_robots_at_known_distance():
