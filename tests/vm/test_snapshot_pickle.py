@@ -57,3 +57,15 @@ def test_an_object_with_unknown_attributes_is_pickled_the_plain_way() -> None:
     copy = pickle.loads(snapshot_pickle.dumps(ring))
     assert (copy.records, copy.capacity) == ([b"a", b"b"], 2)
     assert copy.extra == "not one of the known names"
+
+
+def test_a_record_with_a_made_dict_or_a_missing_attribute_still_round_trips() -> None:
+    ring = RingBuffer([b"a"], 1)
+    ring.__dict__  # noqa: B018 - makes the attribute dict, as plain pickle would
+    copy = pickle.loads(snapshot_pickle.dumps(ring))
+    assert (copy.records, copy.capacity, copy.start, copy.end) == (
+        ring.records, ring.capacity, ring.start, ring.end)
+    short = RingBuffer([b"a"], 1)
+    del short.end  # one of the known names missing: plain pickling, which keeps it missing
+    copy = pickle.loads(snapshot_pickle.dumps(short))
+    assert not hasattr(copy, "end") and copy.records == [b"a"]
