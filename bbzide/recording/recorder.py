@@ -54,6 +54,14 @@ KEYFRAME_EVERY = 100
 #: is ~6 us per drone and step, against ~12 us when keyframing every 25 steps, which made
 #: keyframes the recorder's largest cost (benchmarks/record_bench.py).
 KEYFRAME_BUDGET_SECONDS = 0.025
+#: The budget counts CPU seconds, not wall-clock ones: a robot's control steps are timed with
+#: `perf_counter` (0.2 us a call, in CapturingRobot) and that wall time is scaled by the share of
+#: wall time the recording thread had the CPU since the robot's last keyframe (`thread_time`,
+#: 2.6 us a call on this machine, so sampled twice a step by the recorder, not twice per robot).
+#: On a loaded machine a step's wall time holds time spent waiting for a core; counting it
+#: keyframed drones up to ~1.5x as often under load 3-4 for no gain, since a seek replays CPU
+#: work. The share is floored at 5 %, so a thread starved for a while still keyframes.
+MIN_CPU_SHARE = 0.05
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
@@ -238,6 +246,9 @@ class MissionRecorder:
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         #: robot index -> (step, busy seconds) at which its next keyframe is due
         self._due: dict[int, tuple[int, float]] = {}
+        #: robot index -> (thread CPU seconds, wall seconds) at its last keyframe
+        self._keyframe_clocks: dict[int, tuple[float, float]] = {}
+        self._clocks = (time.thread_time(), time.perf_counter())  # sampled once per step
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
@@ -383,7 +394,8 @@ class MissionRecorder:
             state = self.sim.robots[index]
             self._keyframed[index] = step
             self._capturing[index].busy_seconds = 0.0
-            started = time.perf_counter()
+            self._keyframe_clocks[index] = self._clocks
+            started = time.thread_time()
             snapshot = state.robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
             previous = self._bases.get(index)
@@ -395,11 +407,20 @@ class MissionRecorder:
                 bases.append(previous[0])
             self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
-            cost = self._snapshot_seconds[index] = time.perf_counter() - started
+            cost = self._snapshot_seconds[index] = time.thread_time() - started
             self._due[index] = (step + self.keyframe_every,
                                 max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost))
             programs.append(self._program_id(state.program, step))
         self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
+
+    def _cpu_share(self, index: int) -> float:
+        """The share of wall time this thread ran on a CPU since robot `index`'s last keyframe
+        (see MIN_CPU_SHARE): its control steps' wall time times this ~ their CPU time."""
+        cpu, wall = self._clocks
+        cpu_then, wall_then = self._keyframe_clocks.get(index, self._clocks)
+        if wall <= wall_then:
+            return 1.0
+        return min(1.0, max(MIN_CPU_SHARE, (cpu - cpu_then) / (wall - wall_then)))
 
     def _event(self, step: int, kind: str, robot: int, text: str) -> None:
         self._event_rows.append((step, kind, int(robot), text))
@@ -410,6 +431,7 @@ class MissionRecorder:
         if self.closed:
             return
         started = time.perf_counter()
+        self._clocks = (time.thread_time(), started)
         self._frame(int(self.sim.step_count))
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
@@ -445,7 +467,9 @@ class MissionRecorder:
                     records.append((i, inputs))
                 if robot is capture and failure is None:
                     due_step, budget = keyframes_due.get(i, (step, 0.0))
-                    if step >= due_step or capture.busy_seconds >= budget:
+                    busy = capture.busy_seconds  # wall time >= CPU time: test it first
+                    if step >= due_step or (busy >= budget
+                                            and busy * self._cpu_share(i) >= budget):
                         due.append(i)
             if robot is None:
                 heap_figures += _NO_HEAP

@@ -176,7 +176,8 @@ class CapturingRobot:
         self.capturing = False
         self.current = StepInputs()
         self._on_boot = on_boot
-        #: Seconds spent in captured control steps (the recorder keyframes by this budget).
+        #: Wall-clock seconds spent in captured control steps (the recorder keyframes by this
+        #: budget, scaled to CPU time).
         self.busy_seconds = 0.0
         #: The payloads the last control step sent (the inspector reads them: the out-queue is
         #: drained at the end of every step).
