@@ -58,9 +58,10 @@ KEYFRAME_BUDGET_SECONDS = 0.025
 #: `perf_counter` (0.2 us a call, in CapturingRobot) and that wall time is scaled by the share of
 #: wall time the recording thread had the CPU since the robot's last keyframe (`thread_time`,
 #: 2.6 us a call on this machine, so sampled twice a step by the recorder, not twice per robot).
-#: On a loaded machine a step's wall time holds time spent waiting for a core; counting it
-#: keyframed drones up to ~1.5x as often under load 3-4 for no gain, since a seek replays CPU
-#: work. The share is floored at 5 %, so a thread starved for a while still keyframes.
+#: On a loaded machine a step's wall time holds time spent waiting for a core; counting it made
+#: the keyframe rate (the recorder's largest cost) grow with the load for no gain, since a seek
+#: replays CPU work. The share is floored at 5 %, so a thread starved for a while (a share
+#: that low means ~20x more wall than CPU time) still keyframes.
 MIN_CPU_SHARE = 0.05
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
@@ -82,7 +83,8 @@ BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step until all
 #: are found, so "target found" events land on their step, but in between only its found count
 #: is compared (the JSON of an M300's overlays, ~1 ms, was a fifth of the recorder's time when
-#: done every step; building the overlays alone is still ~50 us a step).
+#: done every step; building the overlays alone is still ~50 us a step, so a world that can
+#: count its found targets directly, `World.targets_found`, is asked that instead).
 OVERLAY_EVERY = 10
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
@@ -542,6 +544,12 @@ class MissionRecorder:
         return state._labels  # the world's labels, without the global look-ups (read only)
 
     def _record_overlays(self, step: int) -> None:
+        due = (step - self.start_step) % OVERLAY_EVERY == 0
+        if not due:  # a poll for a found target: cheap when the world can count them itself
+            count = getattr(self.sim.world, "targets_found", None)  # a world of the World ABC
+            found = count() if count is not None else None
+            if found is not None and found <= self._targets_found:
+                return
         overlays = self.sim.world.overlays()
         if not overlays:
             return
@@ -549,7 +557,6 @@ class MissionRecorder:
         # Polled every step while a target may still be found (none are lost again).
         self._has_targets = (isinstance(targets, list)
                              and found_targets(overlays) < len(targets))
-        due = (step - self.start_step) % OVERLAY_EVERY == 0
         if not due and found_targets(overlays) <= self._targets_found:
             return  # a poll between two recordings: only "target found" matters now
         text = json.dumps(_jsonable(overlays))
