@@ -44,13 +44,14 @@ from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
 #: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
 KEYFRAME_EVERY = 100
-#: ...and sooner once its control steps since the last keyframe took 25 ms: a seek re-executes
-#: at most that much live VM time, which replays in up to ~2x as long (each step's inputs are
-#: decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so with
-#: restoring and the inspector a seek stays well under 100 ms whatever the script costs per
+#: ...and sooner once its control steps since the last keyframe took 25 ms of CPU time: a seek
+#: re-executes at most that much live VM time, which replays in up to ~2x as long (each step's
+#: inputs are decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so
+#: with restoring and the inspector a seek stays well under 100 ms whatever the script costs per
 #: step (the issue's seek goal; the machine's load adds to both). The step bound decides for
-#: cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the budget first, after
-#: ~55 steps. A keyframe of an M300 drone costs ~0.3 ms (snapshot, block delta, zstd), so this
+#: cheap firmware, whose 100 steps replay in a few ms; SAR drones (~0.35 ms a step with the
+#: compiled VM loop) reach the budget first, after ~83 steps, and Kilobot gradient robots after
+#: ~91. A keyframe of an M300 drone costs ~0.5 ms (snapshot ~0.3, block delta, zstd), so this
 #: is ~6 us per drone and step, against ~12 us when keyframing every 25 steps, which made
 #: keyframes the recorder's largest cost (benchmarks/record_bench.py).
 KEYFRAME_BUDGET_SECONDS = 0.025
