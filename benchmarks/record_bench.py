@@ -113,6 +113,7 @@ def main() -> None:
                 timed(0, plain.step)
             timed(2, recorder.record_step)
         timed(2, recorder.close)
+        keyframes = sum(recorder._keyframe_counts.values())
         size = path.stat().st_size
         # A replay process holds the recording, not the simulations: drop them, so that the
         # garbage collector's full passes during seeks walk what a replay would have.
@@ -163,13 +164,15 @@ def main() -> None:
         print(f"  recording: {1e3 * recorder_seconds / steps:.2f} ms/step in the recorder "
               f"{1e3 * capture / steps:+.2f} of input capture = {1e3 * cost / steps:.2f} ms/step "
               f"= {100 * cost / plain_seconds:.1f} % of the simulation time (goal <= 10 %)")
-    print(f"(plus {setup:.2f} s once at the start: stream, first keyframes)")
+    print(f"(plus {setup:.2f} s once at the start: stream, first keyframes); {keyframes} "
+          f"keyframes = one per robot every {args.robots * steps / max(keyframes, 1):.0f} steps")
     print(f"file:       {size / 1e6:.2f} MB = {size / (args.robots * steps):.0f} B per robot-step;"
           f" 25 x 5,000 extrapolated linearly: {size * scale / 1e6:.1f} MB (goal <= 50 MB)")
     print(f"open:       {read_seconds:.2f} s to read the whole file")
     print(f"seek:       median {1e3 * statistics.median(latencies):.1f} ms, worst "
           f"{1e3 * max(latencies):.1f} ms over {SEEKS} cold seeks of booted robots (goal <= "
-          f"100 ms; keyframe every {recording.meta['keyframe_every']} steps or 25 ms of VM time);"
+          f"100 ms; keyframe every {recording.meta['keyframe_every']} steps"
+          " or 25 ms of VM CPU time);"
           f" CPU time median {1e3 * statistics.median(seek_cpu):.1f} ms, worst "
           f"{1e3 * max(seek_cpu):.1f} ms")
     print(f"first seek of each robot (boots it): median {1e3 * statistics.median(first):.1f} ms, "

@@ -44,16 +44,26 @@ from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
 
 #: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
 KEYFRAME_EVERY = 100
-#: ...and sooner once its control steps since the last keyframe took 25 ms: a seek re-executes
-#: at most that much live VM time, which replays in up to ~2x as long (each step's inputs are
-#: decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so with
-#: restoring and the inspector a seek stays well under 100 ms whatever the script costs per
+#: ...and sooner once its control steps since the last keyframe took 25 ms of CPU time: a seek
+#: re-executes at most that much live VM time, which replays in up to ~2x as long (each step's
+#: inputs are decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so
+#: with restoring and the inspector a seek stays well under 100 ms whatever the script costs per
 #: step (the issue's seek goal; the machine's load adds to both). The step bound decides for
-#: cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the budget first, after
-#: ~55 steps. A keyframe of an M300 drone costs ~0.3 ms (snapshot, block delta, zstd), so this
+#: cheap firmware, whose 100 steps replay in a few ms; SAR drones (~0.35 ms a step with the
+#: compiled VM loop) reach the budget first, after ~83 steps, and Kilobot gradient robots after
+#: ~91. A keyframe of an M300 drone costs ~0.5 ms (snapshot ~0.3, block delta, zstd), so this
 #: is ~6 us per drone and step, against ~12 us when keyframing every 25 steps, which made
 #: keyframes the recorder's largest cost (benchmarks/record_bench.py).
 KEYFRAME_BUDGET_SECONDS = 0.025
+#: The budget counts CPU seconds, not wall-clock ones: a robot's control steps are timed with
+#: `perf_counter` (0.2 us a call, in CapturingRobot) and that wall time is scaled by the share of
+#: wall time the recording thread had the CPU since the robot's last keyframe (`thread_time`,
+#: 2.6 us a call on this machine, so sampled twice a step by the recorder, not twice per robot).
+#: On a loaded machine a step's wall time holds time spent waiting for a core; counting it made
+#: the keyframe rate (the recorder's largest cost) grow with the load for no gain, since a seek
+#: replays CPU work. The share is floored at 5 %, so a thread starved for a while (a share
+#: that low means ~20x more wall than CPU time) still keyframes.
+MIN_CPU_SHARE = 0.05
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
@@ -74,7 +84,8 @@ BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: 32 x 32 evaluations). A world whose overlays have `targets` is polled every step until all
 #: are found, so "target found" events land on their step, but in between only its found count
 #: is compared (the JSON of an M300's overlays, ~1 ms, was a fifth of the recorder's time when
-#: done every step; building the overlays alone is still ~50 us a step).
+#: done every step; building the overlays alone is still ~50 us a step, so a world that can
+#: count its found targets directly, `World.targets_found`, is asked that instead).
 OVERLAY_EVERY = 10
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
@@ -238,6 +249,9 @@ class MissionRecorder:
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         #: robot index -> (step, busy seconds) at which its next keyframe is due
         self._due: dict[int, tuple[int, float]] = {}
+        #: robot index -> (thread CPU seconds, wall seconds) at its last keyframe
+        self._keyframe_clocks: dict[int, tuple[float, float]] = {}
+        self._clocks = (time.thread_time(), time.perf_counter())  # sampled once per step
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
@@ -295,6 +309,10 @@ class MissionRecorder:
         # collector's next full pass, ~100-150 ms, would otherwise fall on some step soon after
         # (measured); pay it here, with the rest of the start.
         gc.collect()
+        # The CPU share of the first keyframes' budget is counted from here: the set-up above
+        # is all CPU work and would make any waiting of the robots look like CPU time.
+        self._clocks = (time.thread_time(), time.perf_counter())
+        self._keyframe_clocks = dict.fromkeys(self._keyframe_clocks, self._clocks)
 
     # ---- static parts ---------------------------------------------------------------------------
     def _write_meta(self) -> None:
@@ -383,7 +401,8 @@ class MissionRecorder:
             state = self.sim.robots[index]
             self._keyframed[index] = step
             self._capturing[index].busy_seconds = 0.0
-            started = time.perf_counter()
+            self._keyframe_clocks[index] = self._clocks
+            started = time.thread_time()
             snapshot = state.robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
             previous = self._bases.get(index)
@@ -395,11 +414,20 @@ class MissionRecorder:
                 bases.append(previous[0])
             self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
-            cost = self._snapshot_seconds[index] = time.perf_counter() - started
+            cost = self._snapshot_seconds[index] = time.thread_time() - started
             self._due[index] = (step + self.keyframe_every,
                                 max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost))
             programs.append(self._program_id(state.program, step))
         self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
+
+    def _cpu_share(self, index: int) -> float:
+        """The share of wall time this thread ran on a CPU since robot `index`'s last keyframe
+        (see MIN_CPU_SHARE): its control steps' wall time times this ~ their CPU time."""
+        cpu, wall = self._clocks
+        cpu_then, wall_then = self._keyframe_clocks.get(index, self._clocks)
+        if wall <= wall_then:
+            return 1.0
+        return min(1.0, max(MIN_CPU_SHARE, (cpu - cpu_then) / (wall - wall_then)))
 
     def _event(self, step: int, kind: str, robot: int, text: str) -> None:
         self._event_rows.append((step, kind, int(robot), text))
@@ -410,6 +438,7 @@ class MissionRecorder:
         if self.closed:
             return
         started = time.perf_counter()
+        self._clocks = (time.thread_time(), started)
         self._frame(int(self.sim.step_count))
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
@@ -445,7 +474,9 @@ class MissionRecorder:
                     records.append((i, inputs))
                 if robot is capture and failure is None:
                     due_step, budget = keyframes_due.get(i, (step, 0.0))
-                    if step >= due_step or capture.busy_seconds >= budget:
+                    busy = capture.busy_seconds  # wall time >= CPU time: test it first
+                    if step >= due_step or (busy >= budget
+                                            and busy * self._cpu_share(i) >= budget):
                         due.append(i)
             if robot is None:
                 heap_figures += _NO_HEAP
@@ -518,6 +549,12 @@ class MissionRecorder:
         return state._labels  # the world's labels, without the global look-ups (read only)
 
     def _record_overlays(self, step: int) -> None:
+        due = (step - self.start_step) % OVERLAY_EVERY == 0
+        if not due:  # a poll for a found target: cheap when the world can count them itself
+            count = getattr(self.sim.world, "targets_found", None)  # a world of the World ABC
+            found = count() if count is not None else None
+            if found is not None and found <= self._targets_found:
+                return
         overlays = self.sim.world.overlays()
         if not overlays:
             return
@@ -525,7 +562,6 @@ class MissionRecorder:
         # Polled every step while a target may still be found (none are lost again).
         self._has_targets = (isinstance(targets, list)
                              and found_targets(overlays) < len(targets))
-        due = (step - self.start_step) % OVERLAY_EVERY == 0
         if not due and found_targets(overlays) <= self._targets_found:
             return  # a poll between two recordings: only "target found" matters now
         text = json.dumps(_jsonable(overlays))

@@ -23,7 +23,10 @@ from __future__ import annotations
 import dataclasses
 import gc
 import io
+import operator
 import pickle
+import sys
+from collections.abc import Callable
 from typing import Any
 
 from bbzide.vm.messages import RingBuffer
@@ -57,19 +60,106 @@ def _rebuild(cls: type, names: tuple[str, ...], values: tuple[Any, ...]) -> Any:
 
 class _RecordPickler(pickle.Pickler):
     def reducer_override(self, obj: Any) -> Any:
+        # Called for every record of a snapshot (~150 in an M300 drone's), so kept lean: one
+        # cached C getter per class, and the attribute check by count (see `_exactly`).
         cls = type(obj)
-        names = _names(cls) if not isinstance(obj, type) else None
-        if names is None:
-            return NotImplemented
-        values = tuple(getattr(obj, name, _MISSING) for name in names)
-        held = gc.get_referents(obj)  # inline values + the class; a made dict shows as a dict
-        if (len(held) != len(values) + 1 or _MISSING in values
-                or sorted(map(id, held)) != sorted(map(id, (*values, cls)))):
+        reader = _readers.get(cls)
+        if reader is None:
+            if isinstance(obj, type) or (reader := _reader(cls)) is None:
+                return NotImplemented
+        names, get = reader
+        try:
+            values = get(obj)
+        except AttributeError:
+            return NotImplemented  # an attribute missing: plain pickling
+        if not _exactly(obj, names, values):
             return NotImplemented  # not exactly these attributes: plain pickling
+        if any(type(value) is list for value in values):
+            values = tuple(_rows(value) if type(value) is list else value for value in values)
         return (_rebuild, (cls, names, values))
 
 
-_MISSING = object()
+class _Rows:
+    """A list of records of one class, written as one flat tuple of their attribute values
+    (`_rebuild_rows`): the neighbour ring and the stigmergy entries are ~130 small records in
+    an M300 drone's snapshot, and a reduce per record was most of the pickling time. Used only
+    where every item passes the same check as a single record, and never for a list that
+    another object also holds (the pickle would then lose that sharing)."""
+
+    __slots__ = ("cls", "names", "flat")
+
+    def __init__(self, cls: type, names: tuple[str, ...], flat: tuple[Any, ...]) -> None:
+        self.cls, self.names, self.flat = cls, names, flat
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (_rebuild_rows, (self.cls, self.names, self.flat))
+
+
+def _rows(items: list[Any]) -> list[Any] | _Rows:
+    """`items` as `_Rows` when they are all exactly-known records of one class, else as is."""
+    if not items or sys.getrefcount(items) > _LIST_REFERENCES:
+        return items
+    cls = type(items[0])
+    reader = _readers.get(cls) or _reader(cls)
+    if reader is None:
+        return items
+    names, get = reader
+    flat: list[Any] = []
+    for item in items:
+        if type(item) is not cls:
+            return items
+        try:
+            values = get(item)
+        except AttributeError:
+            return items
+        if not _exactly(item, names, values) or sys.getrefcount(item) > _ITEM_REFERENCES:
+            return items
+        flat.extend(values)
+    return _Rows(cls, names, tuple(flat))
+
+
+#: `sys.getrefcount` of a list held by one record attribute only, when `_rows` looks at it
+#: (CPython 3.11): the attribute, the `values` tuple, the generator's variable, `_rows`'s
+#: argument and getrefcount's own. More means another holder: the list is left as a list.
+#: (tests/vm/test_snapshot_pickle.py checks that shared lists and records keep their sharing.)
+_LIST_REFERENCES = 5
+#: ...and of a record held by that list only: the list, the loop variable, getrefcount's own.
+_ITEM_REFERENCES = 3
+
+
+def _rebuild_rows(cls: type, names: tuple[str, ...], flat: tuple[Any, ...]) -> list[Any]:
+    """The records of `_Rows`, rebuilt like `_rebuild` (no `__dict__` made)."""
+    width = len(names)
+    if width == 0 or len(flat) % width:
+        raise ValueError("damaged record rows")
+    return [_rebuild(cls, names, flat[at:at + width]) for at in range(0, len(flat), width)]
+
+
+#: class -> (attribute names, a getter of their values as a tuple), for the known records
+_readers: dict[type, tuple[tuple[str, ...], Callable[[Any], tuple[Any, ...]]]] = {}
+
+
+def _reader(cls: type) -> tuple[tuple[str, ...], Callable[[Any], tuple[Any, ...]]] | None:
+    names = _names(cls)
+    if names is None:
+        return None
+    get = operator.attrgetter(*names)
+    # attrgetter of one name returns the value itself, not a 1-tuple
+    found = (names, get if len(names) > 1 else (lambda obj: (get(obj),)))
+    _readers[cls] = found
+    return found
+
+
+def _exactly(obj: Any, names: tuple[str, ...], values: tuple[Any, ...]) -> bool:
+    """Whether `obj` holds exactly the attributes `names` (all read already) as inline values.
+    `gc.get_referents` reports the inline values that are set, plus the class; an object whose
+    dict was made reports that dict instead. With every name present, a count of len(names) + 1
+    leaves no room for an extra attribute. Only for one name could a made dict match that
+    count, so one-name records compare the referents themselves."""
+    held = gc.get_referents(obj)
+    if len(held) != len(names) + 1:
+        return False
+    return len(names) > 1 or sorted(map(id, held)) == sorted(map(id, (*values, type(obj))))
 
 
 def dumps(value: Any) -> bytes:

@@ -562,6 +562,9 @@ class M300Field(World):
                 return False
         return True
 
+    def targets_found(self) -> int | None:
+        return int(np.count_nonzero(self.found_step >= 0))  # building the overlays: ~50 us
+
     def overlays(self) -> dict[str, Any]:
         return {
             "targets": self.targets.tolist(),

@@ -122,6 +122,12 @@ class World(ABC):
         """Extra things to draw (light field, obstacles, targets): name -> plain data."""
         return {}
 
+    def targets_found(self) -> int | None:
+        """How many of the overlays' targets are found, when the world can tell without
+        building its overlays (a recorder asks every step while targets remain, so that
+        "target found" lands on its step); None: build the overlays to know."""
+        return None
+
 
 @dataclass(frozen=True)
 class WorldSpec:

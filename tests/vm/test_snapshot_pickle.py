@@ -57,3 +57,33 @@ def test_an_object_with_unknown_attributes_is_pickled_the_plain_way() -> None:
     copy = pickle.loads(snapshot_pickle.dumps(ring))
     assert (copy.records, copy.capacity) == ([b"a", b"b"], 2)
     assert copy.extra == "not one of the known names"
+
+
+def test_a_record_with_a_made_dict_or_a_missing_attribute_still_round_trips() -> None:
+    ring = RingBuffer([b"a"], 1)
+    ring.__dict__  # noqa: B018 - makes the attribute dict, as plain pickle would
+    copy = pickle.loads(snapshot_pickle.dumps(ring))
+    assert (copy.records, copy.capacity, copy.start, copy.end) == (
+        ring.records, ring.capacity, ring.start, ring.end)
+    short = RingBuffer([b"a"], 1)
+    del short.end  # one of the known names missing: plain pickling, which keeps it missing
+    copy = pickle.loads(snapshot_pickle.dumps(short))
+    assert not hasattr(copy, "end") and copy.records == [b"a"]
+
+
+def test_lists_of_records_are_written_as_rows_unless_something_else_holds_them() -> None:
+    from bbzide.vm.neighbors import NeighborEntry
+
+    ring = RingBuffer([NeighborEntry(i, 10 + i, 20, 30) for i in range(4)], 3)
+    data = snapshot_pickle.dumps(ring)
+    assert b"_rebuild_rows" in data  # the flat form is used...
+    copy = pickle.loads(data)
+    assert copy.records == ring.records and not any(has_dict(e) for e in copy.records)
+    # ...but a list or a record that another object also holds keeps that sharing
+    held_list = RingBuffer([NeighborEntry(1, 2, 3, 4)], 1)
+    ring_copy, list_copy = pickle.loads(snapshot_pickle.dumps((held_list, held_list.records)))
+    assert ring_copy.records is list_copy
+    entry = NeighborEntry(5, 6, 7, 8)
+    held_entry = RingBuffer([NeighborEntry(1, 2, 3, 4), entry], 2)
+    ring_copy, entry_copy = pickle.loads(snapshot_pickle.dumps((held_entry, entry)))
+    assert ring_copy.records[1] is entry_copy
