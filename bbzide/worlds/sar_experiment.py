@@ -273,6 +273,23 @@ def load_result(path: Path) -> dict[str, Any] | None:
         return None   # torn or foreign: run it again
 
 
+#: The settings a run's result depends on besides its id (drones, arena, search, trial): a
+#: finished run in the output folder is reused only when it was made with the same ones.
+SWEEP_KEYS = ("seed", "max_steps", "comm_range", "search_steps", "targets_where")
+
+
+def _check_same_sweep(previous: dict[str, Any], spec: RunSpec, out: Path) -> None:
+    """Refuse to resume into a folder whose finished run was made with other settings (e.g.
+    another seed or target placement): mixing them would make a wrong table, and running
+    the run again would overwrite a result. A result without a key (an older bbzide) does
+    not match."""
+    differ = [f"{key} {previous.get(key, 'not recorded')!r} there, {getattr(spec, key)!r} now"
+              for key in SWEEP_KEYS if previous.get(key) != getattr(spec, key)]
+    if differ:
+        raise UserError(f"{out} holds runs of another sweep ({spec.run_id}: "
+                        f"{'; '.join(differ)}); give another --out to keep both")
+
+
 CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
               "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
               "steps", "max_steps", "networkers", "roots", "messages_per_drone",
@@ -418,6 +435,7 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     for spec in specs:
         previous = load_result(result_path(out, spec))
         if previous is not None:
+            _check_same_sweep(previous, spec, out)
             results[spec.run_id] = previous
         else:
             todo.append(spec)

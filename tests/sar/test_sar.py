@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from bbzide.cli import main
+from bbzide.diagnostics import UserError
 from bbzide.vm import heap
 from bbzide.worlds import sar_experiment as sx
 from bbzide.worlds.engine import Simulation
@@ -145,6 +146,13 @@ def test_sweep_writes_csv_and_plots_and_resumes(tmp_path, capsys):
     new = {r["run_id"]: r for r in again}["d3_a20_random_t001"]
     assert {k: v for k, v in old.items() if k != "wall_seconds"} == {
         k: v for k, v in new.items() if k != "wall_seconds"}
+    # Another sweep into the same folder (other placement, other seed) is refused, and the
+    # finished runs stay as they were.
+    for change in ({"extra": {"targets_where": "anywhere"}}, {"seed": 6}):
+        with pytest.raises(UserError, match="another sweep") as refused:
+            sx.run_sweep(settings(tmp_path, **change))
+        assert "--out" in str(refused.value)
+    assert kept.stat().st_mtime_ns == before
 
 
 def test_sign_test():
