@@ -20,6 +20,7 @@ import pytest
 from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
 from bbzide.recording.recorder import MissionRecorder, Recordable
+from bbzide.vm.robot import Robot
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
@@ -36,7 +37,8 @@ def vm_state(robot: object) -> tuple:
     vm = robot.vm  # type: ignore[attr-defined]
     heap = vm.heap
     return (bytes(heap.data), heap.rtobj, heap.ltseg, vm.pc, vm.stackptr,
-            list(vm.stack[: vm.stackptr + 1]), robot.snapshot())  # type: ignore[attr-defined]
+            list(vm.stack[: vm.stackptr + 1]),
+            Robot.comparable(robot.snapshot()))  # type: ignore[attr-defined]
 
 
 @pytest.fixture(scope="module", params=["gradient.bzz", "firefly.bzz"])

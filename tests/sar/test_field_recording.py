@@ -21,6 +21,7 @@ import pytest
 from bbzide.cli import main
 from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
+from bbzide.vm.robot import Robot
 from bbzide.worlds import sar_experiment as sx
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.m300 import ROLE_COLOURS
@@ -38,7 +39,7 @@ def vm_state(robot: object) -> tuple:
     vm = robot.vm  # type: ignore[attr-defined]
     heap = vm.heap
     return (bytes(heap.data), heap.rtobj, heap.ltseg, vm.pc, vm.stackptr,
-            list(vm.stack[: vm.stackptr + 1]), zlib.crc32(robot.snapshot()))  # type: ignore
+            list(vm.stack[: vm.stackptr + 1]), zlib.crc32(Robot.comparable(robot.snapshot())))  # type: ignore
 
 
 @pytest.fixture(scope="module")

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bbzide.vm.robot import Robot
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.radio import pairs_within_range
@@ -182,7 +183,7 @@ def test_same_seed_same_trajectories_and_heaps():
         sim = Simulation("kilobot", program("kilobot", "aggregation"), robots=6, seed=seed,
                          world_options={"width": 0.3, "height": 0.3, "layout": "random"})
         sim.run(25)
-        return sim.positions.copy(), [s.robot.snapshot() for s in sim.robots]
+        return sim.positions.copy(), [Robot.comparable(s.robot.snapshot()) for s in sim.robots]
 
     positions, heaps = run(8)
     again_positions, again_heaps = run(8)
