@@ -25,7 +25,6 @@ import gc
 import io
 import operator
 import pickle
-import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -59,6 +58,13 @@ def _rebuild(cls: type, names: tuple[str, ...], values: tuple[Any, ...]) -> Any:
 
 
 class _RecordPickler(pickle.Pickler):
+    def __init__(self, out: io.BytesIO, plain_lists: frozenset[int]) -> None:
+        super().__init__(out, protocol=pickle.DEFAULT_PROTOCOL)
+        #: ids of the lists to write as lists (shared within the graph: see `dumps`)
+        self.plain_lists = plain_lists
+        #: what was written as rows: (list, its items), to check for sharing afterwards
+        self.flattened: list[tuple[list[Any], list[Any]]] = []
+
     def reducer_override(self, obj: Any) -> Any:
         # Called for every record of a snapshot (~150 in an M300 drone's), so kept lean: one
         # cached C getter per class, and the attribute check by count (see `_exactly`).
@@ -75,8 +81,33 @@ class _RecordPickler(pickle.Pickler):
         if not _exactly(obj, names, values):
             return NotImplemented  # not exactly these attributes: plain pickling
         if any(type(value) is list for value in values):
-            values = tuple(_rows(value) if type(value) is list else value for value in values)
+            values = tuple(self._rows(value) if type(value) is list else value
+                           for value in values)
         return (_rebuild, (cls, names, values))
+
+    def _rows(self, items: list[Any]) -> list[Any] | _Rows:
+        """`items` as `_Rows` when they are all exactly-known records of one class, else as
+        is (and as is when `dumps` found this list or one of its items shared)."""
+        if not items or id(items) in self.plain_lists:
+            return items
+        cls = type(items[0])
+        reader = _readers.get(cls) or _reader(cls)
+        if reader is None:
+            return items
+        names, get = reader
+        flat: list[Any] = []
+        for item in items:
+            if type(item) is not cls:
+                return items
+            try:
+                values = get(item)
+            except AttributeError:
+                return items
+            if not _exactly(item, names, values):
+                return items
+            flat.extend(values)
+        self.flattened.append((items, list(items)))
+        return _Rows(cls, names, tuple(flat))
 
 
 class _Rows:
@@ -84,7 +115,7 @@ class _Rows:
     (`_rebuild_rows`): the neighbour ring and the stigmergy entries are ~130 small records in
     an M300 drone's snapshot, and a reduce per record was most of the pickling time. Used only
     where every item passes the same check as a single record, and never for a list that
-    another object also holds (the pickle would then lose that sharing)."""
+    something else in the pickled value also holds, or whose items it holds (`dumps`)."""
 
     __slots__ = ("cls", "names", "flat")
 
@@ -95,36 +126,22 @@ class _Rows:
         return (_rebuild_rows, (self.cls, self.names, self.flat))
 
 
-def _rows(items: list[Any]) -> list[Any] | _Rows:
-    """`items` as `_Rows` when they are all exactly-known records of one class, else as is."""
-    if not items or sys.getrefcount(items) > _LIST_REFERENCES:
-        return items
-    cls = type(items[0])
-    reader = _readers.get(cls) or _reader(cls)
-    if reader is None:
-        return items
-    names, get = reader
-    flat: list[Any] = []
-    for item in items:
-        if type(item) is not cls:
-            return items
-        try:
-            values = get(item)
-        except AttributeError:
-            return items
-        if not _exactly(item, names, values) or sys.getrefcount(item) > _ITEM_REFERENCES:
-            return items
-        flat.extend(values)
-    return _Rows(cls, names, tuple(flat))
-
-
-#: `sys.getrefcount` of a list held by one record attribute only, when `_rows` looks at it
-#: (CPython 3.11): the attribute, the `values` tuple, the generator's variable, `_rows`'s
-#: argument and getrefcount's own. More means another holder: the list is left as a list.
-#: (tests/vm/test_snapshot_pickle.py checks that shared lists and records keep their sharing.)
-_LIST_REFERENCES = 5
-#: ...and of a record held by that list only: the list, the loop variable, getrefcount's own.
-_ITEM_REFERENCES = 3
+def _shared(pickler: _RecordPickler) -> set[int]:
+    """ids of the lists `pickler` wrote as rows that the pickled value shares: the list or
+    one of its items was also written as itself (then it is in the pickle memo, which holds
+    every object written as itself), or appears in two rows. Only the pickled value counts,
+    not who else holds these objects: the choice, and so the bytes, follow from the value."""
+    if not pickler.flattened:
+        return set()
+    memo = pickler.memo.copy()  # id -> (memo index, object); ~15 us for an M300 drone's
+    seen: set[int] = set()
+    shared: set[int] = set()
+    for items, members in pickler.flattened:
+        ids = [id(items), *map(id, members)]
+        if any(i in memo or i in seen for i in ids):
+            shared.add(id(items))
+        seen.update(ids)
+    return shared
 
 
 def _rebuild_rows(cls: type, names: tuple[str, ...], flat: tuple[Any, ...]) -> list[Any]:
@@ -163,7 +180,21 @@ def _exactly(obj: Any, names: tuple[str, ...], values: tuple[Any, ...]) -> bool:
 
 
 def dumps(value: Any) -> bytes:
-    """`pickle.dumps(value)`, with the VM's records reduced as described above."""
-    out = io.BytesIO()
-    _RecordPickler(out, protocol=pickle.DEFAULT_PROTOCOL).dump(value)
-    return out.getvalue()
+    """`pickle.dumps(value)`, with the VM's records reduced as described above.
+
+    Lists of records are written as rows unless the value itself shares the list or one of
+    its items (then rows would unpickle as copies): the dump is checked afterwards and, if
+    any are shared, done again with those lists written as lists (a VM's never are, so
+    that is one dump). Deciding from the value alone makes equal states give equal bytes
+    whatever else holds their objects (it was decided by `sys.getrefcount`, which counts
+    outside holders too: a garbage cycle not yet collected could change a snapshot's bytes).
+    """
+    plain: frozenset[int] = frozenset()
+    while True:
+        out = io.BytesIO()
+        pickler = _RecordPickler(out, plain)
+        pickler.dump(value)
+        shared = _shared(pickler)
+        if not shared:
+            return out.getvalue()
+        plain = plain | shared

@@ -87,3 +87,46 @@ def test_lists_of_records_are_written_as_rows_unless_something_else_holds_them()
     held_entry = RingBuffer([NeighborEntry(1, 2, 3, 4), entry], 2)
     ring_copy, entry_copy = pickle.loads(snapshot_pickle.dumps((held_entry, entry)))
     assert ring_copy.records[1] is entry_copy
+
+
+def test_equal_states_give_equal_bytes_whoever_else_holds_their_objects() -> None:
+    """The rows-or-list choice follows from the pickled value only: an outside reference to
+    the neighbour ring's list or to one of its entries (e.g. a garbage cycle not yet
+    collected) does not change the bytes, and a restored robot snapshots to the same bytes."""
+    from bbzide.vm.neighbors import NeighborEntry
+
+    robot = booted()
+    ring = robot.vm.neighbors.ring
+    if not ring.records:  # an XTREME ring may start empty: give it entries to flatten
+        ring.records.extend(NeighborEntry(i, 10 + i, 20, 30) for i in range(3))
+    before = robot.snapshot()
+    assert b"_rebuild_rows" in before
+    outside = [ring.records, ring.records[0], *robot.vm.vstig.entries]  # extra holders
+    assert robot.snapshot() == before
+    del outside
+    other = booted()
+    other.control_step()
+    other.restore(before)
+    assert other.snapshot() == before
+    kept = list(other.vm.neighbors.ring.records)  # noqa: F841 - holds every entry once more
+    assert other.snapshot() == before
+
+
+def test_rows_are_used_for_unshared_lists_whatever_order_the_sharing_comes_in() -> None:
+    from bbzide.vm.neighbors import NeighborEntry
+
+    entry = NeighborEntry(5, 6, 7, 8)
+    held = RingBuffer([NeighborEntry(1, 2, 3, 4), entry], 2)
+    for value in ((entry, held), (held, entry)):  # the item written before or after the rows
+        data = snapshot_pickle.dumps(value)
+        copy = pickle.loads(data)
+        ring_copy, entry_copy = (copy[1], copy[0]) if value[0] is entry else copy
+        assert ring_copy.records[1] is entry_copy
+    two = [NeighborEntry(1, 2, 3, 4)]
+    first, second = RingBuffer(two, 1), RingBuffer(two, 1)  # one list held by two records
+    a, b = pickle.loads(snapshot_pickle.dumps((first, second)))
+    assert a.records is b.records
+    alone = RingBuffer([NeighborEntry(1, 2, 3, 4)], 1)
+    holder = [alone.records]  # held outside the pickled value: rows all the same
+    assert b"_rebuild_rows" in snapshot_pickle.dumps(alone)
+    assert holder
