@@ -76,11 +76,13 @@ def main() -> None:
     options = parse_world_options(args.set)
     sim = Simulation(spec.name, program, robots=args.robots, seed=1, world_options=options,
                      robot_factory=recordable.factory, watch=() if args.toy else ("role",))
-    # The same swarm without recording, for the reference simulation time. It steps in turn
+    # The same swarm without recording, for the reference simulation time: built the plain
+    # way (the engine's own robot factory: no host-function taps, no recording hooks), so
+    # whatever a recordable swarm costs more counts as recording cost. It steps in turn
     # with the recorded one (one step each, in alternating order), so a change of the
     # machine's load hits both.
     plain = Simulation(spec.name, program, robots=args.robots, seed=1, world_options=options,
-                       robot_factory=Recordable(build=build).factory,
+                       robot_factory=None if build is None else build,
                        watch=() if args.toy else ("role",))
     Simulation(spec.name, program, robots=2, seed=1, world_options=options).run(3)  # JIT warm-up
 

@@ -28,11 +28,14 @@ from __future__ import annotations
 import base64
 import gc
 import json
+import operator
 import time
 import uuid
+import weakref
 from collections.abc import Callable
 from itertools import chain
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -40,7 +43,8 @@ import numpy as np
 from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
-from bbzide.vm.input_log import CapturingRobot, capturing_factory, encode_step
+from bbzide.vm.input_log import SwarmCapture, encode_columns
+from bbzide.vm.vm import State
 
 #: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
 KEYFRAME_EVERY = 100
@@ -91,6 +95,9 @@ OVERLAY_EVERY = 10
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
 
+#: The label of `Robot.boot`'s last phase (`on_phase`): the boot has ended.
+BOOT_DONE_PHASE = "init"
+
 #: Robot ids below this map to indexes through an array (65,536 ids: 256 KB at most; ids are
 #: u16 on the wire, so every real swarm fits).
 MAX_ID_TABLE = 1 << 16
@@ -98,6 +105,15 @@ MAX_ID_TABLE = 1 << 16
 
 #: Heap figures of a robot without a VM (a passive body): size, ROP, LSP, peak, GC runs, has VM.
 _NO_HEAP = (0, 0, 0, 0, 0, 0)
+#: The first five of those, read from a heap in one C call.
+_HEAP_FIGURES = operator.attrgetter("size", "rtobj", "ltseg", "peak_used", "gc_runs")
+_STEPS_DONE = operator.attrgetter("steps_done")
+_INSTRUCTIONS = operator.attrgetter("instructions_executed")
+_FIRST = operator.itemgetter(0)
+#: What the per-step pass reads of a robot slot without a firmware loop (a passive body).
+_NO_ROBOT = SimpleNamespace(steps_done=0, vm=SimpleNamespace(
+    instructions_executed=0, heap=SimpleNamespace(size=0, rtobj=0, ltseg=0, peak_used=0,
+                                                  gc_runs=0)))
 
 
 class RecordingError(UserError):
@@ -116,28 +132,69 @@ def build_robot(program: Any, profile: Any, robot_id: int, host_functions: Any,
 
 
 class Recordable:
-    """A robot factory for `Simulation(robot_factory=...)` that makes the swarm recordable."""
+    """A robot factory for `Simulation(robot_factory=...)` that makes the swarm recordable.
+
+    It builds plain robots (a `Robot` stays a `Robot`, so an engine's compiled batch of
+    control steps takes it) and changes only what is passed to them: each world host
+    function is wrapped by `capture.tap` (a pass-through until a recorder calls
+    `capture.start()`). It also sets the robot's `on_phase` hook to learn when a boot ends,
+    so that a recorder can keyframe a robot rebooted mid-recording (a program reload) and
+    so that the host calls a boot makes are not taken for a step's inputs.
+    """
 
     def __init__(self, loop: str = "pop", instruction_budget: int | None = None,
                  build: Callable[..., Any] | None = None) -> None:
         self.loop = loop
         self.instruction_budget = instruction_budget
-        self.listener: Callable[[CapturingRobot], None] | None = None
+        #: called with a robot whose boot just ended without a VM error (a recorder's)
+        self.listener: Callable[[Any], None] | None = None
         self._build = build
-        self.factory = capturing_factory(self._make, on_boot=self._booted)
+        self.capture = SwarmCapture()
+        #: the robots this factory built, weakly (a program reload replaces them)
+        self.built: weakref.WeakSet[Any] = weakref.WeakSet()
+        #: robots built whose boot has not ended well yet: a boot that fails (a VM error or
+        #: an exception) never says so; the recorder keyframes those at its next step
+        self.booting: list[Any] = []
+        self.factory = self._make
 
     def _make(self, program: Any, profile: Any, robot_id: int, host_functions: Any) -> Any:
+        live = [False]  # this robot's host calls are a step's inputs (not its boot's)
+        capture = self.capture
+        tapped = {name: capture.tap(robot_id, name, fn, live)
+                  for name, fn in host_functions.items()}
         if self._build is not None:
-            robot = self._build(program, profile, robot_id, host_functions)
+            robot = self._build(program, profile, robot_id, tapped)
         else:
-            robot = build_robot(program, profile, robot_id, host_functions, self.loop,
+            robot = build_robot(program, profile, robot_id, tapped, self.loop,
                                 self.instruction_budget)
         robot.bbzide_host_names = list(host_functions)
+        self.built.add(robot)
+        if hasattr(robot, "on_phase"):
+            self.booting.append(robot)
+            robot.on_phase = self._phase_hook(robot, live)
+        else:  # a firmware loop that cannot say when it booted: all its calls are inputs
+            live[0] = True
         return robot
 
-    def _booted(self, robot: CapturingRobot) -> None:
-        if self.listener is not None:
-            self.listener(robot)
+    def _phase_hook(self, robot: Any, live: list[bool]) -> Callable[[str], None]:
+        ref = weakref.ref(robot)  # the robot holds this hook: no cycle through it
+
+        def phase(label: str) -> None:
+            if label != BOOT_DONE_PHASE:
+                return
+            live[0] = True
+            me = ref()
+            if me is None:
+                return
+            state = getattr(getattr(me, "vm", None), "state", None)
+            if state is not None and state == State.ERROR:
+                return  # fails right after this hook: keyframed at the recorder's next step
+            if me in self.booting:
+                self.booting.remove(me)
+            if self.listener is not None:
+                self.listener(me)
+
+        return phase
 
 
 def check_output_path(path: Path, force: bool) -> Path:
@@ -245,13 +302,31 @@ class MissionRecorder:
             self._index_by_id = np.full(max(self._index_of) + 1, -1, dtype=np.int32)
             for robot_id, index in self._index_of.items():
                 self._index_by_id[robot_id] = index
-        self._capturing: dict[int, CapturingRobot] = {}
+        n = self.count
+        self._capture = recordable.capture
+        #: per robot index: its firmware loop, or a stand-in with zero figures (no VM)
+        self._robots: list[Any] = [_NO_ROBOT] * n
+        self._recorded = np.zeros(n, dtype=bool)  # has a firmware loop we record
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
-        #: robot index -> (step, busy seconds) at which its next keyframe is due
-        self._due: dict[int, tuple[int, float]] = {}
-        #: robot index -> (thread CPU seconds, wall seconds) at its last keyframe
-        self._keyframe_clocks: dict[int, tuple[float, float]] = {}
+        # Per robot, as arrays (the per-step pass is a few numpy operations, not 25 loops):
+        # the step and the VM seconds at which its next keyframe is due, the VM seconds it
+        # ran since its last one, and the (thread CPU, wall) clocks at that keyframe.
+        self._due_step = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+        self._budget = np.full(n, np.inf)
+        self._busy = np.zeros(n)
+        self._cpu_then = np.zeros(n)
+        self._wall_then = np.zeros(n)
         self._clocks = (time.thread_time(), time.perf_counter())  # sampled once per step
+        # What the last step left (to see what the next one did): each robot's
+        # `steps_done` (it ran a control step) and `vm.instructions_executed` (its share of
+        # the swarm's VM time), whether it had failed, and the engine's VM seconds.
+        self._steps_done = np.zeros(n, dtype=np.int64)
+        self._instructions = np.zeros(n, dtype=np.int64)
+        self._failed = np.zeros(n, dtype=bool)
+        self._vm_seconds = float(sim.timings.get("vm", 0.0))
+        #: messages come from `sim.step_deliveries` (else from receive hooks on the robots)
+        self._packed = hasattr(sim, "step_deliveries") and not getattr(sim, "asynchronous",
+                                                                       False)
         self._keyframe_counts: dict[int, int] = {}
         self._snapshot_seconds: dict[int, float] = {}  # robot -> cost of its last keyframe
         self._bases: dict[int, tuple[int, bytes]] = {}  # robot -> its previous keyframe
@@ -264,9 +339,7 @@ class MissionRecorder:
         self._viewer_labels: list[str] | None = None  # the labels last sent to the viewer
         self._radii_sent = False
         for state in sim.robots:
-            if isinstance(state.robot, CapturingRobot):
-                self._capturing[state.index] = state.robot
-            elif state.robot is not None:
+            if state.robot is not None and state.robot not in recordable.built:
                 raise RecordingError("this swarm was not built for recording (its robots have "
                                      "no input capture); restart it, then record")
         self.rr = rr
@@ -286,7 +359,8 @@ class MissionRecorder:
         self._buffer: dict[str, list[Any]] = {}
         self._steps: list[int] = []
         self._last_flush = time.monotonic()
-        self._last_labels: list[dict[str, Any]] = [{} for _ in range(self.count)]
+        self._last_texts: dict[str, list[str]] = {}  # each watched label, per robot
+        self._label_arrays: dict[str, np.ndarray] = {}  # ... as buffered
         self._known_failures: set[int] = {s.index for s in sim.robots if s.failure is not None}
         self._last_overlays: str | None = None
         self._targets_found = 0
@@ -296,11 +370,13 @@ class MissionRecorder:
         self.steps_recorded = 0
         self.seconds_spent = 0.0
         self._write_meta()
-        for robot in self._capturing.values():
-            robot.take_inputs()
-            robot.capturing = True
+        self._capture.start()
+        recordable.booting.clear()  # booted before recording: their keyframes are below
+        for state in sim.robots:
+            if state.robot is not None:
+                self._attach(state.index, state.robot)
         recordable.listener = self._robot_booted
-        self._keyframe(list(self._capturing), self.start_step)
+        self._keyframe(np.flatnonzero(self._recorded).tolist(), self.start_step)
         self._event(self.start_step, layout.EVENT_PROGRAM, -1,
                     f"recording starts at step {self.start_step}")
         self._frame(self.start_step, first=True)
@@ -312,7 +388,8 @@ class MissionRecorder:
         # The CPU share of the first keyframes' budget is counted from here: the set-up above
         # is all CPU work and would make any waiting of the robots look like CPU time.
         self._clocks = (time.thread_time(), time.perf_counter())
-        self._keyframe_clocks = dict.fromkeys(self._keyframe_clocks, self._clocks)
+        self._cpu_then[:], self._wall_then[:] = self._clocks
+        self._vm_seconds = float(sim.timings.get("vm", 0.0))
 
     # ---- static parts ---------------------------------------------------------------------------
     def _write_meta(self) -> None:
@@ -375,20 +452,28 @@ class MissionRecorder:
         self.rec.set_time(layout.TIME_SECONDS, duration=step * float(self.sim.world.step_seconds))
 
     # ---- keyframes and events -------------------------------------------------------------------
-    def _robot_booted(self, robot: CapturingRobot) -> None:
+    def _attach(self, index: int, robot: Any) -> None:
+        """Record robot `index`'s firmware loop `robot` from now on."""
+        self._robots[index] = robot
+        self._recorded[index] = True
+        if not self._packed:
+            self._capture.hook_receive(robot, index)
+
+    def _robot_booted(self, robot: Any) -> None:
         """A robot (re)booted between steps (program reload): keyframe its fresh state."""
         if self.closed:
             return
         for state in self.sim.robots:
             if state.robot is robot:
-                self._capturing[state.index] = robot
-                robot.capturing = True
-                step = int(self.sim.step_count)
-                self._keyframe_counts[state.index] = 0
-                self._keyframe([state.index], step, full=True)
-                if state.index == min(self._capturing):
-                    self._event(step, layout.EVENT_PROGRAM, -1, f"program loaded at step {step}")
+                self._rebooted(state.index, int(self.sim.step_count))
                 return
+
+    def _rebooted(self, index: int, step: int) -> None:
+        self._attach(index, self.sim.robots[index].robot)
+        self._keyframe_counts[index] = 0
+        self._keyframe([index], step, full=True)
+        if index == int(np.flatnonzero(self._recorded)[0]):
+            self._event(step, layout.EVENT_PROGRAM, -1, f"program loaded at step {step}")
 
     def _keyframe(self, indexes: list[int], step: int, full: bool = False) -> None:
         """Snapshot robots `indexes` now. A robot's first keyframe after (re)boot and every
@@ -400,10 +485,13 @@ class MissionRecorder:
         for index in indexes:
             state = self.sim.robots[index]
             self._keyframed[index] = step
-            self._capturing[index].busy_seconds = 0.0
-            self._keyframe_clocks[index] = self._clocks
+            robot = state.robot
+            self._busy[index] = 0.0
+            self._cpu_then[index], self._wall_then[index] = self._clocks
+            self._steps_done[index] = getattr(robot, "steps_done", 0)
+            self._instructions[index] = getattr(robot.vm, "instructions_executed", 0)
             started = time.thread_time()
-            snapshot = state.robot.snapshot()
+            snapshot = robot.snapshot()
             count = self._keyframe_counts.get(index, 0)
             previous = self._bases.get(index)
             if full or previous is None or count % keyframes.FULL_KEYFRAME_EVERY == 0:
@@ -415,19 +503,10 @@ class MissionRecorder:
             self._bases[index] = (step, snapshot)
             self._keyframe_counts[index] = count + 1
             cost = self._snapshot_seconds[index] = time.thread_time() - started
-            self._due[index] = (step + self.keyframe_every,
-                                max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost))
+            self._due_step[index] = step + self.keyframe_every
+            self._budget[index] = max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost)
             programs.append(self._program_id(state.program, step))
         self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
-
-    def _cpu_share(self, index: int) -> float:
-        """The share of wall time this thread ran on a CPU since robot `index`'s last keyframe
-        (see MIN_CPU_SHARE): its control steps' wall time times this ~ their CPU time."""
-        cpu, wall = self._clocks
-        cpu_then, wall_then = self._keyframe_clocks.get(index, self._clocks)
-        if wall <= wall_then:
-            return 1.0
-        return min(1.0, max(MIN_CPU_SHARE, (cpu - cpu_then) / (wall - wall_then)))
 
     def _event(self, step: int, kind: str, robot: int, text: str) -> None:
         self._event_rows.append((step, kind, int(robot), text))
@@ -447,60 +526,40 @@ class MissionRecorder:
         self.seconds_spent += time.perf_counter() - started
 
     def _frame(self, step: int, first: bool = False) -> None:
-        """The state at `step` and the inputs that led here (from step - 1), in one pass over
-        the robots: their inputs, failure, heap figures and labels, whether a keyframe is due,
-        and the events (new failure, label change). The first frame takes no inputs and only
-        notes the labels. Figures are gathered into lists and become one array each per step
-        (numpy calls per robot and step cost more than the figures)."""
+        """The state at `step` and the inputs that led here (from step - 1): positions,
+        failures, heap figures, labels, the robots' inputs, which keyframes are due, and the
+        events (new failure, label change). The first frame takes no inputs and only notes
+        the labels. Per-robot figures are read by one C getter per robot into one array
+        each; the rest is numpy over those arrays (a Python pass over the robots with
+        several branches each was a quarter of the recorder's time)."""
         sim = self.sim
-        watch = sim.watch
-        labels: dict[str, list[str]] = {name: [""] * self.count for name in watch}
-        capturing = self._capturing
-        records: list[tuple[int, Any]] = []
-        due: list[int] = []
-        failed: list[bool] = []
-        heap_figures: list[int] = []  # 6 per robot, flat
-        keyframes_due, known_failures, last_labels = self._due, self._known_failures, \
-            self._last_labels
-        for state in sim.robots:
-            i = state.index
-            failure = state.failure
-            failed.append(failure is not None)
-            robot = state.robot
-            capture = capturing.get(i)
-            if capture is not None and not first:
-                inputs = capture.take_inputs()
-                if inputs.stepped or inputs.payloads:  # not `.empty`: a property call less
-                    records.append((i, inputs))
-                if robot is capture and failure is None:
-                    due_step, budget = keyframes_due.get(i, (step, 0.0))
-                    busy = capture.busy_seconds  # wall time >= CPU time: test it first
-                    if step >= due_step or (busy >= budget
-                                            and busy * self._cpu_share(i) >= budget):
-                        due.append(i)
-            if robot is None:
-                heap_figures += _NO_HEAP
-            else:
-                # A CapturingRobot forwards `.vm` through __getattr__: go round it.
-                h = (capture.robot if robot is capture else getattr(robot, "robot", robot)
-                     ).vm.heap
-                heap_figures += (h.size, h.rtobj, h.ltseg, h.peak_used, h.gc_runs, 1)
-            if failure is not None and i not in known_failures:
-                known_failures.add(i)
+        states = sim.robots
+        n = self.count
+        if self.recordable.booting:
+            self._failed_boots(step)
+        robots = self._robots
+        failures = [s.failure for s in states]
+        failed = np.fromiter((f is not None for f in failures), dtype=bool, count=n)
+        new_failures = failed & ~self._failed
+        self._failed = failed
+        for i in np.flatnonzero(new_failures).tolist():
+            if i not in self._known_failures:
+                self._known_failures.add(i)
                 self._event(step, layout.EVENT_ERROR, i,
-                            f"robot {state.robot_id}: {_failure_text(failure)}")
-            if watch:
-                current = self._labels_of(state)
-                last = last_labels[i]
-                for name in watch:
-                    value = current.get(name)
-                    text = "" if value is None else str(value)
-                    labels[name][i] = text
-                    before = last.get(name)
-                    if before is not None and before != text and not first:
-                        self._event(step, layout.EVENT_ROLE, i,
-                                    f"robot {state.robot_id} {name}: {before} -> {text}")
-                    last[name] = text
+                            f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
+        vms = [r.vm for r in robots]
+        heap = np.empty((n, len(_NO_HEAP)), dtype=np.int64)
+        heap[:, :-1] = [_HEAP_FIGURES(vm.heap) for vm in vms]
+        heap[:, -1] = self._recorded
+        labels = self._labels(states, step, first) if sim.watch else {}
+        inputs = b""
+        due: list[int] = []
+        if not first:
+            steps_done = np.fromiter(map(_STEPS_DONE, robots), dtype=np.int64, count=n)
+            stepped = ((steps_done != self._steps_done) | new_failures) & self._recorded
+            self._steps_done = steps_done
+            inputs = self._inputs_compressor.compress(self._step_inputs(stepped))
+            due = self._keyframes_due(step, vms, stepped, failed)
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
@@ -509,18 +568,88 @@ class MissionRecorder:
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
         # Kept as numpy arrays, which the garbage collector does not track: lists kept alive
         # until the flush made it run (full passes of ~100 ms) several times more often.
-        buffer.setdefault("failed", []).append(np.array(failed, dtype=bool))
-        buffer.setdefault("heap", []).append(np.array(heap_figures, dtype=np.int64))
-        buffer.setdefault("labels", []).append(
-            {name: np.array(values, dtype=object) for name, values in labels.items()})
+        buffer.setdefault("failed", []).append(failed)
+        buffer.setdefault("heap", []).append(heap)
+        buffer.setdefault("labels", []).append(labels)
         buffer.setdefault("traffic", []).append(np.stack(
             [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
-        buffer.setdefault("links", []).append(self._link_indexes(sim.links))
-        buffer.setdefault("inputs", []).append(
-            b"" if first else self._inputs_compressor.compress(encode_step(records)))
+        pairs = getattr(sim, "link_indexes", None)  # (sender, receiver) indexes, if given
+        buffer.setdefault("links", []).append(
+            self._link_indexes(sim.links) if pairs is None else pairs)
+        buffer.setdefault("inputs", []).append(inputs)
         self._keyframe(due, step)
         if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
             self._record_overlays(step)
+
+    def _step_inputs(self, stepped: np.ndarray) -> bytes:
+        """The step's inputs (`input_log` layout): the engine's deliveries as columns (or the
+        hooked receives), the tapped host calls, which robots stepped."""
+        calls, received = self._capture.take()
+        index_of = self._index_of
+        ordered = [(index_of[key], record) for key, record in calls]
+        if any(ordered[k][0] > ordered[k + 1][0] for k in range(len(ordered) - 1)):
+            ordered.sort(key=_FIRST)  # stable: each robot's calls stay in call order
+        if self._packed:
+            deliveries = self.sim.step_deliveries
+        else:
+            deliveries = received  # hooked receives, keyed by robot index (`_attach`)
+        return encode_columns(stepped, deliveries, ordered)
+
+    def _keyframes_due(self, step: int, vms: list[Any], stepped: np.ndarray,
+                       failed: np.ndarray) -> list[int]:
+        """The robots whose keyframe is due: `keyframe_every` steps since their last one, or
+        `KEYFRAME_BUDGET_SECONDS` of VM CPU time. A robot's VM time is the engine's VM time
+        of the step (`sim.timings["vm"]`, wall clock) shared out by the instructions each
+        robot executed in it (robots are not timed one by one: an engine steps them in one
+        batch), scaled by this thread's CPU share since the robot's last keyframe."""
+        instructions = np.fromiter(map(_INSTRUCTIONS, vms), dtype=np.int64, count=self.count)
+        ran = np.maximum(instructions - self._instructions, 0)
+        self._instructions = instructions
+        vm_seconds = float(self.sim.timings.get("vm", 0.0))
+        spent = max(0.0, vm_seconds - self._vm_seconds)
+        self._vm_seconds = vm_seconds
+        total = int(ran.sum())
+        if total:
+            self._busy += ran * (spent / total)
+        elif stepped.any():
+            self._busy[stepped] += spent / int(stepped.sum())
+        cpu, wall = self._clocks
+        span = wall - self._wall_then
+        share = np.clip((cpu - self._cpu_then) / np.where(span > 0, span, 1.0),
+                        MIN_CPU_SHARE, 1.0)
+        share[span <= 0] = 1.0
+        due = self._recorded & ~failed & ((step >= self._due_step)
+                                          | (self._busy * share >= self._budget))
+        return np.flatnonzero(due).tolist()
+
+    def _labels(self, states: list[Any], step: int, first: bool) -> dict[str, np.ndarray]:
+        """The watched labels of every robot as one text array per name (the last step's
+        array again when nothing changed), and a `role` event per change."""
+        current = [self._labels_of(state) for state in states]
+        labels = {}
+        for name in self.sim.watch:
+            texts = ["" if (value := c.get(name)) is None else str(value) for c in current]
+            last = self._last_texts.get(name)
+            if texts != last:
+                if last is not None and not first:
+                    for i, (before, text) in enumerate(zip(last, texts, strict=True)):
+                        if before != text:
+                            self._event(step, layout.EVENT_ROLE, i,
+                                        f"robot {states[i].robot_id} {name}: {before} -> {text}")
+                self._last_texts[name] = texts
+                self._label_arrays[name] = np.array(texts, dtype=object)
+            labels[name] = self._label_arrays[name]
+        return labels
+
+    def _failed_boots(self, step: int) -> None:
+        """Robots whose boot ended in a failure (no hook said it ended well): keyframed now,
+        their state no longer changes."""
+        booting = self.recordable.booting
+        for state in self.sim.robots:
+            if state.robot is not None and state.robot in booting:
+                booting.remove(state.robot)
+                self._rebooted(state.index, step)
+        booting.clear()  # built for another swarm, or replaced already
 
     def _link_indexes(self, links: list[tuple[int, int]]) -> np.ndarray:
         """The engine's (sender id, receiver id) links as an (M, 2) array of robot indexes:
@@ -731,9 +860,7 @@ class MissionRecorder:
         self._flush()
         self.closed = True
         self.recordable.listener = None
-        for robot in self._capturing.values():
-            robot.capturing = False
-            robot.take_inputs()
+        self._capture.stop()
         self.rec.flush()
         self.rec.disconnect()
 

@@ -26,14 +26,17 @@ from __future__ import annotations
 
 import struct
 import sys
-import time
 from array import array
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from itertools import accumulate, chain
+from itertools import accumulate, chain, repeat
 from typing import Any
 
+import numpy as np
+
 from bbzide.vm.host import HostCall
+from bbzide.vm.messages import PAYLOAD_SIZE
+from bbzide.vm.swarm_batch import PackedMessages
 
 #: One host-call effect: ("expect", n) | ("ret", value) | ("fail", kind) | ("ret0",).
 HostEffect = tuple[Any, ...]
@@ -139,20 +142,97 @@ class _CapturingHostCall(HostCall):
     # ret_object: HostCall's own, not recorded (no world host returns objects)
 
 
-class HostCallTap:
-    """Wraps a robot's world host functions; while `log` is a list, each call is noted in it."""
+class ReceivedColumns:
+    """Messages received by hooked robots during one step, as columns (a step of a 25-drone
+    swarm receives ~250): receiver keys, payloads, (distance, azimuth, elevation) triples."""
+
+    __slots__ = ("robots", "payloads", "situation", "ordered")
 
     def __init__(self) -> None:
-        self.log: list[HostCallRecord] | None = None
+        self.robots: list[int] = []
+        self.payloads: list[bytes] = []
+        self.situation = array("d")
+        self.ordered = True  # receivers came in nondecreasing key order
 
-    def wrap(self, name: str, function: Callable[[Any], None]) -> Callable[[Any], None]:
+    def __len__(self) -> int:
+        return len(self.robots)
+
+    def add(self, key: int, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+            ) -> None:
+        """Robot `key`'s (sender, payload, distance, azimuth, elevation) deliveries."""
+        robots = self.robots
+        if robots and robots[-1] > key:
+            self.ordered = False
+        robots.extend(repeat(key, len(deliveries)))
+        self.payloads.extend([bytes(d[1][:PAYLOAD_SIZE]) for d in deliveries])
+        self.situation.extend(chain.from_iterable([d[2:] for d in deliveries]))
+
+    def sorted(self) -> ReceivedColumns:
+        """The same messages by receiver (stable: each robot's in arrival order)."""
+        if self.ordered:
+            return self
+        order = sorted(range(len(self.robots)), key=self.robots.__getitem__)
+        result = ReceivedColumns()
+        result.robots = [self.robots[k] for k in order]
+        result.payloads = [self.payloads[k] for k in order]
+        s = self.situation
+        result.situation = array("d", chain.from_iterable(s[3 * k:3 * k + 3] for k in order))
+        return result
+
+
+class SwarmCapture:
+    """Notes the inputs of every robot of a swarm during one engine step, robots left as they
+    are (plain `Robot`s, so an engine's compiled batch of control steps still takes them).
+
+    * Host calls: the robot factory passes each robot host functions wrapped by `tap` (the
+      world's mapping, not the Robot, is what changes); while `calls` is a list, each call is
+      appended to it as (robot id, `HostCallRecord`), in call order (a robot's calls all
+      happen in its own control step, so the list holds them robot after robot).
+    * Received messages: an engine that hands a step's deliveries to its robots as one
+      `swarm_batch.PackedMessages` exposes them (`Simulation.step_deliveries`), and the
+      recorder copies those columns. For an engine that calls each robot's `receive` /
+      `receive_all` itself (asynchronous stepping, or an older engine), `hook_receive` puts
+      capturing versions of those two on the robot instance; they append to the
+      `ReceivedColumns` in `received` (the key given to the hook: the recorder's robot index).
+    """
+
+    def __init__(self) -> None:
+        #: (robot id, record) of each world host call this step; None: not capturing
+        self.calls: list[tuple[int, HostCallRecord]] | None = None
+        #: (robot id, payload, distance, azimuth, elevation) from hooked receives this step
+        self.received = ReceivedColumns()
+
+    def start(self) -> None:
+        self.calls = []
+        self.received = ReceivedColumns()
+
+    def stop(self) -> None:
+        self.calls = None
+        self.received = ReceivedColumns()
+
+    def take(self) -> tuple[list[tuple[int, HostCallRecord]], ReceivedColumns]:
+        """This step's host calls and hooked receives, and start the next step's."""
+        calls, received = self.calls or [], self.received
+        if self.calls is not None:
+            self.calls = []
+        self.received = ReceivedColumns()
+        return calls, received
+
+    def tap(self, key: int, name: str, function: Callable[[Any], None],
+            live: list[bool] | None = None) -> Callable[[Any], None]:
+        """`function` (a world host function of robot `key`) noting its calls while capturing
+        and, when `live` is given, while `live[0]` (False while the robot boots: a boot's host
+        calls are not inputs of a step)."""
+        capture = self
+        live = [True] if live is None else live
+
         def tapped(call: Any) -> None:
-            log = self.log
-            if log is None:
+            calls = capture.calls
+            if calls is None or not live[0]:
                 function(call)
                 return
             record = HostCallRecord(name)
-            log.append(record)
+            calls.append((key, record))
             if type(call) is HostCall:
                 call._record = record  # type: ignore[attr-defined]
                 call.__class__ = _CapturingHostCall
@@ -165,107 +245,41 @@ class HostCallTap:
 
         return tapped
 
+    def hook_receive(self, robot: Any, key: int) -> None:
+        """Capture `robot`'s receives through instance attributes (see the class doc). Not
+        needed, and not done, when the engine exposes `step_deliveries`."""
+        cls = type(robot)
+        receive = cls.receive.__get__(robot)
+        receive_all = getattr(cls, "receive_all", None)
+        rows = self
+        bulk = [False]  # inside receive_all, which may call receive for each message
 
-class CapturingRobot:
-    """A firmware loop that notes its inputs while `capturing` (otherwise a thin pass-through).
-
-    `on_boot(robot)` is called after every boot, so a recorder can keyframe the fresh state.
-    """
-
-    def __init__(self, robot: Any, tap: HostCallTap,
-                 on_boot: Callable[[CapturingRobot], None] | None = None) -> None:
-        self.robot = robot
-        self.tap = tap
-        self.capturing = False
-        self.current = StepInputs()
-        self._on_boot = on_boot
-        #: Wall-clock seconds spent in captured control steps (the recorder keyframes by this
-        #: budget, scaled to CPU time).
-        self.busy_seconds = 0.0
-        #: The payloads the last control step sent (the inspector reads them: the out-queue is
-        #: drained at the end of every step).
-        self.last_sent: list[bytes] = []
-
-    # the engine's FirmwareLoop protocol ---------------------------------------------------------
-    def boot(self) -> None:
-        self.tap.log = None
-        self.robot.boot()
-        self.current = StepInputs()
-        if self._on_boot is not None:
-            self._on_boot(self)
-
-    def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
-        if self.capturing:
-            current = self.current
-            current.payloads.append(message)
-            current.situation.extend((distance, azimuth, elevation))
-        self.robot.receive(message, distance, azimuth, elevation)
-
-    def receive_all(self, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
-                    ) -> None:
-        """The engine's deliveries of a step, `(sender, message, distance, azimuth,
-        elevation)` each: noted in bulk, then handed to the robot's own `receive_all` when it
-        has one (a compiled receive), else to `receive` one by one. (Defined here, not left
-        to `__getattr__`: forwarding it would hand the messages to the robot unnoted.)"""
-        if self.capturing:
-            current = self.current
-            current.payloads.extend([d[1] for d in deliveries])
-            current.situation.extend([x for d in deliveries for x in (d[2], d[3], d[4])])
-        receive_all = getattr(self.robot, "receive_all", None)
-        if receive_all is not None:
-            receive_all(deliveries)
-            return
-        receive = self.robot.receive
-        for _sender, message, distance, azimuth, elevation in deliveries:
+        def capturing_receive(message: bytes, distance: float = 0.0, azimuth: float = 0.0,
+                              elevation: float = 0.0) -> None:
+            if rows.calls is not None and not bulk[0]:
+                rows.received.add(key, [(None, message, distance, azimuth, elevation)])
             receive(message, distance, azimuth, elevation)
 
-    def control_step(self) -> list[bytes]:
-        if not self.capturing:
-            self.last_sent = self.robot.control_step()
-            return self.last_sent
-        self.current.stepped = True
-        self.tap.log = self.current.host_calls
-        started = time.perf_counter()
-        try:
-            self.last_sent = self.robot.control_step()
-            return self.last_sent
-        finally:
-            self.tap.log = None
-            self.busy_seconds += time.perf_counter() - started
+        robot.receive = capturing_receive
+        if receive_all is None:
+            return
+        receive_all = receive_all.__get__(robot)
 
-    def take_inputs(self) -> StepInputs:
-        """The inputs since the last call (one engine step), and start a new record."""
-        inputs, self.current = self.current, StepInputs([], array("d"), False, [])
-        return inputs
+        def capturing_receive_all(deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+                                  ) -> None:
+            if rows.calls is not None:
+                rows.received.add(key, deliveries)
+            bulk[0] = True
+            try:
+                receive_all(deliveries)
+            finally:
+                bulk[0] = False
 
-    @property
-    def failure(self) -> Any:
-        return self.robot.failure
-
-    def __getattr__(self, name: str) -> Any:  # vm, robot_id, snapshot, restore, ...
-        return getattr(self.robot, name)
+        robot.receive_all = capturing_receive_all
 
 
 #: The engine's robot factory: (program, profile, robot_id, host functions) -> firmware loop.
 Factory = Callable[[Any, Any, int, Mapping[str, Callable[[Any], None]]], Any]
-
-
-def capturing_factory(
-    build: Factory,
-    on_created: Callable[[CapturingRobot], None] = lambda robot: None,
-    on_boot: Callable[[CapturingRobot], None] | None = None,
-) -> Factory:
-    """A robot factory that builds robots with `build` and wraps them in `CapturingRobot`s."""
-
-    def factory(program: Any, profile: Any, robot_id: int,
-                host_functions: Mapping[str, Callable[[Any], None]]) -> CapturingRobot:
-        tap = HostCallTap()
-        tapped = {name: tap.wrap(name, fn) for name, fn in host_functions.items()}
-        robot = CapturingRobot(build(program, profile, robot_id, tapped), tap, on_boot)
-        on_created(robot)
-        return robot
-
-    return factory
 
 
 # ---- replay ------------------------------------------------------------------------------------
@@ -421,29 +435,100 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
         out += lengths.tobytes()
         out += b"".join(payloads)
         out += situation.tobytes()
-    names = _NAMES
-    for _, inputs in records:
-        for call in inputs.host_calls:
-            name = names.get(call.name)
-            if name is None:
-                name = names[call.name] = _length_prefixed(call.name)
-            out += name
-            out.append(len(call.effects))
-            for effect in call.effects:
-                kind = effect[0]
-                if kind == "ret":
-                    value = effect[1]
-                    if type(value) is int:  # the usual answer: no call, no isinstance chain
-                        out += b"RI"
-                        out += _I64.pack(value)
-                    else:
-                        out += b"R"
-                        _encode_value(value, out)
-                elif kind == "expect":
-                    out += _EXPECT[effect[1] & 0xFF]
-                else:
-                    out += b"F" + _length_prefixed(effect[1])
+    _encode_calls(chain.from_iterable(inputs.host_calls for _, inputs in records), out)
     return bytes(out)
+
+
+#: A record header (`_HEAD`) as a numpy row, so a step's headers are one array.
+_HEAD_ROW = np.dtype([("index", "<u2"), ("flags", "u1"), ("messages", "<u2"), ("calls", "<u2")])
+
+
+def encode_columns(stepped: np.ndarray, deliveries: PackedMessages | ReceivedColumns | None,
+                   calls: Sequence[tuple[int, HostCallRecord]]) -> bytes:
+    """`encode_step`'s bytes for a whole swarm's step given as columns (what a recorder has
+    when it takes the engine's `step_deliveries` instead of per-robot records).
+
+    `stepped[i]`: robot i ran its control step; `deliveries`: the messages the robots
+    received, rows sorted by receiver (None: none), as `PackedMessages` or as
+    `ReceivedColumns` keyed by robot index; `calls`: (robot index,
+    host call) sorted by robot index, each robot's in call order. A robot gets a record
+    when it stepped, received or called. Payloads are cut to what a VM reads
+    (`PAYLOAD_SIZE`), as `receive` does. Packed deliveries take a few numpy copies for a
+    25-drone step's ~250 messages."""
+    count = len(stepped)
+    present = np.asarray(stepped, dtype=bool).copy()
+    received = None
+    columns = _message_columns(deliveries) if deliveries is not None and len(deliveries) \
+        else None
+    if columns is not None:
+        received = np.bincount(columns[0], minlength=count)
+        present |= received > 0
+    called = None
+    if calls:
+        called = np.bincount(np.fromiter((c[0] for c in calls), np.int64, len(calls)),
+                             minlength=count)
+        present |= called > 0
+    indexes = np.flatnonzero(present)
+    heads = np.zeros(len(indexes), _HEAD_ROW)
+    heads["index"] = indexes
+    heads["flags"] = np.asarray(stepped, dtype=bool)[indexes] * _STEPPED
+    if received is not None:
+        heads["messages"] = received[indexes]
+    if called is not None:
+        heads["calls"] = called[indexes]
+    out = bytearray(_U16.pack(len(indexes)))
+    out += heads.tobytes()
+    if columns is not None:
+        out += columns[1]
+        out += columns[2]
+        out += columns[3]
+    _encode_calls([c[1] for c in calls], out)
+    return bytes(out)
+
+
+def _message_columns(deliveries: PackedMessages | ReceivedColumns
+                     ) -> tuple[np.ndarray, bytes, bytes, bytes]:
+    """Receivers, and the bytes of the three message columns of the layout: u16 lengths,
+    payloads back to back, f64 (distance, azimuth, elevation) per message."""
+    if isinstance(deliveries, PackedMessages):
+        lengths = np.minimum(deliveries.lengths, PAYLOAD_SIZE)
+        return (deliveries.robots, lengths.astype("<u2").tobytes(),
+                deliveries.payloads[np.arange(PAYLOAD_SIZE) < lengths[:, None]].tobytes(),
+                np.column_stack((deliveries.distances, deliveries.azimuths,
+                                 deliveries.elevations)).astype("<f8").tobytes())
+    columns = deliveries.sorted()
+    sizes = array("H", map(len, columns.payloads))
+    situation = columns.situation
+    if _SWAP:
+        sizes.byteswap()
+        situation = array("d", situation)
+        situation.byteswap()
+    return (np.array(columns.robots, dtype=np.int64), sizes.tobytes(),
+            b"".join(columns.payloads), situation.tobytes())
+
+
+def _encode_calls(calls: Iterable[HostCallRecord], out: bytearray) -> None:
+    names = _NAMES
+    for call in calls:
+        name = names.get(call.name)
+        if name is None:
+            name = names[call.name] = _length_prefixed(call.name)
+        out += name
+        out.append(len(call.effects))
+        for effect in call.effects:
+            kind = effect[0]
+            if kind == "ret":
+                value = effect[1]
+                if type(value) is int:  # the usual answer: no call, no isinstance chain
+                    out += b"RI"
+                    out += _I64.pack(value)
+                else:
+                    out += b"R"
+                    _encode_value(value, out)
+            elif kind == "expect":
+                out += _EXPECT[effect[1] & 0xFF]
+            else:
+                out += b"F" + _length_prefixed(effect[1])
 
 
 def _length_prefixed(text: str) -> bytes:

@@ -71,10 +71,19 @@ class ToyRobot:
         self.checksum = 0
         self.steps = 0
         self.errors = 0
+        self.instructions_executed = 0  # as a VM counts them (the recorder shares VM time)
+        self.on_phase: Any = None  # told when boot ends, as `Robot` tells it
+
+    @property
+    def steps_done(self) -> int:
+        """Control steps run (`Robot.steps_done`: the recorder sees who stepped by it)."""
+        return self.steps
 
     def boot(self) -> None:
         self.checksum = self.robot_id
         self.heap.rtobj += self.heap.obj_size * (1 + self.robot_id % 3)
+        if self.on_phase is not None:
+            self.on_phase("init")
 
     def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
         packed = message + struct.pack("<ddd", distance, azimuth, elevation)
@@ -90,6 +99,7 @@ class ToyRobot:
         if self.robot_id == FAILING_ROBOT and self.steps == FAILING_STEP:
             self.failure = ToyFailure("MEM", message="toy out of memory")
             return []
+        self.instructions_executed += 40 + self.robot_id
         draw = self._call("rand")
         light = self._call("light")
         self.checksum = zlib.crc32(struct.pack("<qq", int(draw), int(light)), self.checksum)

@@ -3,6 +3,7 @@ one robot's record (what a seek does) gives exactly that robot's inputs."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from bbzide.vm.input_log import (
@@ -61,29 +62,83 @@ def test_a_negative_zero_bearing_keeps_its_sign() -> None:
 
 
 class _Inner:
-    """A firmware loop that notes how its messages arrived."""
+    """A firmware loop that notes how its messages arrived (one by one)."""
 
-    def __init__(self, bulk: bool) -> None:
+    def __init__(self) -> None:
         self.got: list[tuple] = []
-        if bulk:
-            self.receive_all = lambda deliveries: self.got.append(("all", list(deliveries)))
 
     def receive(self, message: bytes, distance: float, azimuth: float, elevation: float) -> None:
         self.got.append(("one", message, distance, azimuth, elevation))
 
 
-def test_bulk_deliveries_are_noted_and_reach_the_robot_its_way() -> None:
-    """The engine hands a step's messages over in one `receive_all` call when the robot has
-    one: the capture must note them (forwarding the call unnoted would make every rebuild
-    diverge) and pass them on as the robot takes them."""
-    from bbzide.vm.input_log import CapturingRobot, HostCallTap
+class _BulkInner(_Inner):
+    """...and one that also takes a step's deliveries in one call, which calls `receive` for
+    each, as `Robot.receive_all` does outside its compiled path."""
+
+    def receive_all(self, deliveries: list[tuple]) -> None:
+        self.got.append(("all", list(deliveries)))
+        for _, *message in deliveries:
+            self.receive(*message)
+
+
+def test_hooked_receives_are_noted_and_reach_the_robot_its_way() -> None:
+    """An engine without `step_deliveries` calls each robot's `receive` or `receive_all`: the
+    hooks must note both (forwarding `receive_all` unnoted would make every rebuild
+    diverge) and pass the messages on as the robot takes them."""
+    from bbzide.vm.input_log import SwarmCapture
 
     deliveries = [(7, b"\x00\x07\x00\x01", 1.5, -0.25, 0.0), (9, b"\x01\x09", 3.0, 0.5, 0.125)]
-    for bulk in (True, False):
-        inner = _Inner(bulk)
-        robot = CapturingRobot(inner, HostCallTap())
-        robot.capturing = True
-        robot.receive_all(deliveries)
-        assert robot.take_inputs().received == [d[1:] for d in deliveries]
-        assert inner.got == ([("all", deliveries)] if bulk
-                             else [("one", *d[1:]) for d in deliveries])
+    for inner in (_BulkInner(), _Inner()):
+        capture = SwarmCapture()
+        capture.hook_receive(inner, 3)
+        inner.receive_all(deliveries) if isinstance(inner, _BulkInner) else [
+            inner.receive(*d[1:]) for d in deliveries]
+        assert len(capture.take()[1]) == 0  # not capturing yet: passed on, not noted
+        capture.start()
+        inner.got.clear()
+        inner.receive_all(deliveries) if isinstance(inner, _BulkInner) else [
+            inner.receive(*d[1:]) for d in deliveries]
+        got = capture.take()[1]  # each message once
+        assert got.robots == [3, 3] and got.payloads == [d[1] for d in deliveries]
+        assert list(got.situation) == [x for d in deliveries for x in d[2:]]
+        ones = [("one", *d[1:]) for d in deliveries]
+        assert inner.got == ([("all", deliveries), *ones] if isinstance(inner, _BulkInner)
+                             else ones)
+        assert type(inner) in (_Inner, _BulkInner)  # the robot itself is not wrapped
+
+
+def test_columns_encode_to_the_same_bytes_as_per_robot_records() -> None:
+    """`encode_columns` (a step's deliveries as numpy columns, the recorder's way) writes
+    exactly `encode_step`'s layout, so `decode_step` and every recording stay as they were;
+    payloads longer than a VM reads are cut as `receive` cuts them."""
+    from bbzide.vm.input_log import (
+        HostCallRecord,
+        ReceivedColumns,
+        StepInputs,
+        encode_columns,
+        encode_step,
+    )
+    from bbzide.vm.swarm_batch import PackedMessages
+
+    long = bytes(range(1, 13))  # 12 bytes on the wire, 9 read
+    rows = [(0, 4, b"\x00\x04\x00\x01\x00\x05", 1.5, -0.25, 0.0),
+            (0, 2, long, 2.0, 0.5, 0.25), (3, 0, b"\x02", 0.75, 3.0, -1.0)]
+    calls = [(0, HostCallRecord("rand", [("expect", 0), ("ret", 17)])),
+             (2, HostCallRecord("gps", [("ret", {"x": 1.5, "y": -2})])),
+             (2, HostCallRecord("led", [("expect", 1), ("fail", "TYPE")]))]
+    stepped = np.array([True, False, True, False, False])
+    packed = encode_columns(stepped, PackedMessages.from_rows(rows), calls)
+    records = [
+        (0, StepInputs.of([(r[2][:9], *r[3:]) for r in rows[:2]], True, [calls[0][1]])),
+        (2, StepInputs.of([], True, [c[1] for c in calls[1:]])),
+        (3, StepInputs.of([(rows[2][2], *rows[2][3:])], False)),
+    ]
+    assert packed == encode_step(records)
+    hooked = ReceivedColumns()  # the hooked receives' form, in another receiver order
+    hooked.add(3, [(None, *rows[2][2:])])
+    hooked.add(0, [(None, *r[2:]) for r in rows[:2]])
+    assert encode_columns(stepped, hooked, calls) == packed
+    decoded = decode_step(packed)
+    assert decoded[0].received[1][0] == long[:9]
+    assert decoded[2].host_calls[0].effects == [("ret", {"x": 1.5, "y": -2})]
+    assert encode_columns(np.zeros(3, bool), None, []) == encode_step([])
