@@ -41,13 +41,20 @@ def vm_state(robot: object) -> tuple:
             Robot.comparable(robot.snapshot()))  # type: ignore[attr-defined]
 
 
-@pytest.fixture(scope="module", params=["gradient.bzz", "firefly.bzz"])
+#: (script, asynchronous): the lockstep engine hands the recorder a step's deliveries as
+#: columns (`step_deliveries`); the asynchronous one calls each robot's `receive`, which the
+#: recorder then hooks.
+CASES = [("gradient.bzz", False), ("firefly.bzz", False), ("gradient.bzz", True)]
+
+
+@pytest.fixture(scope="module", params=CASES, ids=["gradient", "firefly", "gradient-async"])
 def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict:
     spec = WORLDS["kilobot"]
-    program = load_script(REPO / "examples/kilobot" / request.param, spec.host_names, [])
+    script, asynchronous = request.param
+    program = load_script(REPO / "examples/kilobot" / script, spec.host_names, [])
     recordable = Recordable()
     sim = Simulation("kilobot", program, robots=ROBOTS, seed=5,
-                     robot_factory=recordable.factory)
+                     robot_factory=recordable.factory, asynchronous=asynchronous)
     path = tmp_path_factory.mktemp("real") / "mission.rrd"
     live: dict[int, dict] = {}
 
