@@ -492,7 +492,9 @@ def _message_columns(deliveries: PackedMessages | ReceivedColumns
     payloads back to back, f64 (distance, azimuth, elevation) per message."""
     if isinstance(deliveries, PackedMessages):
         lengths = np.minimum(deliveries.lengths, PAYLOAD_SIZE)
+        whole = bool(lengths.min() == PAYLOAD_SIZE)  # the usual case: every payload 9 bytes
         return (deliveries.robots, lengths.astype("<u2").tobytes(),
+                deliveries.payloads.tobytes() if whole else
                 deliveries.payloads[np.arange(PAYLOAD_SIZE) < lengths[:, None]].tobytes(),
                 np.column_stack((deliveries.distances, deliveries.azimuths,
                                  deliveries.elevations)).astype("<f8").tobytes())
