@@ -43,7 +43,7 @@ import numpy as np
 from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
-from bbzide.vm.input_log import SwarmCapture, encode_columns
+from bbzide.vm.input_log import SwarmCapture, encode_steps
 from bbzide.vm.vm import State
 
 #: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
@@ -110,7 +110,6 @@ _NO_HEAP = (0, 0, 0, 0, 0, 0)
 _HEAP_FIGURES = operator.attrgetter("size", "rtobj", "ltseg", "peak_used", "gc_runs")
 _STEPS_DONE = operator.attrgetter("steps_done")
 _INSTRUCTIONS = operator.attrgetter("instructions_executed")
-_FIRST = operator.itemgetter(0)
 #: What the per-step pass reads of a robot slot without a firmware loop (a passive body).
 _NO_ROBOT = SimpleNamespace(steps_done=0, vm=SimpleNamespace(
     instructions_executed=0, heap=SimpleNamespace(size=0, rtobj=0, ltseg=0, peak_used=0,
@@ -554,13 +553,13 @@ class MissionRecorder:
                                    dtype=np.int64, count=n * 5).reshape(n, 5)
         heap[:, -1] = self._recorded
         labels = self._labels(states, step, first) if sim.watch else {}
-        inputs = b""
+        inputs = None  # the first frame has none
         due: list[int] = []
         if not first:
             steps_done = np.fromiter(map(_STEPS_DONE, robots), dtype=np.int64, count=n)
             stepped = ((steps_done != self._steps_done) | new_failures) & self._recorded
             self._steps_done = steps_done
-            inputs = self._inputs_compressor.compress(self._step_inputs(stepped))
+            inputs = self._step_inputs(stepped)
             due = self._keyframes_due(step, vms, stepped, failed)
         stats = sim.stats
         buffer = self._buffer
@@ -583,19 +582,14 @@ class MissionRecorder:
         if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
             self._record_overlays(step)
 
-    def _step_inputs(self, stepped: np.ndarray) -> bytes:
-        """The step's inputs (`input_log` layout): the engine's deliveries as columns (or the
-        hooked receives), the tapped host calls, which robots stepped."""
+    def _step_inputs(self, stepped: np.ndarray) -> tuple[Any, ...]:
+        """What the step's inputs are made of, kept as is until the flush encodes all the
+        buffered steps at once (`input_log.encode_steps`): which robots stepped, the
+        engine's deliveries (a new `PackedMessages` every step, never changed afterwards)
+        or the hooked receives, and the host calls, already encoded by the capture."""
         calls, received = self._capture.take()
-        index_of = self._index_of
-        ordered = [(index_of[key], record) for key, record in calls]
-        if any(ordered[k][0] > ordered[k + 1][0] for k in range(len(ordered) - 1)):
-            ordered.sort(key=_FIRST)  # stable: each robot's calls stay in call order
-        if self._packed:
-            deliveries = self.sim.step_deliveries
-        else:
-            deliveries = received  # hooked receives, keyed by robot index (`_attach`)
-        return encode_columns(stepped, deliveries, ordered)
+        deliveries = self.sim.step_deliveries if self._packed else received
+        return (stepped, deliveries, calls.ordered(self._index_of))
 
     def _keyframes_due(self, step: int, vms: list[Any], stepped: np.ndarray,
                        failed: np.ndarray) -> list[int]:
@@ -776,12 +770,20 @@ class MissionRecorder:
             send(f"{layout.HEAP}/{figure}", indexes=indexes, columns=rr.Scalars.columns(
                 scalars=values.reshape(-1).astype(np.float64)).partition(per_robot))
         send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
-            inputs=pa.array(b["inputs"], type=pa.binary())).partition([1] * rows))
+            inputs=pa.array(self._encoded_inputs(b["inputs"]), type=pa.binary())
+        ).partition([1] * rows))
         self._send_rare_rows()
         self._steps = []
         self._buffer = {}
         self.rec.flush()
         self._last_flush = time.monotonic()
+
+    def _encoded_inputs(self, buffered: list[tuple[Any, ...] | None]) -> list[bytes]:
+        """The buffered steps' inputs as compressed `input_log` bytes (b"" for the first)."""
+        kept = [parts for parts in buffered if parts is not None]
+        encoded = iter(encode_steps(*zip(*kept, strict=True)) if kept else [])
+        compress = self._inputs_compressor.compress
+        return [b"" if parts is None else compress(next(encoded)) for parts in buffered]
 
     def _send_viewer_labels(self, steps: np.ndarray, labels: list[dict[str, np.ndarray]],
                             radius: float) -> None:

@@ -93,24 +93,26 @@ class ReplayDivergence(Exception):
 
 
 class _CapturingCall:
-    """A `HostCall` stand-in that forwards everything and notes the calls that touch the VM."""
+    """A `HostCall` stand-in that forwards everything and writes the calls that touch the VM
+    into the step's encoded host calls (`CallLog`)."""
 
-    __slots__ = ("_call", "_record")
+    __slots__ = ("_call", "_log", "_count_at")
 
-    def __init__(self, call: Any, record: HostCallRecord) -> None:
+    def __init__(self, call: Any, log: CallLog, count_at: int) -> None:
         self._call = call
-        self._record = record
+        self._log = log
+        self._count_at = count_at
 
     def expect_args(self, n: int) -> bool:
-        self._record.effects.append(("expect", int(n)))
+        self._log.effect(self._count_at, _EXPECT[int(n) & 0xFF])
         return self._call.expect_args(n)
 
     def ret(self, value: Any = None) -> None:
-        self._record.effects.append(("ret", value))
+        self._log.ret(self._count_at, value)
         self._call.ret(value)
 
     def fail(self, kind: str) -> None:
-        self._record.effects.append(("fail", str(kind)))
+        self._log.effect(self._count_at, b"F" + _length_prefixed(str(kind)))
         self._call.fail(kind)
 
     def __getattr__(self, name: str) -> Any:  # arg, args, arg_count, robot_id, vm, ...
@@ -119,27 +121,87 @@ class _CapturingCall:
 
 class _CapturingHostCall(HostCall):
     """The same for a real `HostCall`, without a second object: the tap switches the call's
-    class to this subclass for the duration of the host function (and gives it `_record`), so
-    reading arguments (`arg`, `args`, `robot_id`, `vm`) stays a plain attribute or method of
-    the call (an M300 SAR step makes ~20 host calls with several reads each), and noting an
-    effect is one append. (Switching classes, 0.6 us, replaced building a forwarding copy of
-    the call, 1.3 us, per host call: measured with timeit.)"""
+    class to this subclass for the duration of the host function (and gives it `_log` and
+    `_count_at`), so reading arguments (`arg`, `args`, `robot_id`, `vm`) stays a plain
+    attribute or method of the call (an M300 SAR step makes ~20 host calls with several
+    reads each). (Switching classes, 0.6 us, replaced building a forwarding copy of the
+    call, 1.3 us, per host call: measured with timeit.)"""
 
-    _record: HostCallRecord
+    _log: CallLog
+    _count_at: int
 
     def expect_args(self, n: int) -> bool:
-        self._record.effects.append(("expect", int(n)))
+        self._log.effect(self._count_at, _EXPECT[int(n) & 0xFF])
         return HostCall.expect_args(self, n)
 
     def ret(self, value: Any = None) -> None:
-        self._record.effects.append(("ret", value))
+        self._log.ret(self._count_at, value)
         HostCall.ret(self, value)
 
     def fail(self, kind: str) -> None:
-        self._record.effects.append(("fail", str(kind)))
+        self._log.effect(self._count_at, b"F" + _length_prefixed(str(kind)))
         HostCall.fail(self, kind)
 
     # ret_object: HostCall's own, not recorded (no world host returns objects)
+
+
+class CallLog:
+    """The world host calls of one engine step, written in the input log's byte layout as
+    they happen (name, effect count, effects: see "bytes" below), so no record object is
+    built per call and the step's host calls are ready to copy. `robots[k]` is the robot
+    key of call k and `starts[k]` where it begins in `data` (to put calls in robot order
+    when an engine steps robots out of index order)."""
+
+    __slots__ = ("data", "robots", "starts")
+
+    def __init__(self) -> None:
+        self.data = bytearray()
+        self.robots: list[int] = []
+        self.starts: list[int] = []
+
+    def __len__(self) -> int:
+        return len(self.robots)
+
+    def begin(self, key: int, name: bytes) -> int:
+        """A call of robot `key` to the function whose length-prefixed name is `name`; the
+        offset of its effect count."""
+        data = self.data
+        self.robots.append(key)
+        self.starts.append(len(data))
+        data += name
+        data.append(0)
+        return len(data) - 1
+
+    def effect(self, count_at: int, encoded: bytes) -> None:
+        data = self.data
+        if data[count_at] == 0xFF:
+            raise ValueError("a host call with more than 255 effects cannot be recorded")
+        data[count_at] += 1
+        data += encoded
+
+    def ret(self, count_at: int, value: Any) -> None:
+        data = self.data
+        if data[count_at] == 0xFF:
+            raise ValueError("a host call with more than 255 effects cannot be recorded")
+        data[count_at] += 1
+        if type(value) is int:  # the usual answer: no call, no isinstance chain
+            data += b"RI"
+            data += _I64.pack(value)
+        else:
+            data += b"R"
+            _encode_value(value, data)
+
+    def ordered(self, index_of: Mapping[int, int]) -> tuple[list[int], bytes]:
+        """(robot index of each call, the calls' bytes) with robots in index order, each
+        robot's calls in call order; `index_of` maps keys to indexes."""
+        indexes = [index_of[key] for key in self.robots]
+        if all(indexes[k] <= indexes[k + 1] for k in range(len(indexes) - 1)):
+            return indexes, bytes(self.data)
+        ends = [*self.starts[1:], len(self.data)]
+        order = sorted(range(len(indexes)), key=indexes.__getitem__)  # stable
+        data = self.data
+        return ([indexes[k] for k in order],
+                b"".join(data[self.starts[k]:ends[k]] for k in order))
 
 
 class ReceivedColumns:
@@ -185,9 +247,9 @@ class SwarmCapture:
     are (plain `Robot`s, so an engine's compiled batch of control steps still takes them).
 
     * Host calls: the robot factory passes each robot host functions wrapped by `tap` (the
-      world's mapping, not the Robot, is what changes); while `calls` is a list, each call is
-      appended to it as (robot id, `HostCallRecord`), in call order (a robot's calls all
-      happen in its own control step, so the list holds them robot after robot).
+      world's mapping, not the Robot, is what changes); while `calls` is a `CallLog`, each
+      call is written into it, encoded, in call order (a robot's calls all happen in its own
+      control step, so they come robot after robot).
     * Received messages: an engine that hands a step's deliveries to its robots as one
       `swarm_batch.PackedMessages` exposes them (`Simulation.step_deliveries`), and the
       recorder copies those columns. For an engine that calls each robot's `receive` /
@@ -197,24 +259,26 @@ class SwarmCapture:
     """
 
     def __init__(self) -> None:
-        #: (robot id, record) of each world host call this step; None: not capturing
-        self.calls: list[tuple[int, HostCallRecord]] | None = None
+        #: the world host calls of this step; None: not capturing
+        self.calls: CallLog | None = None
         #: (robot id, payload, distance, azimuth, elevation) from hooked receives this step
         self.received = ReceivedColumns()
 
     def start(self) -> None:
-        self.calls = []
+        self.calls = CallLog()
         self.received = ReceivedColumns()
 
     def stop(self) -> None:
         self.calls = None
         self.received = ReceivedColumns()
 
-    def take(self) -> tuple[list[tuple[int, HostCallRecord]], ReceivedColumns]:
+    def take(self) -> tuple[CallLog, ReceivedColumns]:
         """This step's host calls and hooked receives, and start the next step's."""
-        calls, received = self.calls or [], self.received
-        if self.calls is not None:
-            self.calls = []
+        calls, received = self.calls, self.received
+        if calls is None:
+            calls = CallLog()
+        else:
+            self.calls = CallLog()
         self.received = ReceivedColumns()
         return calls, received
 
@@ -225,23 +289,24 @@ class SwarmCapture:
         calls are not inputs of a step)."""
         capture = self
         live = [True] if live is None else live
+        encoded = _length_prefixed(name)
 
         def tapped(call: Any) -> None:
-            calls = capture.calls
-            if calls is None or not live[0]:
+            log = capture.calls
+            if log is None or not live[0]:
                 function(call)
                 return
-            record = HostCallRecord(name)
-            calls.append((key, record))
+            count_at = log.begin(key, encoded)
             if type(call) is HostCall:
-                call._record = record  # type: ignore[attr-defined]
+                call._log = log  # type: ignore[attr-defined]
+                call._count_at = count_at  # type: ignore[attr-defined]
                 call.__class__ = _CapturingHostCall
                 try:
                     function(call)
                 finally:
                     call.__class__ = HostCall
             else:
-                function(_CapturingCall(call, record))
+                function(_CapturingCall(call, log, count_at))
 
         return tapped
 
@@ -439,50 +504,103 @@ def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
     return bytes(out)
 
 
-#: A record header (`_HEAD`) as a numpy row, so a step's headers are one array.
+#: A record header (`_HEAD`) as a numpy row, so the steps' headers are one array.
 _HEAD_ROW = np.dtype([("index", "<u2"), ("flags", "u1"), ("messages", "<u2"), ("calls", "<u2")])
 
 
 def encode_columns(stepped: np.ndarray, deliveries: PackedMessages | ReceivedColumns | None,
-                   calls: Sequence[tuple[int, HostCallRecord]]) -> bytes:
-    """`encode_step`'s bytes for a whole swarm's step given as columns (what a recorder has
-    when it takes the engine's `step_deliveries` instead of per-robot records).
+                   calls: tuple[Sequence[int], bytes]) -> bytes:
+    """`encode_steps` of one step."""
+    return encode_steps([stepped], [deliveries], [calls])[0]
 
-    `stepped[i]`: robot i ran its control step; `deliveries`: the messages the robots
-    received, rows sorted by receiver (None: none), as `PackedMessages` or as
-    `ReceivedColumns` keyed by robot index; `calls`: (robot index,
-    host call) sorted by robot index, each robot's in call order. A robot gets a record
-    when it stepped, received or called. Payloads are cut to what a VM reads
-    (`PAYLOAD_SIZE`), as `receive` does. Packed deliveries take a few numpy copies for a
-    25-drone step's ~250 messages."""
-    count = len(stepped)
-    present = np.asarray(stepped, dtype=bool).copy()
-    received = None
-    columns = _message_columns(deliveries) if deliveries is not None and len(deliveries) \
-        else None
-    if columns is not None:
-        received = np.bincount(columns[0], minlength=count)
-        present |= received > 0
-    called = None
-    if calls:
-        called = np.bincount(np.fromiter((c[0] for c in calls), np.int64, len(calls)),
-                             minlength=count)
-        present |= called > 0
-    indexes = np.flatnonzero(present)
-    heads = np.zeros(len(indexes), _HEAD_ROW)
-    heads["index"] = indexes
-    heads["flags"] = np.asarray(stepped, dtype=bool)[indexes] * _STEPPED
-    if received is not None:
-        heads["messages"] = received[indexes]
-    if called is not None:
-        heads["calls"] = called[indexes]
-    out = bytearray(_U16.pack(len(indexes)))
-    out += heads.tobytes()
-    if columns is not None:
-        out += columns[1]
-        out += columns[2]
-        out += columns[3]
-    _encode_calls([c[1] for c in calls], out)
+
+def encode_steps(stepped: Sequence[np.ndarray],
+                 deliveries: Sequence[PackedMessages | ReceivedColumns | None],
+                 calls: Sequence[tuple[Sequence[int], bytes]]) -> list[bytes]:
+    """`encode_step`'s bytes for each of several steps of a whole swarm, given as columns
+    (what a recorder keeps per step until it flushes: the engine's `step_deliveries` and
+    the encoded host calls, instead of per-robot records).
+
+    Per step: `stepped[k][i]`: robot i ran its control step; `deliveries[k]`: the messages
+    the robots received, rows sorted by receiver (None: none), as `PackedMessages` or as
+    `ReceivedColumns` keyed by robot index; `calls[k]`: (robot index of each host call, the
+    calls' bytes), robots in index order (`CallLog.ordered`). A robot gets a record when it
+    stepped, received or called. Payloads are cut to what a VM reads (`PAYLOAD_SIZE`), as
+    `receive` does. Batched: the packed deliveries of all the steps are concatenated and
+    encoded by a few numpy operations, then each step's bytes are slices of those columns
+    (one step at a time, this was ~25 numpy calls per step with cold caches after each
+    simulation step)."""
+    steps = len(stepped)
+    if steps == 0:
+        return []
+    count = len(stepped[0])
+    ran = np.array(stepped, dtype=bool).reshape(steps, count)
+    received = np.zeros(steps * count, dtype=np.int64)
+    columns: list[tuple[bytes, bytes, bytes] | None] = [None] * steps
+    packed = [k for k, d in enumerate(deliveries)
+              if isinstance(d, PackedMessages) and len(d)]
+    if packed:
+        parts = [deliveries[k] for k in packed]
+        sizes = np.array([len(d) for d in parts], dtype=np.int64)
+        robots = np.concatenate([d.robots for d in parts])
+        received += np.bincount(np.repeat(np.array(packed) * count, sizes) + robots,
+                                minlength=steps * count)
+        lengths = np.minimum(np.concatenate([d.lengths for d in parts]), PAYLOAD_SIZE)
+        payloads = np.concatenate([d.payloads for d in parts])
+        if lengths.min() == PAYLOAD_SIZE:  # the usual case: every payload 9 bytes
+            payload_bytes = payloads.tobytes()
+        else:
+            payload_bytes = payloads[np.arange(PAYLOAD_SIZE) < lengths[:, None]].tobytes()
+        situation = np.column_stack([np.concatenate([getattr(d, name) for d in parts])
+                                     for name in ("distances", "azimuths", "elevations")])
+        length_bytes = lengths.astype("<u2").tobytes()
+        situation_bytes = situation.astype("<f8").tobytes()
+        rows = np.concatenate([[0], np.cumsum(sizes)]).tolist()
+        bytes_at = np.concatenate([[0], np.cumsum(lengths)]).tolist()
+        for j, k in enumerate(packed):
+            r0, r1 = rows[j], rows[j + 1]
+            columns[k] = (length_bytes[2 * r0:2 * r1],
+                          payload_bytes[bytes_at[r0]:bytes_at[r1]],
+                          situation_bytes[24 * r0:24 * r1])
+    for k, d in enumerate(deliveries):
+        if isinstance(d, ReceivedColumns) and len(d):
+            robots, length_bytes, payload_bytes, situation_bytes = _message_columns(d)
+            received[k * count:(k + 1) * count] += np.bincount(robots, minlength=count)
+            columns[k] = (length_bytes, payload_bytes, situation_bytes)
+    called = np.zeros(steps * count, dtype=np.int64)
+    call_rows = [(k, indexes) for k, (indexes, _) in enumerate(calls) if len(indexes)]
+    if call_rows:
+        called += np.bincount(np.concatenate([np.asarray(indexes, dtype=np.int64) + k * count
+                                              for k, indexes in call_rows]),
+                              minlength=steps * count)
+    flat = ran.reshape(-1)
+    present = np.flatnonzero(flat | (received > 0) | (called > 0))
+    heads = np.zeros(len(present), _HEAD_ROW)
+    heads["index"] = present % count
+    heads["flags"] = flat[present] * _STEPPED
+    heads["messages"] = received[present]
+    heads["calls"] = called[present]
+    head_bytes = heads.tobytes()
+    per_step = np.bincount(present // count, minlength=steps)
+    firsts = np.concatenate([[0], np.cumsum(per_step)]).tolist()
+    records = per_step.tolist()
+    size = _HEAD.size
+    out = []
+    for k in range(steps):
+        blob = bytearray(_U16.pack(records[k]))
+        blob += head_bytes[size * firsts[k]:size * firsts[k + 1]]
+        if columns[k] is not None:
+            for column in columns[k]:
+                blob += column
+        blob += calls[k][1]
+        out.append(bytes(blob))
+    return out
+
+
+def encode_calls(records: Iterable[HostCallRecord]) -> bytes:
+    """Host calls in the layout `CallLog` writes them (for records built by hand)."""
+    out = bytearray()
+    _encode_calls(records, out)
     return bytes(out)
 
 

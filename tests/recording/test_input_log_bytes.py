@@ -108,15 +108,17 @@ def test_hooked_receives_are_noted_and_reach_the_robot_its_way() -> None:
 
 
 def test_columns_encode_to_the_same_bytes_as_per_robot_records() -> None:
-    """`encode_columns` (a step's deliveries as numpy columns, the recorder's way) writes
-    exactly `encode_step`'s layout, so `decode_step` and every recording stay as they were;
-    payloads longer than a VM reads are cut as `receive` cuts them."""
+    """`encode_steps` (several steps' deliveries as numpy columns and their host calls as
+    bytes, the recorder's way at each flush) writes exactly `encode_step`'s layout for each
+    step, so `decode_step` and every recording stay as they were; payloads longer than a VM
+    reads are cut as `receive` cuts them; packed, hooked and missing deliveries mix."""
     from bbzide.vm.input_log import (
         HostCallRecord,
         ReceivedColumns,
         StepInputs,
+        encode_calls,
         encode_columns,
-        encode_step,
+        encode_steps,
     )
     from bbzide.vm.swarm_batch import PackedMessages
 
@@ -126,19 +128,76 @@ def test_columns_encode_to_the_same_bytes_as_per_robot_records() -> None:
     calls = [(0, HostCallRecord("rand", [("expect", 0), ("ret", 17)])),
              (2, HostCallRecord("gps", [("ret", {"x": 1.5, "y": -2})])),
              (2, HostCallRecord("led", [("expect", 1), ("fail", "TYPE")]))]
+    encoded_calls = ([c[0] for c in calls], encode_calls(c[1] for c in calls))
     stepped = np.array([True, False, True, False, False])
-    packed = encode_columns(stepped, PackedMessages.from_rows(rows), calls)
+    packed = encode_columns(stepped, PackedMessages.from_rows(rows), encoded_calls)
     records = [
         (0, StepInputs.of([(r[2][:9], *r[3:]) for r in rows[:2]], True, [calls[0][1]])),
         (2, StepInputs.of([], True, [c[1] for c in calls[1:]])),
         (3, StepInputs.of([(rows[2][2], *rows[2][3:])], False)),
     ]
     assert packed == encode_step(records)
-    hooked = ReceivedColumns()  # the hooked receives' form, in another receiver order
-    hooked.add(3, [(None, *rows[2][2:])])
-    hooked.add(0, [(None, *r[2:]) for r in rows[:2]])
-    assert encode_columns(stepped, hooked, calls) == packed
     decoded = decode_step(packed)
     assert decoded[0].received[1][0] == long[:9]
     assert decoded[2].host_calls[0].effects == [("ret", {"x": 1.5, "y": -2})]
-    assert encode_columns(np.zeros(3, bool), None, []) == encode_step([])
+    hooked = ReceivedColumns()  # the hooked receives' form, in another receiver order
+    hooked.add(3, [(None, *rows[2][2:])])
+    hooked.add(0, [(None, *r[2:]) for r in rows[:2]])
+    nine = [(1, 0, bytes(range(9)), 4.0, 0.0, 0.0), (4, 1, bytes(range(9, 18)), 5.0, 1.0, 2.0)]
+    several = encode_steps(
+        [stepped, np.zeros(5, bool), stepped, np.ones(5, bool)],
+        [PackedMessages.from_rows(rows), None, hooked, PackedMessages.from_rows(nine)],
+        [encoded_calls, ([], b""), encoded_calls, ([], b"")])
+    assert several[:3] == [packed, encode_step([]), packed]
+    assert several[3] == encode_step([
+        (i, StepInputs.of([(r[2], *r[3:]) for r in nine if r[0] == i], True))
+        for i in range(5)])
+
+
+def test_host_calls_are_written_as_they_happen_in_the_layout() -> None:
+    """The capture writes each tapped host call's effects straight into the step's bytes
+    (`CallLog`): the same bytes as the records would encode to, robots put in index order
+    when an engine steps them out of order, and nothing noted while not capturing or while
+    the robot boots."""
+    from bbzide.vm.input_log import HostCallRecord, SwarmCapture, encode_calls
+
+    class Call:  # the parts of HostCall a world host function uses
+        def __init__(self, args: int) -> None:
+            self.args = args
+
+        def expect_args(self, n: int) -> bool:
+            return self.args == n
+
+        def ret(self, value: object = None) -> None:
+            pass
+
+        def fail(self, kind: str) -> None:
+            pass
+
+    def position(call: Call) -> None:
+        if call.expect_args(0):
+            call.ret({"x": 1.25, "y": -3})
+
+    def led(call: Call) -> None:
+        if not call.expect_args(1):
+            call.fail("LNUM")
+
+    capture = SwarmCapture()
+    live = [False]
+    tapped = {(key, name): capture.tap(key, name, fn, live if key == 9 else None)
+              for key in (5, 7, 9) for name, fn in (("position", position), ("led", led))}
+    tapped[(5, "position")](Call(0))  # not capturing: passed on only
+    capture.start()
+    tapped[(9, "led")](Call(1))  # robot 9 is still booting
+    tapped[(7, "position")](Call(0))
+    tapped[(7, "led")](Call(2))
+    tapped[(5, "led")](Call(1))
+    indexes, data = capture.take()[0].ordered({5: 0, 7: 1, 9: 2})
+    assert indexes == [0, 1, 1]
+    assert data == encode_calls([
+        HostCallRecord("led", [("expect", 1)]),
+        HostCallRecord("position", [("expect", 0), ("ret", {"x": 1.25, "y": -3})]),
+        HostCallRecord("led", [("expect", 1), ("fail", "LNUM")])])
+    live[0] = True
+    tapped[(9, "position")](Call(0))
+    assert capture.take()[0].ordered({9: 2})[0] == [2]
