@@ -133,3 +133,48 @@ def test_closures_created_after_boot_survive_a_rebuild(tmp_path: Path) -> None:
     for index in range(6):
         for step in (12, 24):
             assert vm_state(rebuilder.robot_at(index, step))[:6] == live[step][index][:6]
+
+
+#: A top level and an `init` that call host functions: a reboot's calls must not be taken
+#: for inputs of the next step (the rebuilt robot starts from the boot keyframe).
+BOOT_CALLS = """
+var seen = rand()
+function init() { seen = seen + rand() }
+function step() { seen = seen + rand() }
+"""
+
+
+def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: Path) -> None:
+    """The robots stay plain Robots; their `on_phase` hook tells the recorder when a reboot
+    ends, so it keyframes the fresh state, and the host calls the boot makes are not
+    recorded as a step's inputs: robots rebuilt after the reload equal the live ones."""
+    from bbzide import compiler
+
+    spec = WORLDS["kilobot"]
+    first = load_script(REPO / "examples/kilobot/gradient.bzz", spec.host_names, [])
+    script = tmp_path / "boot.bzz"
+    script.write_text(BOOT_CALLS)
+    second = compiler.compile_file(
+        str(script), string_table=compiler.bittybuzz_string_table(list(spec.host_names))
+    ).to_bbo()
+    recordable = Recordable()
+    sim = Simulation("kilobot", first, robots=5, seed=3, robot_factory=recordable.factory)
+    assert all(type(s.robot) is Robot for s in sim.robots)
+    path = tmp_path / "reload.rrd"
+    live = {}
+    with MissionRecorder(path, sim, recordable, keyframe_every=50) as recorder:
+        for _ in range(30):
+            if sim.step_count == 12:
+                sim.load_program(second, keep_state=True)
+            sim.step()
+            recorder.record_step()
+            live[sim.step_count] = [vm_state(s.robot) for s in sim.robots]
+    assert not sim.failures
+    recording = read_recording(path)
+    assert [k.step for k in recording.keyframes[0]] == [0, 12]
+    assert any(e.kind == "program" and e.step == 12 for e in recording.events)
+    rebuilder = RobotRebuilder(recording)
+    for index in range(5):
+        for step in (10, 13, 30):
+            assert vm_state(rebuilder.robot_at(index, step))[:6] == live[step][index][:6], (
+                index, step)
