@@ -1,23 +1,26 @@
 """Writes a running `Simulation` to a Rerun `.rrd`, step by step, in batched columns.
 
 Design: recording is an observer above the worlds room. The engine is not changed: robots are
-built through the engine's `robot_factory` hook by a `Recordable`, which wraps every firmware
-loop in a `bbzide.vm.input_log.CapturingRobot` (a pass-through until a recorder switches it
-on). So a swarm started in the IDE can be recorded from any step on, and `bbzide run --record`
-records from step 0.
+built through the engine's `robot_factory` hook by a `Recordable`, which builds plain robots
+(a `Robot` stays a `Robot`, so the engine's compiled batch of control steps still takes it)
+and only wraps the world host functions it passes them (`input_log.SwarmCapture.tap`, a
+pass-through until a recorder switches capture on). So a swarm started in the IDE can be
+recorded from any step on, and `bbzide run --record` records from step 0.
 
 After each `Simulation.step()`, `record_step()` copies the step's figures into small numpy
 buffers (positions, LED colours, headings, failure flags, watched labels, message counters,
-heap figures of every robot, radio links) and takes each robot's inputs of that step (messages
-received with their situated data, host-call effects) as one encoded blob. Every
-`flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the buffers go to Rerun as a
+heap figures of every robot, radio links) and keeps what the step's inputs are made of: the
+engine's deliveries (`Simulation.step_deliveries`, numpy columns), which robots ran a
+control step (`Robot.steps_done` moved), and the host calls the taps wrote as bytes. Every
+`flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the inputs of all buffered
+steps are encoded at once (`input_log.encode_steps`) and the buffers go to Rerun as a
 handful of `send_columns` calls (one chunk per entity and flush, not one `log` per robot per
-step: 50-100x cheaper, ui-stack-notes §4) and the stream is flushed to disk, so a process
+step: 50-100x cheaper, ui-stack-notes §4); the stream is flushed to disk, so a process
 killed mid-run leaves a file readable up to its last flush.
 
 Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
 compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
-then after `keyframe_every` steps or `KEYFRAME_BUDGET_SECONDS` of its control steps, whichever
+then after `keyframe_every` steps or `KEYFRAME_BUDGET_SECONDS` of its VM time, whichever
 comes first) plus the recorded inputs re-executed (`rebuild.py`). Rare things (keyframes,
 events, overlays when they change) wait for the next flush and leave as columns too; only a
 program is logged as a single row when first used.
@@ -48,25 +51,27 @@ from bbzide.vm.vm import State
 
 #: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
 KEYFRAME_EVERY = 100
-#: ...and sooner once its control steps since the last keyframe took 25 ms of CPU time: a seek
-#: re-executes at most that much live VM time, which replays in up to ~2x as long (each step's
-#: inputs are decoded too; measured 0.4-0.8 ms per SAR drone-step replayed, ~0.45 ms live), so
-#: with restoring and the inspector a seek stays well under 100 ms whatever the script costs per
-#: step (the issue's seek goal; the machine's load adds to both). The step bound decides for
-#: cheap firmware, whose 100 steps replay in a few ms; SAR drones (~0.35 ms a step with the
-#: compiled VM loop) reach the budget first, after ~83 steps, and Kilobot gradient robots after
-#: ~91. A keyframe of an M300 drone costs ~0.5 ms (snapshot ~0.3, block delta, zstd), so this
-#: is ~6 us per drone and step, against ~12 us when keyframing every 25 steps, which made
-#: keyframes the recorder's largest cost (benchmarks/record_bench.py).
-KEYFRAME_BUDGET_SECONDS = 0.025
-#: The budget counts CPU seconds, not wall-clock ones: a robot's control steps are timed with
-#: `perf_counter` (0.2 us a call, in CapturingRobot) and that wall time is scaled by the share of
-#: wall time the recording thread had the CPU since the robot's last keyframe (`thread_time`,
-#: 2.6 us a call on this machine, so sampled twice a step by the recorder, not twice per robot).
-#: On a loaded machine a step's wall time holds time spent waiting for a core; counting it made
-#: the keyframe rate (the recorder's largest cost) grow with the load for no gain, since a seek
-#: replays CPU work. The share is floored at 5 %, so a thread starved for a while (a share
-#: that low means ~20x more wall than CPU time) still keyframes.
+#: ...and sooner once its VM work since the last keyframe (receiving and control steps) took
+#: 30 ms of CPU time: a seek re-executes at most that much live VM time, which replays in up
+#: to ~1.5x as long (each step's inputs are decoded too), so with restoring and the inspector
+#: a seek stays well under 100 ms whatever the script costs per step (the issue's seek goal;
+#: the machine's load adds to both; measured: worst ~40-50 ms of CPU time for SAR). The step
+#: bound decides for cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the
+#: budget first (after ~70-85 steps at ~0.35 ms of VM time a step). A keyframe of an M300 drone
+#: costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes are the recorder's largest
+#: cost, ~0.15 ms per SAR step (benchmarks/record_bench.py). Until session 5 the budget was
+#: 25 ms of control steps alone, the receiving not counted: about the same keyframe rate.
+KEYFRAME_BUDGET_SECONDS = 0.030
+#: Robots are not timed one by one (an engine steps them in one batch, and a wrapper that
+#: timed each would keep them off its compiled path): the engine's VM time of each step
+#: (`sim.timings["vm"]`, wall clock) is shared out by the instructions each robot executed
+#: in it (`vm.instructions_executed`), and a robot's share since its last keyframe is scaled
+#: by the share of wall time the recording thread had the CPU meanwhile (`thread_time`,
+#: 2.6 us a call on this machine, sampled once a step). On a loaded machine a step's wall
+#: time holds time spent waiting for a core; counting it made the keyframe rate (the
+#: recorder's largest cost) grow with the load for no gain, since a seek replays CPU work.
+#: The share is floored at 5 %, so a thread starved for a while (a share that low means
+#: ~20x more wall than CPU time) still keyframes.
 MIN_CPU_SHARE = 0.05
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its

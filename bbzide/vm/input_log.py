@@ -3,23 +3,28 @@
 Design: a BittyBuzz robot is a deterministic machine once its inputs are fixed. Its firmware
 loop (`bbzide.vm.robot.Robot`) takes input from the world through exactly two doors:
 
-* `receive(message, distance, azimuth, elevation)`: one wire message with its situated data;
+* `receive(message, distance, azimuth, elevation)` (or `receive_all` of a step's
+  deliveries): wire messages with their situated data;
 * the world's host functions (C closures such as `rand`, `light`, `led`), which read the
   world and act on the VM only through their `HostCall`: `expect_args(n)` (may raise LNUM),
   `ret(value)` and `fail(kind)`.
 
 The library closures the VM registers itself (neighbors, vstig, swarm, table functions) are
 pure functions of the VM state. So the VM state after a control step is a function of the state
-before it and of those inputs. `CapturingRobot` wraps a Robot (the engine builds it through its
-`robot_factory` hook, so neither the VM nor the worlds change) and writes, per control step, the
-received messages and each host call's effects on the VM into a `StepInputs`. `replay_step`
-applies a `StepInputs` to a robot restored from a snapshot: the same `receive` calls, then
-`control_step` with host functions that repeat the recorded effects instead of asking the
-world. Replaying a host function also checks that the script calls the same function it
+before it and of those inputs. `SwarmCapture` notes them for a whole swarm without wrapping
+the robots (a wrapped robot would leave an engine's compiled batch of control steps): it taps
+the host functions the robot factory passes to each robot, writing each call's effects
+straight into the input log's bytes (`CallLog`), and a recorder takes the received messages
+from the engine (`Simulation.step_deliveries`), or, for an engine without them, from
+receive hooks it puts on the robot instances (`ReceivedColumns`). `replay_step` applies one
+robot's recorded `StepInputs` to a robot restored from a snapshot: the same `receive` calls,
+then `control_step` with host functions that repeat the recorded effects instead of asking
+the world. Replaying a host function also checks that the script calls the same function it
 called when recorded, so a diverging replay is an error, never a silently wrong state.
 
-`encode_step` / `decode_step` turn the inputs of every robot for one step into bytes with a
-fixed little-endian layout (no pickle: a recording is a file a user may get from anywhere).
+`encode_steps` (columns of whole steps) / `encode_step` (per-robot records, the reference) /
+`decode_step` turn the inputs of every robot for one step into bytes with a fixed
+little-endian layout (no pickle: a recording is a file a user may get from anywhere).
 """
 
 from __future__ import annotations
