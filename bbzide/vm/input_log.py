@@ -560,12 +560,13 @@ def encode_steps(stepped: Sequence[np.ndarray],
                                      for name in ("distances", "azimuths", "elevations")])
         length_bytes = lengths.astype("<u2").tobytes()
         situation_bytes = situation.astype("<f8").tobytes()
-        rows = np.concatenate([[0], np.cumsum(sizes)]).tolist()
-        bytes_at = np.concatenate([[0], np.cumsum(lengths)]).tolist()
+        bounds = np.concatenate([[0], np.cumsum(sizes)])
+        rows = bounds.tolist()
+        bytes_at = np.concatenate([[0], np.cumsum(lengths)])[bounds].tolist()  # per step
         for j, k in enumerate(packed):
             r0, r1 = rows[j], rows[j + 1]
             columns[k] = (length_bytes[2 * r0:2 * r1],
-                          payload_bytes[bytes_at[r0]:bytes_at[r1]],
+                          payload_bytes[bytes_at[j]:bytes_at[j + 1]],
                           situation_bytes[24 * r0:24 * r1])
     for k, d in enumerate(deliveries):
         if isinstance(d, ReceivedColumns) and len(d):
