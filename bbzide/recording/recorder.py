@@ -73,6 +73,10 @@ KEYFRAME_BUDGET_SECONDS = 0.030
 #: The share is floored at 5 %, so a thread starved for a while (a share that low means
 #: ~20x more wall than CPU time) still keyframes.
 MIN_CPU_SHARE = 0.05
+#: The budget is looked at every 4th step (reading every robot's instruction counter and the
+#: arithmetic are ~0.05 ms, a tenth of the recorder's per-step time): a keyframe comes at
+#: most 3 steps late, ~1 ms of one drone's VM time against a 30 ms budget.
+KEYFRAME_CHECK_EVERY = 4
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
@@ -329,6 +333,7 @@ class MissionRecorder:
         self._instructions = np.zeros(n, dtype=np.int64)
         self._failed = np.zeros(n, dtype=bool)
         self._vm_seconds = float(sim.timings.get("vm", 0.0))
+        self._check_at = 0  # the next step at which `_keyframes_due` looks
         #: messages come from `sim.step_deliveries` (else from receive hooks on the robots)
         self._packed = hasattr(sim, "step_deliveries") and not getattr(sim, "asynchronous",
                                                                        False)
@@ -509,6 +514,7 @@ class MissionRecorder:
             self._keyframe_counts[index] = count + 1
             cost = self._snapshot_seconds[index] = time.thread_time() - started
             self._due_step[index] = step + self.keyframe_every
+            self._check_at = min(self._check_at, step + self.keyframe_every)
             self._budget[index] = max(KEYFRAME_BUDGET_SECONDS, KEYFRAME_COST_FACTOR * cost)
             programs.append(self._program_id(state.program, step))
         self._keyframe_rows.append((step, list(indexes), snapshots, programs, bases))
@@ -565,7 +571,7 @@ class MissionRecorder:
             stepped = ((steps_done != self._steps_done) | new_failures) & self._recorded
             self._steps_done = steps_done
             inputs = self._step_inputs(stepped)
-            due = self._keyframes_due(step, vms, stepped, failed)
+            due = self._keyframes_due(step, vms, failed)
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
@@ -596,13 +602,16 @@ class MissionRecorder:
         deliveries = self.sim.step_deliveries if self._packed else received
         return (stepped, deliveries, calls.ordered(self._index_of))
 
-    def _keyframes_due(self, step: int, vms: list[Any], stepped: np.ndarray,
-                       failed: np.ndarray) -> list[int]:
+    def _keyframes_due(self, step: int, vms: list[Any], failed: np.ndarray) -> list[int]:
         """The robots whose keyframe is due: `keyframe_every` steps since their last one, or
         `KEYFRAME_BUDGET_SECONDS` of VM CPU time. A robot's VM time is the engine's VM time
         of the step (`sim.timings["vm"]`, wall clock) shared out by the instructions each
         robot executed in it (robots are not timed one by one: an engine steps them in one
-        batch), scaled by this thread's CPU share since the robot's last keyframe."""
+        batch), scaled by this thread's CPU share since the robot's last keyframe. Checked
+        every `KEYFRAME_CHECK_EVERY` steps, and at the steps where the step bound falls."""
+        if step < self._check_at:
+            return []
+        self._check_at = min(step + KEYFRAME_CHECK_EVERY, int(self._due_step.min()))
         instructions = np.fromiter(map(_INSTRUCTIONS, vms), dtype=np.int64, count=self.count)
         ran = np.maximum(instructions - self._instructions, 0)
         self._instructions = instructions
@@ -612,8 +621,6 @@ class MissionRecorder:
         total = int(ran.sum())
         if total:
             self._busy += ran * (spent / total)
-        elif stepped.any():
-            self._busy[stepped] += spent / int(stepped.sum())
         due = self._due_step <= step
         over = self._busy >= self._budget  # wall >= CPU time: the CPU share only for these
         if over.any():
