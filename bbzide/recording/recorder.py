@@ -316,6 +316,8 @@ class MissionRecorder:
         #: per robot index: its firmware loop, or a stand-in with zero figures (no VM)
         self._robots: list[Any] = [_NO_ROBOT] * n
         self._recorded = np.zeros(n, dtype=bool)  # has a firmware loop we record
+        self._recorded_now = self._recorded.copy()
+        self._all_recorded = False
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         # Per robot, as arrays (the per-step pass is a few numpy operations, not 25 loops):
         # the step and the VM seconds at which its next keyframe is due, the VM seconds it
@@ -466,6 +468,8 @@ class MissionRecorder:
         """Record robot `index`'s firmware loop `robot` from now on."""
         self._robots[index] = robot
         self._recorded[index] = True
+        self._recorded_now = self._recorded.copy()  # what the steps from now on hold
+        self._all_recorded = bool(self._recorded.all())
         if not self._packed:
             self._capture.hook_receive(robot, index)
 
@@ -549,26 +553,32 @@ class MissionRecorder:
         if self.recordable.booting:
             self._failed_boots(step)
         robots = self._robots
+        # Each numpy call costs several us here, with the caches cold after the simulation
+        # step: the common case (no failure, every robot recorded) makes as few as it can, and
+        # what can wait (stacking, the heap's `has VM` column) waits for the flush.
         failures = [s.failure for s in states]
-        failed = np.fromiter((f is not None for f in failures), dtype=bool, count=n)
-        new_failures = failed & ~self._failed
-        self._failed = failed
-        for i in np.flatnonzero(new_failures).tolist():
-            if i not in self._known_failures:
-                self._known_failures.add(i)
-                self._event(step, layout.EVENT_ERROR, i,
-                            f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
+        if failures.count(None) == n and not self._failed.any():
+            failed = new_failures = self._failed  # none, as before (never written to)
+        else:
+            failed = np.fromiter((f is not None for f in failures), dtype=bool, count=n)
+            new_failures = failed & ~self._failed
+            self._failed = failed
+            for i in np.flatnonzero(new_failures).tolist():
+                if i not in self._known_failures:
+                    self._known_failures.add(i)
+                    self._event(step, layout.EVENT_ERROR, i,
+                                f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
         vms = [r.vm for r in robots]
-        heap = np.empty((n, len(_NO_HEAP)), dtype=np.int64)
-        heap[:, :-1] = np.fromiter(chain.from_iterable([_HEAP_FIGURES(vm.heap) for vm in vms]),
-                                   dtype=np.int64, count=n * 5).reshape(n, 5)
-        heap[:, -1] = self._recorded
+        heap = np.fromiter(chain.from_iterable([_HEAP_FIGURES(vm.heap) for vm in vms]),
+                           dtype=np.int64, count=n * 5)
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
         due: list[int] = []
         if not first:
             steps_done = np.fromiter(map(_STEPS_DONE, robots), dtype=np.int64, count=n)
-            stepped = ((steps_done != self._steps_done) | new_failures) & self._recorded
+            stepped = steps_done != self._steps_done
+            if new_failures is not failed or not self._all_recorded:
+                stepped = (stepped | new_failures) & self._recorded
             self._steps_done = steps_done
             inputs = self._step_inputs(stepped)
             due = self._keyframes_due(step, vms, failed)
@@ -582,9 +592,11 @@ class MissionRecorder:
         # until the flush made it run (full passes of ~100 ms) several times more often.
         buffer.setdefault("failed", []).append(failed)
         buffer.setdefault("heap", []).append(heap)
+        buffer.setdefault("has_vm", []).append(self._recorded_now)
         buffer.setdefault("labels", []).append(labels)
-        buffer.setdefault("traffic", []).append(np.stack(
-            [stats.sent, stats.received, stats.dropped, stats.bytes_sent]))
+        # the engine's counters: new arrays every step, stacked at the flush
+        buffer.setdefault("traffic", []).append(
+            (stats.sent, stats.received, stats.dropped, stats.bytes_sent))
         pairs = getattr(sim, "link_indexes", None)  # (sender, receiver) indexes, if given
         buffer.setdefault("links", []).append(
             self._link_indexes(sim.links) if pairs is None else pairs)
@@ -766,7 +778,7 @@ class MissionRecorder:
                       else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
             pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
-        traffic = np.stack(b["traffic"])  # rows, (sent, received, dropped, bytes_sent), n
+        traffic = np.array(b["traffic"])  # rows, (sent, received, dropped, bytes_sent), n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
             sent=pa.array(traffic[:, 0].reshape(-1).astype(np.int32)),
             received=pa.array(traffic[:, 1].reshape(-1).astype(np.int32)),
@@ -774,8 +786,9 @@ class MissionRecorder:
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        size, rop, lsp, peak, gc_runs, has_vm = np.concatenate(b["heap"]).reshape(
-            rows, n, len(_NO_HEAP)).transpose(2, 0, 1)  # each: rows, n
+        size, rop, lsp, peak, gc_runs = np.concatenate(b["heap"]).reshape(
+            rows, n, len(_NO_HEAP) - 1).transpose(2, 0, 1)  # each: rows, n
+        has_vm = np.array(b["has_vm"])
         used = (rop + size - lsp) * has_vm
         for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,
                                                         gc_runs), strict=True):
