@@ -227,3 +227,30 @@ def test_a_recording_of_another_format_version_is_refused(tmp_path: Path,
                 recorder.record_step()
         with pytest.raises(RecordingError, match=f"written by an {word}|written by a {word}"):
             read_recording(path)
+
+
+def test_passive_bodies_are_recorded_without_a_vm(tmp_path: Path) -> None:
+    """A swarm with passive bodies (a group without a program: no firmware loop) records:
+    their heap figures are zero and marked as having no VM, the programmed robots rebuild
+    exactly, and a passive body has nothing to rebuild."""
+    from bbzide.worlds.engine import RobotGroup
+
+    spec = WORLDS["kilobot"]
+    program = load_script(REPO / "examples/kilobot/gradient.bzz", spec.host_names, [])
+    recordable = Recordable(build=ToyRobot)
+    sim = Simulation("kilobot", seed=4, robot_factory=recordable.factory, watch=(),
+                     groups=[RobotGroup(4, program), RobotGroup(2, None)])
+    path = tmp_path / "passive.rrd"
+    live = {}
+    with MissionRecorder(path, sim, recordable, keyframe_every=7) as recorder:
+        for _ in range(30):
+            sim.step()
+            recorder.record_step()
+            live[sim.step_count] = [s.robot.snapshot() for s in sim.robots[:4]]
+    recording = read_recording(path)
+    assert recording.heap["rop"][:, 4:].max() == 0 and recording.heap["rop"][:, :4].min() > 0
+    rebuilder = RobotRebuilder(recording, build=ToyRobot)
+    assert not rebuilder.has_vm(5)
+    for index in range(4):
+        for step in (9, 23, 30):
+            assert rebuilder.robot_at(index, step).snapshot() == live[step][index]
