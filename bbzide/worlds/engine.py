@@ -6,13 +6,22 @@ Design: one `Simulation` owns the per-robot arrays (positions, headings, LED col
 same fixed order, whatever the world:
 
     1. world.sense           sensor readings for this step
-    2. deliver               messages due now -> Robot.receive(msg, distance, azimuth, elevation)
-                             (one `Robot.receive_all(deliveries)` per robot when the firmware
-                             loop has it: the same calls, one entry — a Kilobot's is compiled)
-    3. control               each live, awake robot: Robot.control_step() -> outgoing messages;
-                             a robot whose VM fails is marked (reason, pc, source line) and stops
-    4. radio                 send queues -> range, loss, bandwidth -> in flight for latency steps
+    2. deliver               the radio's deliveries due now, one `PackedMessages` table (rows
+                             sorted by receiver; dead receivers' rows dropped and counted)
+    3. control               `swarm_batch.control_steps(robots, deliveries, stepping)`: every
+                             receiver's `receive_all`, then each live, awake robot's
+                             control_step, in one call (the VM room may compile it); a robot
+                             whose VM fails is marked (reason, pc, source line), sends
+                             nothing more and stops
+    4. radio                 the outbox -> send queues -> range, loss, bandwidth -> in flight
+                             for latency steps
     5. world.advance         actuator commands and physics over one control period
+
+Steps 2-4 handle a step's messages as columns (`PackedMessages`, bbzide/vm/swarm_batch.py),
+never a Python object per message or a Python loop over robots: counters come from
+`np.bincount`, who steps from the world's `asleep` array, and `links` (a list of id pairs)
+is built from `link_indexes` only when someone reads it. `step_deliveries` keeps the table
+handed to the robots (a recorder captures its inputs from it).
 
 Randomness comes from one `numpy.random.Generator` per purpose (placement, radio loss, radio
 noise, world, one per robot for its `rand` host function), all spawned from the run seed, so the
@@ -42,7 +51,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from bbzide.diagnostics import UserError
-from bbzide.worlds.radio import Radio, TrafficCounters, WorldConfigError
+from bbzide.worlds.radio import Radio, TrafficCounters, WorldConfigError, take_rows
 from bbzide.worlds.registry import WORLDS, create_world
 from bbzide.worlds.world import HostFunction, RadioSettings, World
 
@@ -269,11 +278,19 @@ class Simulation:
         self.headings = np.array(turned, dtype=np.float64)
         self.leds = np.zeros((self.count, 3), dtype=np.float64)
         self.step_count = 0
-        self.links: list[tuple[int, int]] = []
+        self._set_links(np.empty((0, 2), dtype=np.int64))
         self.stats = StepStats(0, *(np.zeros(self.count, dtype=np.int64) for _ in range(5)))
         self.totals = {"sent": 0, "received": 0, "dropped": 0, "bytes": 0}
         self.radio = Radio(self.world.radio, self.count, self.world.step_seconds,
                            self.rng["loss"], self.rng["noise"])
+        #: The deliveries handed to the robots in the last step (receivers alive), as
+        #: `swarm_batch.control_steps` got them (a recorder captures its inputs from them).
+        self.step_deliveries = self.radio.due(-1)
+        #: alive[i]: robot i has a firmware loop that has not failed (`RobotState.alive`)
+        self._alive = np.zeros(self.count, dtype=bool)
+        #: What `control_steps` steps: each robot's firmware loop (an adapter when it has no
+        #: `receive_all`), None for a passive body
+        self._steppers: list[Any] = [None] * self.count
         self.robots: list[RobotState] = []
         index = 0
         for group in self.groups:
@@ -294,6 +311,8 @@ class Simulation:
         state.failure = None
         state.failure_step = None
         state.robot = None
+        self._steppers[state.index] = None
+        self._alive[state.index] = False
         if state.program is None:
             return
         program = _bbo_program(state.program)
@@ -301,6 +320,9 @@ class Simulation:
         functions = self.world.host_functions(self, state.index)
         robot = self._factory(program, state.profile, state.robot_id, functions)
         state.robot = robot
+        self._steppers[state.index] = (robot if hasattr(robot, "receive_all")
+                                       else _ReceiveOneByOne(robot))
+        self._alive[state.index] = True
         robot.boot()
         self._check_failure(state)
 
@@ -309,62 +331,74 @@ class Simulation:
         if robot is not None and robot.failure is not None and state.failure is None:
             state.failure = robot.failure
             state.failure_step = self.step_count
+            self._alive[state.index] = False
 
     # ---- running ----------------------------------------------------------------------------
     def step(self) -> StepStats:
         """One control step of every robot, the radio and the physics."""
         if self.asynchronous:
             return self._step_asynchronous()
+        from bbzide.vm import swarm_batch  # the VM room (late: `bbzide --help` stays fast)
+
         step = self.step_count
-        counters = TrafficCounters.zeros(self.count)
+        count = self.count
+        counters = TrafficCounters.zeros(count)
         clock = time.perf_counter
+        world, radio = self.world, self.radio
         t0 = clock()
-        self.world.sense(self)
+        world.sense(self)
         t1 = clock()
-        robots = self.robots
-        for receiver, deliveries in enumerate(self.radio.due(step)):
-            if not deliveries:
-                continue
-            state = robots[receiver]
-            if not state.alive:
-                counters.dropped[receiver] += len(deliveries)
-                continue
-            robot = state.robot
-            receive_all = getattr(robot, "receive_all", None)  # Robot's one-call receive
-            if receive_all is not None:
-                receive_all(deliveries)
-            else:
-                receive = robot.receive
-                for _, message, distance, azimuth, elevation in deliveries:
-                    receive(message, distance, azimuth, elevation)
-            size = sum([len(delivery[1]) for delivery in deliveries])
-            counters.received[receiver] += len(deliveries)
-            counters.bytes_received[receiver] += size
-        world = self.world
-        radio = self.radio
-        for state in robots:
-            if not state.alive or world.is_asleep(state.index, step):
-                continue
-            outgoing = state.robot.control_step()
-            if state.robot.failure is not None:
-                self._check_failure(state)
-                continue
-            if outgoing:
-                radio.enqueue(state.index, outgoing, counters)
+        deliveries = radio.due(step)
+        alive = self._alive
+        if len(deliveries):
+            to_alive = alive[deliveries.robots]
+            if not to_alive.all():      # dead receivers and passive bodies: dropped
+                counters.dropped += np.bincount(deliveries.robots[~to_alive], minlength=count)
+                deliveries = take_rows(deliveries, to_alive)
+            counters.received += np.bincount(deliveries.robots, minlength=count)
+            counters.bytes_received += np.bincount(
+                deliveries.robots, weights=deliveries.lengths, minlength=count).astype(np.int64)
+        self.step_deliveries = deliveries
+        stepping = alive & ~world.asleep(step, count)
         t2 = clock()
-        listening = np.fromiter((s.alive for s in robots), dtype=bool, count=self.count)
-        used = radio.transmit(step, self.positions, self.headings, listening, counters)
-        self.links = list(zip(self._ids[used[:, 0]].tolist(), self._ids[used[:, 1]].tolist(),
-                              strict=True))
+        result = swarm_batch.control_steps(self._steppers, deliveries, stepping)
         t3 = clock()
-        world.advance(self, world.step_seconds)
+        outbox = result.outbox
+        failed = result.failed
+        if failed.any():
+            robots = self.robots
+            for index in np.flatnonzero(failed).tolist():
+                self._check_failure(robots[index])
+            if len(outbox):             # a robot that failed in its step sends nothing
+                outbox = take_rows(outbox, ~failed[outbox.robots])
+        radio.queue_outbox(outbox, counters)
+        self._set_links(radio.transmit(step, self.positions, self.headings, self._alive,
+                                       counters))
         t4 = clock()
+        world.advance(self, world.step_seconds)
+        t5 = clock()
         timings = self.timings
         timings["sense"] += t1 - t0
-        timings["vm"] += t2 - t1
-        timings["radio"] += t3 - t2
-        timings["physics"] += t4 - t3
+        timings["vm"] += t3 - t2
+        timings["radio"] += (t2 - t1) + (t4 - t3)
+        timings["physics"] += t5 - t4
         return self._finish_step(step, counters)
+
+    @property
+    def links(self) -> list[tuple[int, int]]:
+        """(sender id, receiver id) of each link that carried a message in the last step,
+        sorted; built from `link_indexes` when read (the engine itself never needs it)."""
+        if self._links is None:
+            pairs = self.link_indexes
+            ids = self._ids
+            self._links = list(zip(ids[pairs[:, 0]].tolist(), ids[pairs[:, 1]].tolist(),
+                                   strict=True))
+        return self._links
+
+    def _set_links(self, pairs: np.ndarray) -> None:
+        #: (M, 2) int64: (sender index, receiver index) of the last step's links, sorted
+        self.link_indexes = pairs
+        self._links: list[tuple[int, int]] | None = None
 
     def _step_asynchronous(self) -> StepStats:
         """One control step with robots in phase order (see the module docstring)."""
@@ -375,8 +409,7 @@ class Simulation:
         t0 = clock()
         world.sense(self)
         t1 = clock()
-        listening = np.fromiter((s.alive for s in robots), dtype=bool, count=self.count)
-        radio.begin_step(step, self.positions, self.headings, listening)
+        radio.begin_step(step, self.positions, self.headings, self._alive.copy())
         vm_time = 0.0
         for index in np.argsort(self.phases, kind="stable").tolist():
             state = robots[index]
@@ -399,9 +432,7 @@ class Simulation:
                     radio.enqueue(index, outgoing, counters)
             vm_time += clock() - started
             radio.send_from(index, now, counters)
-        used = radio.step_links()
-        self.links = list(zip(self._ids[used[:, 0]].tolist(), self._ids[used[:, 1]].tolist(),
-                              strict=True))
+        self._set_links(radio.step_links())
         t2 = clock()
         world.advance(self, world.step_seconds)
         t3 = clock()
@@ -459,6 +490,29 @@ class Simulation:
             if state.robot_id == robot_id:
                 return state
         raise KeyError(robot_id)
+
+
+class _ReceiveOneByOne:
+    """A firmware loop without `receive_all` seen through one (what `control_steps` calls):
+    its `receive` for each delivery in turn, the rest passed through."""
+
+    __slots__ = ("robot",)
+
+    def __init__(self, robot: FirmwareLoop) -> None:
+        self.robot = robot
+
+    @property
+    def failure(self) -> Any:
+        return self.robot.failure
+
+    def receive_all(self, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+                    ) -> None:
+        receive = self.robot.receive
+        for _, message, distance, azimuth, elevation in deliveries:
+            receive(message, distance, azimuth, elevation)
+
+    def control_step(self) -> list[bytes]:
+        return self.robot.control_step()
 
 
 def read_global(vm: Any, strings: list[str], name: str) -> Any:

@@ -282,6 +282,9 @@ class KilobotTable(World):
     def is_asleep(self, index: int, step: int) -> bool:
         return step <= self.sleep_until[index]
 
+    def asleep(self, step: int, count: int) -> np.ndarray:
+        return step <= self.sleep_until
+
     # ---- sensors and physics ------------------------------------------------------------------
     def sense(self, sim: Simulation) -> None:
         x, y = sim.positions[:, 0], sim.positions[:, 1]

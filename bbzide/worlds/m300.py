@@ -485,6 +485,9 @@ class M300Field(World):
     def is_asleep(self, index: int, step: int) -> bool:
         return bool(self.asleep_until[index] > step)
 
+    def asleep(self, step: int, count: int) -> np.ndarray:
+        return self.asleep_until > step
+
     def _footprints(self, sim: Simulation) -> np.ndarray:
         """(drones, targets) bool: target inside the drone's camera footprint, drone flying."""
         if len(self.targets) == 0:

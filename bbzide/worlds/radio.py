@@ -15,6 +15,16 @@ azimuth, elevation, with Gaussian noise) are fixed at transmission time from the
 message arrives `latency_steps` later. Deliveries are ordered by receiver, then sender, then
 message, so the order a VM sees is reproducible.
 
+In lockstep the messages never become Python objects one by one: the send queues are one
+`PackedMessages` table (`bbzide.vm.swarm_batch`: a row per message — sender, payload bytes,
+wire length —, sorted by sender, each sender's rows in queue order), a step's transmissions
+are its first `messages_per_step` rows per sender, and the deliveries are rows gathered from
+them by index (receiver, sender, payload, situated data), sorted by receiver: what the engine
+hands to `swarm_batch.control_steps` as it is. Ranks within a sender or a receiver come from
+`group_ranks` over the sorted columns, counters from `np.bincount`. The loss and noise draws
+are the same calls, in the same order, as the tuple-per-message radio it replaced (kept as a
+test oracle: `tests/worlds/reference_radio.py`), so a seed gives the same run.
+
 Asynchronous robots (the engine's `asynchronous=True`): real robots do not step in lockstep;
 each has its own phase within the control period. Then the engine calls `begin_step` (the
 step's links and situated data, computed once), `send_from(sender, time)` right after each
@@ -34,6 +44,7 @@ import numpy as np
 from bbzide.diagnostics import UserError
 
 if TYPE_CHECKING:
+    from bbzide.vm.swarm_batch import PackedMessages
     from bbzide.worlds.world import RadioSettings
 
 
@@ -130,8 +141,8 @@ def drop_lost(links: RadioLinks, loss_probability: float, rng: np.random.Generat
 
 #: One message arriving at one robot, with what the receiver senses of the sender:
 #: (sender index, message, distance in the world's unit (Kilobot mm), azimuth in radians
-#: counter-clockwise from the receiver's heading in (-pi, pi], elevation in radians). A plain
-#: tuple: the Kilobot table with 1,000 robots makes about 10,000 of them per step.
+#: counter-clockwise from the receiver's heading in (-pi, pi], elevation in radians): the
+#: asynchronous mode's unit (lockstep deliveries are `PackedMessages` rows).
 Delivery = tuple[int, bytes, float, float, float]
 
 
@@ -157,18 +168,58 @@ def interpolate_loss(table: tuple[tuple[float, float], ...], rates: np.ndarray) 
     return np.interp(rates, xs, ys)
 
 
+def group_ranks(keys: np.ndarray) -> np.ndarray:
+    """Each row's rank within its run of equal keys (`keys` sorted): 0, 1, 2, ... per run."""
+    n = len(keys)
+    if n == 0:
+        return np.empty(0, dtype=np.int64)
+    starts = np.flatnonzero(np.concatenate(([True], keys[1:] != keys[:-1])))
+    return np.arange(n) - np.repeat(starts, np.diff(np.append(starts, n)))
+
+
+def take_rows(messages: PackedMessages, rows: np.ndarray) -> PackedMessages:
+    """The rows `rows` (indices or a boolean mask) of `messages`, columns kept together."""
+    return type(messages)(messages.robots[rows], messages.payloads[rows],
+                          messages.lengths[rows], messages.senders[rows],
+                          messages.distances[rows], messages.azimuths[rows],
+                          messages.elevations[rows])
+
+
+def merge_by_robot(first: PackedMessages, second: PackedMessages) -> PackedMessages:
+    """Both tables as one, sorted by robot; each robot's rows of `first` come before its rows
+    of `second` (a stable sort: what appending `second`'s rows robot by robot gives)."""
+    if len(second) == 0:
+        return first
+    if len(first) == 0:
+        return second
+    joined = type(first)(*(np.concatenate((getattr(first, name), getattr(second, name)))
+                           for name in _COLUMNS))
+    return take_rows(joined, np.argsort(joined.robots, kind="stable"))
+
+
+_COLUMNS = ("robots", "payloads", "lengths", "senders", "distances", "azimuths", "elevations")
+
+
 @dataclass
 class Radio:
-    """The swarm's radio: send queues, bandwidth, range, loss, noise and latency."""
+    """The swarm's radio: send queues, bandwidth, range, loss, noise and latency.
+
+    Lockstep (the engine's `step`): `queue_outbox` takes the step's outbox, `transmit`
+    sends, `due` hands a step's deliveries over — all as `PackedMessages` columns, with no
+    Python loop over robots or messages (1,000 Kilobots: ~1,000 sent, ~11,000 delivered a
+    step). Asynchronous robots (`begin_step`, `enqueue`, `send_from`, `take_due`) keep a
+    deque of bytes per sender and a tuple per delivery; one `Radio` serves one of the two.
+    """
 
     settings: RadioSettings
     count: int
     step_seconds: float
     loss_rng: np.random.Generator
     noise_rng: np.random.Generator
-    send_queues: list[deque[bytes]] = field(init=False)
-    in_flight: dict[int, list[list[Delivery]]] = field(init=False)
+    queued: PackedMessages = field(init=False)          # send queues, outbox rows (lockstep)
+    in_flight: dict[int, PackedMessages] = field(init=False)   # due step -> deliveries
     history: np.ndarray = field(init=False)
+    send_queues: list[deque[bytes]] = field(init=False)  # asynchronous mode
     pending: list[list[tuple[float, Delivery]]] = field(init=False)   # asynchronous mode
 
     def __post_init__(self) -> None:
@@ -182,16 +233,39 @@ class Radio:
             raise WorldConfigError("the radio must send at least 1 message per step")
         if settings.latency_steps < 1:
             raise WorldConfigError("latency must be at least 1 step (sent after the VMs ran)")
-        self.send_queues = [deque() for _ in range(self.count)]
+        # the VM room's columns; imported here, not at the top: the registry imports this
+        # module for WorldConfigError and `bbzide --help` must not load the VM (numba)
+        from bbzide.vm.swarm_batch import PackedMessages
+
+        self.queued = PackedMessages.empty()
         self.in_flight = {}
+        self.send_queues = [deque() for _ in range(self.count)]
         self.pending = [[] for _ in range(self.count)]
         # Transmissions per sender over the last second (ring of steps), for the rate-dependent
         # loss: one second because the paper states its rates per second (2, 10, 20 Hz).
         window = max(1, round(1.0 / self.step_seconds))
         self.history = np.zeros((window, self.count), dtype=np.int64)
 
+    def queue_outbox(self, outbox: PackedMessages, counters: TrafficCounters) -> None:
+        """Append each sender's outgoing rows to its send queue, in order; what finds the
+        queue full (`send_queue_cap`) is dropped and counted at the sender."""
+        if len(outbox) == 0:
+            return
+        merged = merge_by_robot(self.queued, outbox)
+        fits = group_ranks(merged.robots) < self.settings.send_queue_cap
+        if not fits.all():
+            counters.dropped += np.bincount(merged.robots[~fits], minlength=self.count)
+            merged = take_rows(merged, fits)
+        self.queued = merged
+
+    def queue_length(self, sender: int) -> int:
+        """Messages waiting in `sender`'s send queue."""
+        waiting = np.count_nonzero(self.queued.robots == sender)
+        return int(waiting) + len(self.send_queues[sender])
+
     def enqueue(self, sender: int, messages: list[bytes], counters: TrafficCounters) -> None:
-        """Queue a robot's outgoing messages; what does not fit is dropped and counted."""
+        """Queue a robot's outgoing messages (asynchronous mode); what does not fit is
+        dropped and counted."""
         queue = self.send_queues[sender]
         for message in messages:
             if len(queue) >= self.settings.send_queue_cap:
@@ -203,16 +277,13 @@ class Radio:
         """Each sender's transmissions per second over the last second."""
         return self.history.sum(axis=0) / (len(self.history) * self.step_seconds)
 
-    def due(self, step: int) -> list[list[Delivery]]:
-        """Deliveries arriving at the start of `step`, per receiver (removed from the air)."""
-        batches = [self.in_flight.pop(s) for s in sorted(self.in_flight) if s <= step]
-        if len(batches) == 1:
-            return batches[0]
-        merged: list[list[Delivery]] = [[] for _ in range(self.count)]
-        for batch in batches:
-            for receiver, items in enumerate(batch):
-                merged[receiver].extend(items)
-        return merged
+    def due(self, step: int) -> PackedMessages:
+        """Deliveries arriving at the start of `step`, sorted by receiver, each receiver's
+        in arrival order (removed from the air)."""
+        arrived = self.queued.empty()
+        for due_step in sorted(s for s in self.in_flight if s <= step):
+            arrived = merge_by_robot(arrived, self.in_flight.pop(due_step))
+        return arrived
 
     def transmit(
         self,
@@ -225,22 +296,17 @@ class Radio:
         """Send what the queues allow this step; returns the (sender, receiver) index pairs
         that carried at least one message, as an (M, 2) array."""
         settings = self.settings
-        per_step = settings.messages_per_step
-        outgoing: list[list[bytes]] = []
-        senders: list[int] = []
-        for sender, queue in enumerate(self.send_queues):
-            if queue:
-                batch = [queue.popleft() for _ in range(min(per_step, len(queue)))]
-                senders.append(sender)
-                outgoing.append(batch)
-        sent_now = np.zeros(self.count, dtype=np.int64)
-        for sender, batch in zip(senders, outgoing, strict=True):
-            sent_now[sender] = len(batch)
-            counters.sent[sender] += len(batch)
-            counters.bytes_sent[sender] += sum(len(m) for m in batch)
+        queued = self.queued
+        now = group_ranks(queued.robots) < settings.messages_per_step
+        out = take_rows(queued, now)                     # sorted by sender, queue order
+        self.queued = take_rows(queued, ~now)
+        sent_now = np.bincount(out.robots, minlength=self.count)
+        counters.sent += sent_now
+        counters.bytes_sent += np.bincount(out.robots, weights=out.lengths,
+                                           minlength=self.count).astype(np.int64)
         self.history[step % len(self.history)] = sent_now
         no_links = np.empty((0, 2), dtype=np.int64)
-        if not senders:
+        if len(out) == 0:
             return no_links
         links = pairs_within_range(positions, settings.comm_range)
         is_sender = sent_now > 0
@@ -272,42 +338,23 @@ class Radio:
             base = np.repeat(np.concatenate([[0], rank])[boundaries],
                              np.diff(np.append(boundaries, total)))
             arrived &= (rank - base) < cap
-        np.add.at(counters.dropped, receivers[~arrived], 1)
+        counters.dropped += np.bincount(receivers[~arrived], minlength=self.count)
         keep_links = link_of[arrived]
-        unit = settings.distance_unit
-        arriving = self._deliveries(senders, outgoing, s_idx[keep_links], message_no[arrived],
-                                    receivers[arrived], distance[keep_links] * unit,
-                                    azimuth[keep_links], elevation[keep_links])
+        senders = s_idx[keep_links]
+        # each sender's first row in `out`, plus the message number: the delivered row
+        first = np.cumsum(sent_now) - sent_now
+        rows = first[senders] + message_no[arrived]
+        arriving = type(out)(receivers[arrived], out.payloads[rows], out.lengths[rows],
+                             senders, distance[keep_links] * settings.distance_unit,
+                             azimuth[keep_links], elevation[keep_links])
         due_step = step + settings.latency_steps
         pending = self.in_flight.get(due_step)
-        if pending is None:
-            self.in_flight[due_step] = arriving
-        else:
-            for receiver, items in enumerate(arriving):
-                pending[receiver].extend(items)
+        self.in_flight[due_step] = (arriving if pending is None
+                                    else merge_by_robot(pending, arriving))
         # the used (sender, receiver) pairs, each once, sorted: np.unique over one int key
         # per pair (sender * count + receiver) is np.unique(axis=0) of the pairs, ~10x faster
-        keys = np.unique(s_idx[keep_links] * self.count + r_idx[keep_links])
+        keys = np.unique(senders * self.count + r_idx[keep_links])
         return np.column_stack([keys // self.count, keys % self.count])
-
-    def _deliveries(self, senders: list[int], outgoing: list[list[bytes]],
-                    sender_of: np.ndarray, number: np.ndarray, receiver_of: np.ndarray,
-                    distance: np.ndarray, azimuth: np.ndarray, elevation: np.ndarray
-                    ) -> list[list[Delivery]]:
-        """Each receiver's deliveries from the arriving (sender, message number, receiver,
-        situated data) rows, which come sorted by receiver: the rows become tuples in one
-        pass (``zip``), then each receiver gets its run of them (a slice) — the same lists,
-        in the same order, as appending row by row (1,000 Kilobots: ~11,000 rows a step)."""
-        flat = [message for batch in outgoing for message in batch]
-        sizes = np.array([len(batch) for batch in outgoing], dtype=np.int64)
-        first = np.zeros(self.count, dtype=np.int64)  # each sender's first message in flat
-        first[senders] = np.cumsum(sizes) - sizes
-        rows = list(zip(sender_of.tolist(),
-                        map(flat.__getitem__, (first[sender_of] + number).tolist()),
-                        distance.tolist(), azimuth.tolist(), elevation.tolist(), strict=True))
-        ends = np.cumsum(np.bincount(receiver_of, minlength=self.count)).tolist()
-        starts = [0, *ends[:-1]]
-        return [rows[a:b] for a, b in zip(starts, ends, strict=True)]
 
     def _situation(
         self, positions: np.ndarray, headings: np.ndarray, s_idx: np.ndarray, r_idx: np.ndarray

@@ -118,6 +118,12 @@ class World(ABC):
         """True while robot `index` is blocked (e.g. in `delay`) and skips its control step."""
         return False
 
+    def asleep(self, step: int, count: int) -> np.ndarray:
+        """bool[count]: `is_asleep(i, step)` of every robot (a world that keeps its sleep in
+        an array answers with one numpy expression)."""
+        return np.fromiter((self.is_asleep(i, step) for i in range(count)), dtype=bool,
+                           count=count)
+
     def overlays(self) -> dict[str, Any]:
         """Extra things to draw (light field, obstacles, targets): name -> plain data."""
         return {}

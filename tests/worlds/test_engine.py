@@ -59,8 +59,8 @@ def test_bandwidth_queue_and_overflow():
     # waiting (4+4+4 offered - 3 sent), so 1 fits and 3 are dropped at the sender.
     assert sim.totals["sent"] == 4
     assert sim.stats.dropped.tolist() == [3, 0]
-    assert len(sim.radio.send_queues[0]) == 9
-    assert 16 == sim.totals["sent"] + len(sim.radio.send_queues[0]) + sim.totals["dropped"]
+    assert sim.radio.queue_length(0) == 9
+    assert 16 == sim.totals["sent"] + sim.radio.queue_length(0) + sim.totals["dropped"]
 
 
 def test_loss_rate_matches_probability():
