@@ -26,6 +26,7 @@ import numpy as np
 import pymunk
 import pymunk.batch
 
+from bbzide.vm.host import LatchedHostFunction
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import KILOBOT_HOST_NAMES
 from bbzide.worlds.world import HostFunction, RadioSettings, World
@@ -238,6 +239,7 @@ class KilobotTable(World):
     def host_functions(self, sim: Simulation, index: int) -> Mapping[str, HostFunction]:
         rng = sim.robot_rngs[index]
         leds = sim.leds
+        self._leds = leds  # where _apply_led_latches writes (the same array for every robot)
         motors = self.motors
         world = self
 
@@ -291,8 +293,18 @@ class KilobotTable(World):
         def ambient_light(call: HostCall) -> None:
             call.ret(int(world.light_readings[index]))
 
-        return {"led": led, "set_motor": set_motor, "delay": delay, "abs": absolute,
+        # led's only effect is this robot's LED colour: a latched host function, which a
+        # compiled swarm step runs without leaving machine code (vm/host.py)
+        return {"led": LatchedHostFunction(led, 1, index, self._apply_led_latches),
+                "set_motor": set_motor, "delay": delay, "abs": absolute,
                 "rand": random_byte, "light": ambient_light, "motion": motion}
+
+    def _apply_led_latches(self, targets: np.ndarray, values: np.ndarray) -> None:
+        """``led(color)`` of robots ``targets`` (their last call's int argument each), as
+        the host function stores it."""
+        color = values[:, 0]
+        self._leds[targets] = np.stack(((color & 1) != 0, (color & 2) != 0,
+                                        (color & 4) != 0), axis=1)
 
     def is_asleep(self, index: int, step: int) -> bool:
         return step <= self.sleep_until[index]
