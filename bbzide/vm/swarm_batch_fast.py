@@ -309,9 +309,9 @@ def _finish(robot: Robot, phase: int, regs: np.ndarray, io: np.ndarray) -> list[
                 vm._loop(saved, budget, resume=(int(io[IO_INNER]), regs))
                 vm.pop()
                 vm.gc()
-                messages.process_inmsgs(vm, count, True)
+                messages.go_on_inmsgs(vm, count, True)
             else:  # PYTHON_MESSAGE: message `count` collected, its extraction is next
-                messages.process_inmsgs(vm, count, bool(io[IO_COLLECTED]), taken=True)
+                messages.go_on_inmsgs(vm, count, bool(io[IO_COLLECTED]), taken=True)
             if vm.state != State.ERROR:
                 robot.call_global(STR_STEP)
         elif phase == P_STEP:
