@@ -41,6 +41,10 @@ def main() -> None:
     for world, robots, script, options, _ in CASES:
         label = f"{world} x {robots} {Path(script or WORLDS[world].example).stem}"
         print(f"{label:28} {fingerprint(build(world, robots, script, options), steps)}")
+    # robots that move (the gradient stands still): the physics' fingerprint
+    for robots, options in ((100, {}), (1000, {"width": 2.0, "height": 2.0})):
+        sim = build("kilobot", robots, "examples/kilobot/aggregation.bzz", options)
+        print(f"{f'kilobot x {robots} aggregation':28} {fingerprint(sim, steps)}")
     label = "kilobot x 100 asynchronous"
     sim = build("kilobot", 100, "examples/kilobot/gradient.bzz", {}, asynchronous=True)
     print(f"{label:28} {fingerprint(sim, steps)}")

@@ -43,25 +43,19 @@ from typing import Any
 import numpy as np
 
 from bbzide.vm.fastgc import COMPILED, _compile, _i, collect_with
+from bbzide.vm.fasthost import call_pushed
 from bbzide.vm.fastloop import (
     EXIT,
     NONE,
-    R_BP,
-    R_CALL_FIRST,
-    R_FIXED,
     R_GC_RUNS,
     R_GSYMS,
     R_LTSEG,
     R_MARK_DEPTH,
-    R_N,
     R_NIL,
-    R_PENDING,
     R_RTOBJ,
-    R_SAVED,
     R_SP,
     R_STACK_SIZE,
     _obj_alloc,
-    run,
 )
 from bbzide.vm.fasttables import table_lookup
 
@@ -109,11 +103,13 @@ def _room_for_objects(d: Any, regs: Any, s: int, reserved: int, wanted: int) -> 
 @_compile
 def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
                        traversed: Any, rules: Any, s: int, elems: int, reserved: int,
-                       records: Any, inq: Any) -> int:
+                       records: Any, inq: Any, hosts: Any, outq: Any, ctl: Any,
+                       latch: Any) -> int:
     """``bbzvm_process_inmsgs`` from message ``inq[Q_COUNT] + 1`` on (see the module
     comment). ``regs``: the VM's registers in ``fastloop``'s ``R_*`` layout (``R_BUDGET``
     the instruction budget of one call); the VM must be READY. Returns :data:`DONE`,
-    :data:`PYTHON_MESSAGE` or :data:`IN_CALL`."""
+    :data:`PYTHON_MESSAGE` or :data:`IN_CALL`. ``hosts`` ... ``latch``: the compiled host
+    functions the listeners may call (:func:`fasthost.run_hosted`; empty from Python)."""
     size = len(d)
     g = 4 * elems + 2
     limit = regs[R_MARK_DEPTH]
@@ -176,13 +172,8 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         d[argc * s + 1] = _LISTENER_ARGS
         d[argc * s + 2] = 0
         stack[sp + 6] = argc
-        regs[R_SP] = sp + _PUSHES
-        regs[R_SAVED] = regs[R_BP]
-        regs[R_N] = 0
-        regs[R_FIXED] = 0
-        regs[R_PENDING] = -1
-        regs[R_CALL_FIRST] = 1
-        status = run(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved)
+        status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                             reserved, sp + _PUSHES, hosts, outq, ctl, latch)
         if status != EXIT or regs[R_SP] < 0:
             inq[Q_INNER] = status
             return IN_CALL
@@ -208,7 +199,8 @@ CALL_UNDER_WAY = 8  # + fastloop.run's status (all below 8): Python goes on with
 
 @_compile
 def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
-                rules: Any, s: int, elems: int, reserved: int, sid: int) -> int:
+                rules: Any, s: int, elems: int, reserved: int, sid: int, hosts: Any,
+                outq: Any, ctl: Any, latch: Any) -> int:
     """``Robot.call_global`` of string ``sid`` with no argument (``bbzkilo_func_call``:
     pushs, pop, look the global up, push nil and the closure, ``closure_call(0)``) on the
     happy path; the VM must be READY. Returns :data:`PYTHON_MESSAGE` with nothing done
@@ -232,13 +224,8 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     d[argc * s + 1] = 0
     d[argc * s + 2] = 0
     stack[sp + 3] = argc
-    regs[R_SP] = sp + _CALL_PUSHES
-    regs[R_SAVED] = regs[R_BP]
-    regs[R_N] = 0
-    regs[R_FIXED] = 0
-    regs[R_PENDING] = -1
-    regs[R_CALL_FIRST] = 1
-    status = run(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved)
+    status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
+                         sp + _CALL_PUSHES, hosts, outq, ctl, latch)
     if status != EXIT:
         return CALL_UNDER_WAY + status
     return CALLED

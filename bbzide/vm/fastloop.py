@@ -496,10 +496,10 @@ def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: i
 
 
 @_compile
-def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsyms: int,
-         bsize: int, s: int, elems: int) -> bool:
-    """``VM.ret0``/``ret1`` (+ ``op_ret*``'s pc check), their happy path: on success
-    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written."""
+def _ret_ok(d: Any, stack: Any, with_value: bool, sp: int, bp: int, lsyms: int,
+            bsize: int, s: int, elems: int) -> bool:
+    """Would :func:`_ret` take its happy path? (Its checks alone: no side effect, so a
+    compiled host function can ask before doing anything it could not hand back.)"""
     size = len(d)
     g = 4 * elems + 2
     nobj = size // s
@@ -511,8 +511,21 @@ def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsym
         return False
     newpc = _u16(d, back, s)
     first = _u16(d, lsyms, s)
-    if newpc > bsize or (first + 1) * g > size:
+    return newpc <= bsize and (first + 1) * g <= size
+
+
+@_compile
+def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsyms: int,
+         bsize: int, s: int, elems: int) -> bool:
+    """``VM.ret0``/``ret1`` (+ ``op_ret*``'s pc check), their happy path: on success
+    ``regs`` gets the new sp, blockptr, lsyms and pc; False with nothing written."""
+    size = len(d)
+    g = 4 * elems + 2
+    if not _ret_ok(d, stack, with_value, sp, bp, lsyms, bsize, s, elems):
         return False
+    bpobj = _i(stack[bp])
+    newpc = _u16(d, _i(stack[bp - 2]), s)
+    first = _u16(d, lsyms, s)
     value = _i(stack[sp]) if with_value else regs[R_NIL]
     # ---- commit (VM._unwind: unmake permanent, darray_destroy via segment_chain)
     d[lsyms * s] = _i(d[lsyms * s]) & (0xFF ^ _PERMANENT)

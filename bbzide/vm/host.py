@@ -17,11 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from bbzide.compiler import bbzfloat
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
+from bbzide.vm.packed_queues import arrays_changed
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
@@ -69,6 +70,8 @@ class HostRegistry:
         self.by_address: dict[int, RegisteredHostFunction] = {}
         self.by_symbol: dict[str, RegisteredHostFunction] = {}
         self._next_free = _FIRST_FREE_ADDRESS
+        #: bumped by every registration (``Robot.compiled_hosts`` caches on it)
+        self.version = 0
 
     def register(self, symbol: str, function: HostFunction, address: int | None = None) -> int:
         """Register ``function`` under ``symbol``; returns the address to store in the heap."""
@@ -81,6 +84,8 @@ class HostRegistry:
         call = RegisteredHostFunction(symbol, address, function)
         self.by_address[address] = call
         self.by_symbol[symbol] = call
+        self.version += 1
+        arrays_changed()
         return address
 
     def lookup(self, address: int) -> RegisteredHostFunction | None:
@@ -174,3 +179,32 @@ class HostCall:
     def finish(self) -> None:
         if not self._done and self.vm.state.name == "READY":
             self.vm.ret0()
+
+
+@dataclass(frozen=True)
+class LatchedHostFunction:
+    """A world host function whose **only effect is to store its int arguments as state of
+    its own robot** that no host function reads during a control step (a Kilobot's ``led``:
+    the colour of its LED). Called from Python it is ``function`` as usual. A compiled
+    swarm step (``swarm_batch``) may instead, on its happy path — exactly ``argc`` int
+    arguments —, latch the arguments in the robot's VM and ``ret0`` without leaving
+    machine code (``fasthost``); after the step it calls ``apply(targets, values)`` once
+    for every robot whose latch was written (``targets``: their ``target`` values;
+    ``values``: int64[k, argc], each robot's last call), and it applies a robot's latch
+    before that robot runs any Python code of the same step, so the order of stores is
+    the order of calls. Anything unusual (another argument count, a non-int) is Python's:
+    ``function`` then reports it as it always does.
+
+    Why it is exact: a store of the last call's arguments, applied before anything else
+    of that robot could store or read the same state, leaves the state ``function``
+    would have left.
+    """
+
+    function: Callable[[HostCall], None]
+    argc: int
+    #: what ``apply`` gets for this robot (the world's index of the robot)
+    target: int
+    apply: Callable[[Any, Any], None]
+
+    def __call__(self, call: HostCall) -> None:
+        self.function(call)

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Generic, TypeVar
 
 import numpy as np
 
-from bbzide.vm import fastinbox, fastloop
+from bbzide.vm import fasthost, fastinbox, fastloop
 from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
 from bbzide.vm.tables import table_get
 
@@ -432,19 +432,28 @@ def process_inmsgs(vm: VM) -> None:
     which stops at the first message (or listener step) it does not cover; from there
     this loop goes on with the reference routines, then calls the kernel again.
     """
-    from bbzide.vm import vstig
     from bbzide.vm.vm import State
 
     if vm.state == State.ERROR:
         return
+    go_on_inmsgs(vm, 0, False)
+
+
+def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> None:
+    """The loop of :func:`process_inmsgs` from where a compiled step stopped
+    (``fastbatch``): ``count`` messages taken, the heap just ``collected``; ``taken``:
+    message ``count``'s collection is done, its extraction is next."""
+    from bbzide.vm import vstig
+    from bbzide.vm.vm import State
+
     q = vm.queues
-    count = 0
     # collected: the heap is what a collection just left, so the next one would change
     # nothing (the fast mode's PC_ONLY rule, vm._SKIP_RULES): fast mode counts it only
-    collected = False
     compiled = _INBOX_KERNEL and not vm.stress_gc
-    while not q.inbox.empty() and count < vm.profile.msg_in_proc_max:
-        if compiled and vm.state == State.READY:
+    while taken or (not q.inbox.empty() and count < vm.profile.msg_in_proc_max):
+        if taken:
+            taken = False
+        elif compiled and vm.state == State.READY:
             status, count, collected = _process_compiled(vm, count, collected)
             if status != fastinbox.PYTHON_MESSAGE:
                 continue
@@ -482,7 +491,7 @@ def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bo
     status = fastinbox.process_broadcasts(
         h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
         fastloop.RULES, h.obj_size, h.elems, h.reserved, np.frombuffer(packed, np.uint8),
-        inq)
+        inq, *fasthost.NO_HOST_ARGS)
     vm.take_kernel_registers(regs)
     start, _end, _slots, _size, count, _max, collected, _lst, extracted, inner = \
         inq.tolist()

@@ -39,11 +39,21 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import fastinbox, fastloop, fastreceive, messages, neighbors
-from bbzide.vm.host import HostCall
+from bbzide.vm import (
+    fasthost,
+    fastinbox,
+    fastloop,
+    fastreceive,
+    messages,
+    neighbors,
+    packed_queues,
+)
+from bbzide.vm.host import HostCall, LatchedHostFunction
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
 from bbzide.vm.vm import VM, Error, State
@@ -120,6 +130,10 @@ class Robot:
         self.skipped_host_functions: list[str] = []
         #: called with (phase label) after each boot phase; the harness dumps there
         self.on_phase: Callable[[str], None] | None = None
+        #: latched host functions by C symbol (host.LatchedHostFunction), and the table of
+        #: host functions a compiled swarm step runs in place (compiled_hosts), cached
+        self._latched: dict[str, LatchedHostFunction] = {}
+        self._hosts: tuple[int, np.ndarray, list[LatchedHostFunction | None]] | None = None
 
     # ---- boot --------------------------------------------------------------------------
     def boot(self) -> None:
@@ -165,6 +179,7 @@ class Robot:
                     self.skipped_host_functions.append(name)
                 else:
                     vm.function_register(sid, self._symbol(name), self._wrap(fn))
+                    self._note_latched(self._symbol(name), fn)
                 i += 1
                 continue
             group = []
@@ -183,11 +198,44 @@ class Robot:
                     self.skipped_host_functions.append(full)
                     continue
                 vm.add_function(t, fsid, self._symbol(full), self._wrap(f))
+                self._note_latched(self._symbol(full), f)
             vm.gsym_register(tsid, t)
             vm.pop()
 
+    def _note_latched(self, symbol: str, fn: HostFunction) -> None:
+        if isinstance(fn, LatchedHostFunction):
+            self._latched[symbol] = fn
+
     def _symbol(self, name: str) -> str:
         return self.host_symbols.get(name, name)
+
+    def compiled_hosts(self) -> tuple[np.ndarray, list[LatchedHostFunction | None]]:
+        """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
+        (address, pointer size, kind, latch slot, argument count) for the closure address of
+        ``neighbors.broadcast`` and of each latched host function, as the VM's registry maps
+        them now; and the latched function of each latch slot. Cached until the registry
+        changes."""
+        registry = self.vm.host
+        cached = self._hosts
+        if cached is not None and cached[0] == registry.version:
+            return cached[1], cached[2]
+        ptr = self.profile.ptr_size
+        rows: list[tuple[int, int, int, int, int]] = []
+        slots: list[LatchedHostFunction | None] = []
+        for address, call in registry.by_address.items():
+            if call.function is neighbors.neighbors_broadcast:
+                rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2))
+        for symbol, fn in self._latched.items():
+            call = registry.by_symbol.get(symbol)
+            if call is None or registry.by_address.get(call.address) is not call \
+                    or len(slots) >= packed_queues.LATCH_SLOTS \
+                    or not 0 <= fn.argc <= packed_queues.LATCH_ARGS:
+                continue
+            rows.append((call.address, ptr, fasthost.HOST_LATCH, len(slots), fn.argc))
+            slots.append(fn)
+        table = np.array(rows, np.int64).reshape(-1, fasthost.HOST_COLUMNS)
+        self._hosts = (registry.version, table, slots)
+        return table, slots
 
     def _wrap(self, fn: HostFunction) -> Callable[[VM], None]:
         strings = self.program.strings
@@ -349,7 +397,7 @@ def _call_global_compiled(vm: VM, sid: int) -> bool | None:
     h = vm.heap
     status = fastinbox.call_global(h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info,
                                    h.gc_traversed, fastloop.RULES, h.obj_size, h.elems,
-                                   h.reserved, sid)
+                                   h.reserved, sid, *fasthost.NO_HOST_ARGS)
     if status == fastinbox.PYTHON_MESSAGE:
         return None
     vm.take_kernel_registers(regs)

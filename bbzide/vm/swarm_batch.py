@@ -114,12 +114,31 @@ class StepResult:
 
 
 def control_steps(robots: Sequence[SteppableRobot | None], deliveries: PackedMessages,
-                  stepping: np.ndarray) -> StepResult:
+                  stepping: np.ndarray, reference: bool | None = None) -> StepResult:
     """Deliver `deliveries`, then one control step of each robot i with `stepping[i]`.
 
     `robots[i]` may be None (a slot without a VM, e.g. a passive target); deliveries to it
-    are ignored (the engine counts them). Reference implementation: see the module doc.
+    are ignored (the engine counts them). The compiled path (`swarm_batch_fast`) unless
+    `reference` (default: the module's `REFERENCE`) or numba is missing.
     """
+    if reference is None:
+        reference = REFERENCE
+    if not reference and _fast_available():
+        from bbzide.vm import swarm_batch_fast
+
+        return swarm_batch_fast.control_steps(robots, deliveries, stepping)
+    return control_steps_reference(robots, deliveries, stepping)
+
+
+def _fast_available() -> bool:
+    from bbzide.vm import fastbatch
+
+    return fastbatch.COMPILED
+
+
+def control_steps_reference(robots: Sequence[SteppableRobot | None],
+                            deliveries: PackedMessages, stepping: np.ndarray) -> StepResult:
+    """`control_steps` by plain calls of each robot's own methods (see the module doc)."""
     count = len(robots)
     before = np.fromiter((r is not None and r.failure is not None for r in robots),
                          dtype=bool, count=count)
@@ -138,3 +157,6 @@ def control_steps(robots: Sequence[SteppableRobot | None], deliveries: PackedMes
     after = np.fromiter((r is not None and r.failure is not None for r in robots),
                         dtype=bool, count=count)
     return StepResult(PackedMessages.from_rows(rows), after & ~before)
+
+#: True: `control_steps` always takes the reference path (tests, benchmarks compare the two)
+REFERENCE = False

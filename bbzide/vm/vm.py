@@ -54,6 +54,7 @@ from bbzide.vm.heap import (
 from bbzide.vm.host import HostFunction, HostRegistry
 from bbzide.vm.messages import MessageQueues
 from bbzide.vm.neighbors import NeighborsState
+from bbzide.vm.packed_queues import PackedQueues, arrays_changed
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (
@@ -156,8 +157,56 @@ class VM:
                           self.heap.elems, self.heap.reserved, profile.gcmark_depth)
         self.swarm = SwarmState()
         self.vstig = VstigStore()
+        #: the queues and neighbor ring as arrays (fast mode's swarm step), and whether the
+        #: arrays hold the truth now (packed_queues.py: one form is the truth at a time)
+        self._packed: PackedQueues | None = None
+        self._packed_live = False
+        arrays_changed()
         self.neighbors = NeighborsState()
         self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap, profile.obj_size)
+
+    # =================================================================== queues and ring
+    @property
+    def queues(self) -> MessageQueues:
+        """``vm->inmsgs``/``vm->outmsgs`` (unpacked first when the arrays hold the truth)."""
+        if self._packed_live:
+            self._unpack()
+        return self._queues
+
+    @queues.setter
+    def queues(self, value: MessageQueues) -> None:
+        if self._packed_live:
+            self._unpack()
+        self._queues = value
+
+    @property
+    def neighbors(self) -> NeighborsState:
+        """``vm->neighbors`` (unpacked first when the arrays hold the truth)."""
+        if self._packed_live:
+            self._unpack()
+        return self._neighbors
+
+    @neighbors.setter
+    def neighbors(self, value: NeighborsState) -> None:
+        if self._packed_live:
+            self._unpack()
+        self._neighbors = value
+
+    def _unpack(self) -> None:
+        self._packed_live = False
+        self._packed.unpack(self._queues, self._neighbors)  # type: ignore[union-attr]
+
+    def packed(self) -> PackedQueues:
+        """The queues and neighbor ring as arrays that hold the truth from now until the
+        next Python access to ``queues``/``neighbors`` (packed_queues.py)."""
+        packed = self._packed
+        if not self._packed_live:
+            if packed is None:
+                packed = self._packed = PackedQueues(self.profile,
+                                                     len(self._queues.inbox.records[0]))
+            packed.pack(self._queues, self._neighbors, self.robot)
+            self._packed_live = True
+        return packed  # type: ignore[return-value]
 
     # =================================================================== construct
     def construct(self, robot: int | None = None) -> None:
@@ -166,6 +215,7 @@ class VM:
 
         if robot is not None:
             self.robot = robot
+        arrays_changed()
         self.bcode = b""
         self.bcode_size = 0
         self.pc = 0
@@ -201,6 +251,7 @@ class VM:
         """``bbzvm_set_bcode``: run the string-registration preamble up to its ``nop``."""
         self.bcode = bytes(bcode)
         self.bcode_size = len(self.bcode)
+        arrays_changed()
         self.state = State.READY
         self.error = Error.NONE
         self.pc = 2
@@ -458,6 +509,7 @@ class VM:
         self.swarm, self.vstig, self.neighbors, self.queues = recs  # fresh from pickle.loads
         self.bcode = bcode
         self.bcode_size = len(bcode)
+        arrays_changed()
 
     # =================================================================== execution
     def step(self) -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import pickle
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from bbzide.vm.robot import Robot
@@ -154,3 +155,183 @@ def test_growing_stack_identical() -> None:
     program = load_script(REPO / "examples/kilobot/gradient.bzz",
                           WORLDS["kilobot"].host_names, [])
     _run_both(program, "kilobot", 3, 96, options={"width": 0.2, "height": 0.2}, loop="robot")
+
+
+# ---- swarm_batch.control_steps: the compiled path against the reference --------------------
+# The engine hands a whole control step to `swarm_batch.control_steps`; its compiled path
+# (swarm_batch_fast, fastbatch) must leave every robot as the reference implementation does.
+# The two swarms below are driven by `control_steps` directly with deliveries from a plain
+# in-range radio (no loss), so the test does not depend on the engine's radio: the reference
+# swarm's robots are in the stress mode on the reference path, the other's in the fast mode
+# on the compiled path. Outboxes, failures and LEDs are compared after every step, each
+# robot's whole state every third step (a snapshot unpacks the packed queues: the steps in
+# between run on queues that stay packed, the path a swarm nobody inspects takes).
+
+def _batch_swarms(program, world: str, robots: int, budget: int, loop: str,
+                  options: dict) -> list[Simulation]:
+    return [Simulation(world, program, robots=robots, seed=5, world_options=options,
+                       robot_factory=_factory(stress, budget, loop), watch=())
+            for stress in (True, False)]
+
+
+def _deliveries(outbox, sim: Simulation, comm_range: float, unit: float):
+    """Every outbox row to every robot within `comm_range` of its sender, by receiver."""
+    from bbzide.vm.swarm_batch import PackedMessages
+
+    rows = []
+    positions = sim.positions
+    for k in range(len(outbox)):
+        sender = int(outbox.robots[k])
+        for receiver in range(sim.count):
+            gap = float(np.linalg.norm(positions[receiver] - positions[sender]))
+            if receiver != sender and gap <= comm_range:
+                rows.append((receiver, sender, outbox.payload(k), gap * unit,
+                             0.7 * (receiver - sender), 0.1 * sender))
+    rows.sort(key=lambda r: r[0])
+    return PackedMessages.from_rows(rows)
+
+
+def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100_000,
+                 loop: str = "pop", options: dict | None = None, comm_range: float = 0.12,
+                 unit: float = 1000.0) -> dict[str, int]:
+    from bbzide.vm.swarm_batch import PackedMessages, control_steps
+
+    sims = _batch_swarms(program, world, robots, budget, loop, options or {})
+    reference, fast = ([s.robot for s in sim.robots] for sim in sims)
+    outboxes = [PackedMessages.empty(), PackedMessages.empty()]
+    seen = {"messages": 0, "failed": 0}
+    for step in range(steps):
+        stepping = np.array([(i + step) % 5 != 0 for i in range(robots)])
+        results = [control_steps(team, _deliveries(box, sim, comm_range, unit), stepping,
+                                 reference=ref)
+                   for team, box, sim, ref in zip((reference, fast), outboxes, sims,
+                                                  (True, False), strict=True)]
+        a, b = results
+        for column in ("robots", "payloads", "lengths"):
+            assert (getattr(a.outbox, column) == getattr(b.outbox, column)).all(), step
+        assert (a.failed == b.failed).all(), step
+        assert (sims[0].leds == sims[1].leds).all(), step
+        if step % 3 == 2 or step == steps - 1:
+            for i, (x, y) in enumerate(zip(reference, fast, strict=True)):
+                assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot()), \
+                    (step, i)
+                assert str(x.failure) == str(y.failure), (step, i)
+        outboxes = [a.outbox, b.outbox]
+        seen["messages"] += len(a.outbox)
+        seen["failed"] = int(sum(r.failure is not None for r in reference))
+    return seen
+
+
+def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  # noqa: ANN001
+    """The gradient example runs wholly in the compiled step (no hand-over to Python:
+    `neighbors.broadcast` and the latched `led` run in machine code) and stays identical."""
+    from bbzide.vm import swarm_batch_fast
+
+    handed: list[int] = []
+    finish = swarm_batch_fast._finish
+
+    def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
+        handed.append(phase)
+        return finish(robot, phase, regs, io)
+
+    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    program = load_script(REPO / "examples/kilobot/gradient.bzz",
+                          WORLDS["kilobot"].host_names, [])
+    seen = _run_batches(program, "kilobot", 20, 14, options={"width": 0.35, "height": 0.35})
+    assert seen["messages"] > 150 and handed == []
+
+
+BATCH_HAND_OVERS = """
+var heard = 0
+var calls = 0
+var steps = 0
+var big = {}
+var v
+function init() {
+  v = stigmergy.create(1)
+  neighbors.listen("a", function(vid, value, rid) {
+    heard = heard + value
+    led(value % 7 + 1)                      # a latched host function inside a listener
+  })
+  neighbors.listen("b", function(vid, value, rid) {
+    calls = calls + 1
+    big[calls % 3] = {.x = calls, .y = rid}   # tables: instructions the kernel leaves to Python
+  })
+  neighbors.listen("c", function(vid, value, rid) {
+    if (id == 3 and calls > 20) {
+      var t = value.nothing                 # a TYPE error inside a listener
+    }
+  })
+  neighbors.listen("d", function(vid, value, rid) {
+    if (id == 5 and calls > 15) {
+      while (1) { }                         # the budget inside a listener
+    }
+  })
+}
+function step() {
+  led(id % 7)
+  neighbors.broadcast("a", id)
+  neighbors.broadcast("b", calls)
+  neighbors.broadcast("c", 1)
+  neighbors.broadcast("d", 2)
+  neighbors.broadcast("e", 3)               # nobody listens to "e"
+  if (id % 2 == 0) {
+    v.put(1, heard)                         # stigmergy messages between broadcasts
+  }
+  steps = steps + 1
+  if (steps > 12 and id == 7) {
+    led(heard % 3, 1)                       # LNUM: the latched function's Python path
+  }
+  if (steps > 9 and id == 9) {
+    led(nil)                                # TYPE, after a latched call of the same step
+  }
+  if (steps > 15 and id == 11) {
+    neighbors.broadcast("a")                # LNUM in the compiled broadcast's place
+  }
+}
+"""
+
+
+@pytest.mark.parametrize("loop", ["pop", "robot"])
+def test_batch_hand_overs_identical(tmp_path: Path, loop: str) -> None:
+    """Kilobots that hit every hand-over of the compiled step: host functions it does not
+    run (stigmergy), tables, errors and the budget inside listeners, a full in-queue (five
+    topics from every neighbor) and out-queue, unknown topics, a latched function called
+    with a wrong argument count or type after a latched call, the data GC of the neighbor
+    ring (every 11th step), robots that only receive (not stepping), and with the firmware
+    loop a stack that grows until the STACK error."""
+    program = _compile(tmp_path, BATCH_HAND_OVERS)
+    seen = _run_batches(program, "kilobot", 14, 24, budget=3000, loop=loop,
+                        options={"width": 0.3, "height": 0.3})
+    assert seen["messages"] > 300 and 0 < seen["failed"] < 14, seen
+
+
+def test_batch_heap_filling_identical(tmp_path: Path) -> None:
+    """Listeners keep what they hear until the Kilobot heap is full (MEM)."""
+    program = _compile(tmp_path, """
+var kept = {}
+var n = 0
+function init() {
+  neighbors.listen("k", function(vid, value, rid) {
+    n = n + 1
+    kept[n] = value
+  })
+}
+function step() {
+  neighbors.broadcast("k", n)
+  led(n % 8)
+}
+""")
+    seen = _run_batches(program, "kilobot", 10, 25, options={"width": 0.25, "height": 0.25})
+    assert seen["failed"] > 0
+
+
+@pytest.mark.parametrize("world", ["crazyflie", "m300"])
+def test_batch_other_profiles_identical(tmp_path: Path, world: str) -> None:
+    """Profiles with neighbor data in the heap (they receive through Python, then step
+    compiled): Crazyflie and M300, with hand-overs (stigmergy, tables, errors)."""
+    text = BATCH_HAND_OVERS.replace("led(", "ledx(").replace(
+        "var v\n", "var v\nfunction ledx(a) { return a }\n", 1)
+    program = _compile(tmp_path, text, world)
+    seen = _run_batches(program, world, 8, 14, budget=3000, comm_range=30.0, unit=1.0)
+    assert seen["messages"] > 100

@@ -61,3 +61,24 @@ def test_loss_rate_is_statistically_right_and_seeded():
     assert np.array_equal(a.senders, b.senders)
     kept = len(a.senders) / len(links.senders)
     assert abs(kept - 0.8) < 0.02
+
+
+def test_neighbour_cache_gives_the_search_s_pairs_while_robots_move():
+    rng = np.random.default_rng(3)
+    points = np.column_stack([rng.uniform(0, 1, 400), rng.uniform(0, 1, 400),
+                              rng.uniform(0, 0.05, 400)])
+    cache = radio.NeighbourCache(0.1)
+
+    def rows(links):
+        return sorted(zip(links.senders.tolist(), links.receivers.tolist(),
+                          links.distances.tolist(), strict=True))
+
+    for step in range(60):
+        points += rng.normal(0, 0.001, points.shape)          # a Kilobot-like crawl
+        if step == 40:
+            points[7] = [0.5, 0.5, 0.0]                          # one robot moved by hand
+        got = cache.pairs(points)
+        assert rows(got) == rows(pairs_within_range(points, 0.1))
+        pairs = np.column_stack([got.receivers, got.senders])
+        assert (np.diff(pairs[:, 0] * 400 + pairs[:, 1]) > 0).all()   # receiver, sender
+    assert 2 < cache.searches < 20                               # reused, yet rebuilt

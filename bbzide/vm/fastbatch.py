@@ -1,0 +1,327 @@
+"""Compiled control step of one robot (fast VM mode): receive, in-queue, ``step``, out-queue.
+
+``Robot.receive_all`` + ``Robot.control_step`` are four phases, each already compiled on
+its own (:mod:`fastreceive`, :mod:`fastinbox`, :mod:`fasthost`); called one by one from
+Python, with the queues packed and unpacked for each, the Python between them cost as much
+as the machine code (issue #4). :func:`robot_step` runs the whole control step of one robot
+in one call, on the robot's packed queues and ring (:mod:`packed_queues`, which stay packed
+between steps):
+
+1. receive the robot's rows of the step's deliveries (XTREME/u8 profiles only, as
+   :func:`fastreceive.receive_all`; the others receive through Python before the call);
+2. ``bbzvm_process_inmsgs`` (:func:`fastinbox.process_broadcasts`);
+3. ``step`` (:func:`fastinbox.call_global`, and the ``pop`` of the firmware loop "pop");
+4. ``bbzvm_process_outmsgs``: the neighbor-data GC countdown, the XTREME ring's data GC
+   (``neighbors.data_gc``, ``bringToTop`` quirk included);
+5. the out-queue drained into the step's outbox rows (``messages.serialize``).
+
+Each phase keeps the kernel's rule: what it does not cover it hands back **before any side
+effect it cannot hand over**, and the call returns the phase it stopped in (``P_*``) with
+what Python needs to go on exactly from there (``io``): the reference routines then finish
+that robot's control step (``swarm_batch_fast``). Host functions of ``step`` and of the
+listeners run in place when :mod:`fasthost` covers them (``hosts``), latched ones writing
+the robot's latch slots (the return value has :data:`LATCHED` set then).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from bbzide.vm.fastgc import COMPILED, _compile, _i
+from bbzide.vm.fastinbox import (
+    CALLED,
+    DONE,
+    NOT_DEFINED,
+    PYTHON_MESSAGE,
+    Q_COLLECTED,
+    Q_COUNT,
+    Q_END,
+    Q_EXTRACTED,
+    Q_INNER,
+    Q_LISTENERS,
+    Q_MAX,
+    Q_RECORD,
+    Q_SLOTS,
+    Q_START,
+    QUEUE_SLOTS,
+    call_global,
+    process_broadcasts,
+)
+from bbzide.vm.fastloop import R_SP
+from bbzide.vm.fastreceive import _inmsg_append, _neighbors_add, _to_u8
+from bbzide.vm.packed_queues import (
+    CLEAR_COUNTER,
+    CLEAR_PERIOD,
+    IN_END,
+    IN_SLOTS,
+    IN_START,
+    LISTENERS,
+    MARK_TIME,
+    MSG_MAX,
+    NB_END,
+    NB_SLOTS,
+    NB_START,
+    OUT_END,
+    OUT_SLOTS,
+    OUT_START,
+    RECORD,
+    XTREME,
+)
+
+__all__ = ["COMPILED", "robot_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS", "LATCHED"]
+
+# Phases a call stopped in (its return value, plus LATCHED when a latch slot was written).
+P_DONE = 0      # everything asked for is done
+P_INMSGS = 1    # the in-queue: io[IO_STATUS] is process_broadcasts' status (PYTHON_MESSAGE
+#                 or IN_CALL), io[IO_COUNT] / io[IO_COLLECTED] / io[IO_INNER] its state
+P_STEP = 2      # ``step``: io[IO_STATUS] is call_global's status (PYTHON_MESSAGE: nothing
+#                 done; CALLED with a stack it cannot pop; CALL_UNDER_WAY + run's status)
+P_OUTMSGS = 3   # process_outmsgs needs the heap (a non-XTREME data GC): Python from there
+LATCHED = 8
+# Flags of a call.
+F_RECEIVE, F_STEP, F_POP = 1, 2, 4
+# ``io`` slots.
+IO_STATUS, IO_COUNT, IO_COLLECTED, IO_INNER, IO_ROWS = range(5)
+IO_SLOTS = 5
+
+_STR_STEP = 5
+_BROADCAST, _VSTIG_PUT, _VSTIG_QUERY = 0, 1, 2
+_TABLE = 4
+_MARK = 0x01
+#: a payload as the VM reads it (messages.PAYLOAD_SIZE)
+_PAYLOAD = 9
+#: record offsets (messages.py)
+_RID, _BC_TOPIC, _BC_VALUE, _VS_LAMPORT, _VS_KEY, _VS_DATA = 1, 3, 5, 3, 4, 6
+_NB_MARK = 4
+
+
+@_compile
+def _ring_size(start: int, end: int, slots: int) -> int:
+    return end - start if end >= start else slots - (start - end)
+
+
+@_compile
+def _receive(inq: Any, ring: Any, ctl: Any, payloads: Any, lengths: Any, distances: Any,
+             azimuths: Any, elevations: Any, first: int, last: int) -> None:
+    """``Robot.receive`` of rows ``first:last`` (fastreceive.receive_all, row by row)."""
+    spare = np.empty(len(inq), np.uint8)
+    size = ctl[RECORD]
+    mark = ctl[CLEAR_COUNTER] < ctl[MARK_TIME]
+    for k in range(first, last):
+        n = min(lengths[k], _PAYLOAD)
+        row = payloads[k]
+        if n >= 3 and row[0] == _BROADCAST:
+            rid = _i(row[1]) | (_i(row[2]) << 8)
+            _neighbors_add(ring, ctl, rid, _to_u8(distances[k]), _to_u8(azimuths[k]),
+                           _to_u8(elevations[k]), mark)
+        _inmsg_append(inq, ctl, size, row, 0, n, spare)
+
+
+@_compile
+def _data_gc(ring: Any, ctl: Any) -> None:
+    """``neighbors.data_gc`` on the XTREME ring: unmarked entries brought to the top (the
+    firmware's ``bringToTop``: a u8 position counting up until it wraps) and popped."""
+    start = ctl[NB_START]
+    slots = ctl[NB_SLOTS]
+    unmarked = 0
+    i = 0
+    while i < _ring_size(start, ctl[NB_END], slots):
+        k = ((i + start) & 0xFF) % slots
+        if not ring[k, _NB_MARK] & _MARK:
+            pos = i
+            while pos > 0:
+                a = ((((pos - 1) & 0xFF) + start) & 0xFF) % slots
+                b = ((pos + start) & 0xFF) % slots
+                for j in range(ring.shape[1]):
+                    t = ring[a, j]
+                    ring[a, j] = ring[b, j]
+                    ring[b, j] = t
+                pos = (pos + 1) & 0xFF
+            unmarked += 1
+        else:
+            ring[k, _NB_MARK] &= 0xFF ^ _MARK
+        i = (i + 1) & 0xFF
+    for _ in range(unmarked):
+        if start != ctl[NB_END]:
+            start = ((start + 1) & 0xFF) % slots
+    ctl[NB_START] = start
+
+
+@_compile
+def _drain(outq: Any, ctl: Any, index: int, out_payloads: Any, out_lengths: Any,
+           out_robots: Any, io: Any) -> None:
+    """``messages.drain_outbox``: every queued record serialised (``serialize``) into the
+    outbox rows from ``io[IO_ROWS]`` on, head first."""
+    size = ctl[RECORD]
+    slots = ctl[OUT_SLOTS]
+    start = ctl[OUT_START]
+    end = ctl[OUT_END]
+    row = io[IO_ROWS]
+    while start != end:
+        o = start * size
+        out = out_payloads[row]
+        for j in range(_PAYLOAD):
+            out[j] = 0
+        t = _i(outq[o])
+        out[0] = t
+        out[1] = outq[o + _RID]
+        out[2] = outq[o + _RID + 1]
+        n = 3
+        if t == _BROADCAST:
+            if _i(outq[o + _BC_VALUE]) & 7 != _TABLE:
+                out[3] = outq[o + _BC_TOPIC]
+                out[4] = outq[o + _BC_TOPIC + 1]
+                for j in range(3):
+                    out[5 + j] = outq[o + _BC_VALUE + j]
+                n = 8
+        elif t == _VSTIG_PUT or t == _VSTIG_QUERY:
+            if _i(outq[o + _VS_DATA]) & 7 != _TABLE:
+                out[3] = outq[o + _VS_KEY]
+                out[4] = outq[o + _VS_KEY + 1]
+                for j in range(3):
+                    out[5 + j] = outq[o + _VS_DATA + j]
+                out[8] = outq[o + _VS_LAMPORT]
+                n = 9
+        out_lengths[row] = n
+        out_robots[row] = index
+        row += 1
+        start = ((start + 1) & 0xFF) % slots
+    ctl[OUT_START] = start
+    io[IO_ROWS] = row
+
+
+@_compile
+def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+               rules: Any, s: int, elems: int, reserved: int, inq: Any, outq: Any,
+               ring: Any, ctl: Any, latch: Any, hosts: Any, payloads: Any, lengths: Any,
+               distances: Any, azimuths: Any, elevations: Any, first: int, last: int,
+               flags: int, index: int, out_payloads: Any, out_lengths: Any,
+               out_robots: Any, io: Any) -> int:
+    """One robot's receive (``F_RECEIVE``) and control step (``F_STEP``; ``F_POP``: the
+    firmware loop pops ``step``'s result) on its packed queues; the VM must be READY.
+    Returns the phase it stopped in (``P_*``), plus :data:`LATCHED` when a latch slot was
+    written; ``regs`` then holds the VM's registers (see the module comment). What it
+    sends goes to the outbox rows from ``io[IO_ROWS]`` on, as robot ``index``'s."""
+    if flags & F_RECEIVE:
+        _receive(inq, ring, ctl, payloads, lengths, distances, azimuths, elevations, first,
+                 last)
+    if not flags & F_STEP:
+        return P_DONE
+    latched = latch[:, 0].any()
+    phase = P_DONE
+    # ---- process_inmsgs
+    q = np.zeros(QUEUE_SLOTS, np.int64)
+    q[Q_START] = ctl[IN_START]
+    q[Q_END] = ctl[IN_END]
+    q[Q_SLOTS] = ctl[IN_SLOTS]
+    q[Q_RECORD] = ctl[RECORD]
+    q[Q_MAX] = ctl[MSG_MAX]
+    q[Q_LISTENERS] = ctl[LISTENERS]
+    status = DONE
+    if q[Q_START] != q[Q_END]:
+        status = process_broadcasts(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                                    reserved, inq, q, hosts, outq, ctl, latch)
+        ctl[IN_START] = q[Q_START]
+        q[Q_EXTRACTED] = 0
+    if status != DONE:
+        io[IO_STATUS] = status
+        io[IO_COUNT] = q[Q_COUNT]
+        io[IO_COLLECTED] = q[Q_COLLECTED]
+        io[IO_INNER] = q[Q_INNER]
+        phase = P_INMSGS
+    else:
+        # ---- step, and the firmware loop's pop of its result
+        status = call_global(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                             reserved, _STR_STEP, hosts, outq, ctl, latch)
+        if status == CALLED and flags & F_POP and regs[R_SP] >= 0:
+            regs[R_SP] -= 1
+        elif status != NOT_DEFINED and (status != CALLED or flags & F_POP):
+            io[IO_STATUS] = status
+            phase = P_STEP
+    if phase == P_DONE:
+        # ---- process_outmsgs: the neighbor-data GC countdown (u8), then the data GC
+        was = ctl[CLEAR_COUNTER]
+        if was == 0 and not ctl[XTREME]:
+            phase = P_OUTMSGS
+        else:
+            ctl[CLEAR_COUNTER] = (was - 1) & 0xFF
+            if was == 0:
+                ctl[CLEAR_COUNTER] = ctl[CLEAR_PERIOD]
+                _data_gc(ring, ctl)
+            _drain(outq, ctl, index, out_payloads, out_lengths, out_robots, io)
+    if latched or latch[:, 0].any():
+        return phase | LATCHED
+    return phase
+
+
+__all__ += ["F_RECEIVE", "F_STEP", "F_POP", "IO_STATUS", "IO_COUNT", "IO_COLLECTED",
+            "IO_INNER", "IO_ROWS", "IO_SLOTS", "PYTHON_MESSAGE"]
+
+
+# ---- a whole swarm's control step: robot_step for each robot, in one call ---------------------
+#: columns of ``dynamic``: the VM registers Python keeps as attributes (``VM``/``Heap``),
+#: copied in before a robot's step and out after it
+D_PC, D_SP, D_BP, D_RTOBJ, D_LTSEG, D_LSYMS, D_GC_RUNS, D_EXECUTED, D_PEAK, D_BUDGET = range(10)
+DYNAMIC = 10
+#: ``fastloop``'s register slot of each ``dynamic`` column
+_DYNAMIC_REGISTER = (0, 1, 2, 3, 4, 5, 6, 7, 11, 15)
+# Columns of ``geometry``: the heap geometry of each robot.
+G_OBJ, G_ELEMS, G_RESERVED = range(3)
+# Columns of a ``latched`` row: the latch group (see swarm_batch_fast), target, arguments.
+L_GROUP, L_TARGET, L_ARGS = 0, 1, 2
+
+
+@_compile
+def swarm_step(heaps: Any, stacks: Any, bcodes: Any, infos: Any, traverseds: Any,
+               inqs: Any, outqs: Any, rings: Any, ctls: Any, latches: Any, hostss: Any,
+               geometry: Any, registers: Any, dynamic: Any, todo: Any, flags: Any,
+               rules: Any, payloads: Any, lengths: Any, distances: Any, azimuths: Any,
+               elevations: Any, bounds: Any, out_payloads: Any, out_lengths: Any,
+               out_robots: Any, cursor: Any, ios: Any, phases: Any, groups: Any,
+               targets: Any, latched: Any) -> int:
+    """:func:`robot_step` of robot ``i`` for each ``i`` in ``todo`` (its per-robot arrays
+    at ``[i]`` of the typed lists, ``registers[i]`` its register row with the constant
+    slots filled, ``dynamic[i]`` the rest in and out, ``flags[i]`` its flags, its
+    deliveries ``bounds[i]:bounds[i + 1]``). Its phase goes to ``phases[i]`` (without
+    :data:`LATCHED`) and its hand-over state to ``ios[i]``; the outbox rows are filled
+    from ``cursor[0]`` on (and ``cursor[0]`` moved past them). Written latch slots are
+    cleared and listed as rows of ``latched`` (``groups[i, slot]``, ``targets[i, slot]``,
+    the arguments). Returns the number of latched rows."""
+    rows = cursor[0]
+    count = 0
+    for i in todo:
+        regs = registers[i]
+        dyn = dynamic[i]
+        for k in range(DYNAMIC):
+            regs[_DYNAMIC_REGISTER[k]] = dyn[k]
+        io = ios[i]
+        io[IO_ROWS] = rows
+        g = geometry[i]
+        phase = robot_step(heaps[i], stacks[i], bcodes[i], regs, infos[i], traverseds[i],
+                           rules, g[G_OBJ], g[G_ELEMS], g[G_RESERVED], inqs[i], outqs[i],
+                           rings[i], ctls[i], latches[i], hostss[i], payloads, lengths,
+                           distances, azimuths, elevations, bounds[i], bounds[i + 1],
+                           flags[i], i, out_payloads, out_lengths, out_robots, io)
+        rows = io[IO_ROWS]
+        for k in range(DYNAMIC):
+            dyn[k] = regs[_DYNAMIC_REGISTER[k]]
+        if phase & LATCHED:
+            phase ^= LATCHED
+            latch = latches[i]
+            for slot in range(latch.shape[0]):
+                if latch[slot, 0]:
+                    latch[slot, 0] = 0
+                    latched[count, L_GROUP] = groups[i, slot]
+                    latched[count, L_TARGET] = targets[i, slot]
+                    for a in range(latch.shape[1] - 1):
+                        latched[count, L_ARGS + a] = latch[slot, 1 + a]
+                    count += 1
+        phases[i] = phase
+    cursor[0] = rows
+    return count
+
+
+__all__ += ["swarm_step", "DYNAMIC", "D_BUDGET", "G_OBJ", "G_ELEMS", "G_RESERVED",
+            "L_GROUP", "L_TARGET", "L_ARGS"]

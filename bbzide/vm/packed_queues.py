@@ -1,0 +1,113 @@
+"""A robot's message queues and XTREME neighbor ring as arrays, for the compiled swarm step.
+
+The reference routines (:mod:`messages`, :mod:`neighbors`) keep a queue as a list of
+``bytearray`` records and the neighbor ring as a list of ``NeighborEntry`` objects: easy to
+read, but a compiled routine cannot touch them, and packing them into arrays for every call
+and copying them back cost more than the machine code they fed (issue #4: ~30 µs of a
+Kilobot's ~160 µs VM step). :class:`PackedQueues` holds the same state as arrays that the
+compiled swarm step (:mod:`fastbatch`) works on in place, and **only one of the two forms
+holds the truth at a time**:
+
+* ``VM.packed()`` makes the arrays the truth (packing the Python records if they were);
+  the compiled step then reads and writes them across control steps with no copying;
+* any Python access to ``vm.queues`` or ``vm.neighbors`` (a reference routine a robot hands
+  back to, the inspector, a snapshot) first unpacks the arrays into the Python records and
+  makes those the truth again (``VM`` properties); the next compiled step packs again.
+
+So every observer sees exactly the state the reference routines would have left, and a
+swarm nobody inspects never converts. Layouts (``ctl`` slots below): ``inq``/``outq`` are a
+queue's ``CAP + 2`` records concatenated (record ``k`` at ``k * record``, the last one the
+scratch record); ``ring`` has a row per neighbor slot (``fastreceive.NB_*`` columns);
+``ctl`` holds the ring indices (the first six in :mod:`fastreceive`'s ``rings`` order, so
+its routines work on ``ctl`` directly) and the scalars of ``NeighborsState`` the step reads.
+"""
+
+from __future__ import annotations
+
+from array import array
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from bbzide.vm.messages import MessageQueues
+    from bbzide.vm.neighbors import NeighborsState
+    from bbzide.vm.profiles import Profile
+
+# ``ctl`` slots: fastreceive's six ring slots first, then ours.
+IN_START, IN_END, IN_SLOTS, NB_START, NB_END, NB_SLOTS = range(6)
+OUT_START, OUT_END, OUT_SLOTS = 6, 7, 8
+CLEAR_COUNTER, LISTENERS, ROBOT, RECORD = 9, 10, 11, 12
+#: the profile's constants the step reads (set once: msg_in_proc_max, neighbors_mark_time,
+#: neighbors_clr_period, xtreme)
+MSG_MAX, MARK_TIME, CLEAR_PERIOD, XTREME = 13, 14, 15, 16
+#: slots in ``ctl``
+CTL_SLOTS = 17
+
+#: columns of a ring row: NeighborEntry's fields (robot, distance, azimuth, elevation,
+#: mark) — fastreceive.RING_COLUMNS (not imported: fastreceive imports the VM's modules)
+RING_COLUMNS = 5
+
+#: the most arguments a latched host function may take (HostRegistry: LatchedHostFunction)
+LATCH_ARGS = 4
+#: latch slots of one robot (distinct latched host functions it registers)
+LATCH_SLOTS = 4
+
+
+#: bumped whenever an array or constant register a compiled swarm step may have cached
+#: for some VM can change (a VM built, its code set, a restore, a host registration, a
+#: ring re-allocated): ``swarm_batch_fast`` rebuilds its per-swarm tables then
+GENERATION = [0]
+
+
+def arrays_changed() -> None:
+    """Invalidate every compiled swarm step's cached per-robot tables."""
+    GENERATION[0] += 1
+
+
+class PackedQueues:
+    """One robot's queues and neighbor ring as arrays (see the module comment)."""
+
+    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "record")
+
+    def __init__(self, profile: Profile, record: int) -> None:
+        self.record = record
+        self.inq = np.zeros((profile.in_queue_cap + 2) * record, np.uint8)
+        self.outq = np.zeros((profile.out_queue_cap + 2) * record, np.uint8)
+        self.ring = np.zeros((profile.neighbors_cap + 1, RING_COLUMNS), np.int64)
+        self.ctl = np.zeros(CTL_SLOTS, np.int64)
+        self.ctl[MSG_MAX:] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
+                              profile.neighbors_clr_period, profile.xtreme)
+        #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (HostRegistry's latched functions)
+        self.latch = np.zeros((LATCH_SLOTS, 1 + LATCH_ARGS), np.int64)
+
+    def pack(self, queues: MessageQueues, neighbors: NeighborsState, robot: int) -> None:
+        """The Python records into the arrays (they become the truth)."""
+        inbox, outbox, ring = queues.inbox, queues.outbox, neighbors.ring
+        self.inq[:] = np.frombuffer(bytearray().join(inbox.records), np.uint8)
+        self.outq[:] = np.frombuffer(bytearray().join(outbox.records), np.uint8)
+        flat: list[int] = []
+        for e in ring.records:
+            flat += (e.robot, e.distance, e.azimuth, e.elevation, e.mark)
+        if len(ring.records) != len(self.ring):
+            self.ring = np.zeros((len(ring.records), RING_COLUMNS), np.int64)
+            arrays_changed()
+        self.ring[:] = np.frombuffer(array("q", flat), np.int64).reshape(-1, RING_COLUMNS)
+        self.ctl[:MSG_MAX] = (inbox.start, inbox.end, inbox.capacity, ring.start, ring.end,
+                       ring.capacity, outbox.start, outbox.end, outbox.capacity,
+                       neighbors.clear_counter, neighbors.listeners, robot, self.record)
+
+    def unpack(self, queues: MessageQueues, neighbors: NeighborsState) -> None:
+        """The arrays back into the Python records (they become the truth again)."""
+        n = self.record
+        inq = self.inq.tobytes()
+        for k, record in enumerate(queues.inbox.records):
+            record[:] = inq[k * n:(k + 1) * n]
+        outq = self.outq.tobytes()
+        for k, record in enumerate(queues.outbox.records):
+            record[:] = outq[k * n:(k + 1) * n]
+        for e, row in zip(neighbors.ring.records, self.ring.tolist(), strict=True):
+            e.robot, e.distance, e.azimuth, e.elevation, e.mark = row
+        (queues.inbox.start, queues.inbox.end, _in_slots, neighbors.ring.start,
+         neighbors.ring.end, _nb_slots, queues.outbox.start, queues.outbox.end, _out_slots,
+         neighbors.clear_counter) = self.ctl[:CLEAR_COUNTER + 1].tolist()
