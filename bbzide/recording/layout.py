@@ -15,10 +15,13 @@ from __future__ import annotations
 
 #: `/mission` static component `meta` (JSON) starts with this; anything else is foreign.
 FORMAT = "bbzide-mission"
-#: Bumped when the layout changes incompatibly; the reader refuses other versions. 2: input
-#: log in columns, keyframe deltas as changed blocks, zstd (version 1: packed messages, XOR
-#: deltas, zlib).
-FORMAT_VERSION = 2
+#: Bumped when the layout changes; the reader refuses versions before `OLDEST_READABLE` or
+#: after this one. 2: input log in columns, keyframe deltas as changed blocks, zstd (version 1:
+#: packed messages, XOR deltas, zlib). 3 (session 5): a latched host function's happy-path
+#: calls (a Kilobot's `led`: see `input_log.SwarmCapture.tap`) are not in the input log, the
+#: meta says which functions are latched (`latched`); version 2 files read as before.
+FORMAT_VERSION = 3
+OLDEST_READABLE = 2
 APPLICATION_ID = "bbzide"
 
 TIMELINE = "step"

@@ -212,9 +212,10 @@ def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
     if version > layout.FORMAT_VERSION:
         raise RecordingError(f"{path} was written by a newer bbzide (format {version}; this "
                              f"one reads {layout.FORMAT_VERSION})")
-    if version < layout.FORMAT_VERSION:
+    if version < layout.OLDEST_READABLE:
         raise RecordingError(f"{path} was written by an older bbzide (format {version}; this "
-                             f"one reads {layout.FORMAT_VERSION}): record the mission again")
+                             f"one reads {layout.OLDEST_READABLE}-{layout.FORMAT_VERSION}): "
+                             "record the mission again")
     return meta
 
 

@@ -212,7 +212,9 @@ class RobotRebuilder:
         key = (index, keyframe.program)
         booted = self._booted.get(key)
         if booted is None:
-            host = ReplayHostFunctions(meta["host_names"][index])
+            latched = meta.get("latched")  # format 3; none in format 2
+            host = ReplayHostFunctions(meta["host_names"][index],
+                                       dict(latched[index]) if latched else None)
             robot = self._build(self.program(keyframe.program), profile,
                                 int(meta["robot_ids"][index]), host.functions())
             robot.boot()

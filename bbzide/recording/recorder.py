@@ -46,6 +46,7 @@ import numpy as np
 from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
+from bbzide.vm.host import LatchedHostFunction
 from bbzide.vm.input_log import SwarmCapture, encode_steps
 from bbzide.vm.vm import State
 
@@ -169,14 +170,23 @@ class Recordable:
     def _make(self, program: Any, profile: Any, robot_id: int, host_functions: Any) -> Any:
         live = [False]  # this robot's host calls are a step's inputs (not its boot's)
         capture = self.capture
-        tapped = {name: capture.tap(robot_id, name, fn, live)
-                  for name, fn in host_functions.items()}
+        tapped = {}
+        latched = []
+        for name, fn in host_functions.items():
+            if isinstance(fn, LatchedHostFunction):  # stays latched: see SwarmCapture.tap
+                tapped[name] = LatchedHostFunction(
+                    capture.tap(robot_id, name, fn.function, live, latched=fn.argc),
+                    fn.argc, fn.target, fn.apply)
+                latched.append((name, fn.argc))
+            else:
+                tapped[name] = capture.tap(robot_id, name, fn, live)
         if self._build is not None:
             robot = self._build(program, profile, robot_id, tapped)
         else:
             robot = build_robot(program, profile, robot_id, tapped, self.loop,
                                 self.instruction_budget)
         robot.bbzide_host_names = list(host_functions)
+        robot.bbzide_latched = latched
         self.built.add(robot)
         if hasattr(robot, "on_phase"):
             self.booting.append(robot)
@@ -415,6 +425,8 @@ class MissionRecorder:
             "robots": self.count,
             "robot_ids": [int(s.robot_id) for s in states],
             "profiles": [getattr(s.profile, "name", str(s.profile)) for s in states],
+            "latched": [[list(pair) for pair in getattr(s.robot, "bbzide_latched", [])]
+                        if s.robot is not None else [] for s in states],
             "host_names": [list(getattr(s.robot, "bbzide_host_names", []) or [])
                            if s.robot is not None else [] for s in states],
             "seed": int(getattr(sim, "seed", 0)),

@@ -216,7 +216,7 @@ def test_a_recording_of_another_format_version_is_refused(tmp_path: Path,
     """Format 1 (packed messages, XOR deltas, zlib) cannot be rebuilt by this reader."""
     from bbzide.recording import layout
 
-    for version, word in ((layout.FORMAT_VERSION - 1, "older"),
+    for version, word in ((layout.OLDEST_READABLE - 1, "older"),
                           (layout.FORMAT_VERSION + 1, "newer")):
         path = tmp_path / f"v{version}.rrd"
         sim, recordable = toy_swarm()
