@@ -146,12 +146,16 @@ class _SwarmTables:
         self.applies: list[Any] = []
         self.argcs: list[int] = []
         self.max_out = 1
+        #: (VM, heap, robot) of each robot the kernel may take (None for the others)
+        self.machines: list[tuple[Any, Any, Robot] | None] = []
         for i, robot in enumerate(robots):
             if type(robot) is not Robot or robot.vm.stress_gc or not robot.booted:
                 for name, dummy in zip(names, _dummies(), strict=True):
                     lists[name].append(dummy)
+                self.machines.append(None)
                 continue
             vm = robot.vm
+            self.machines.append((vm, vm.heap, robot))
             h = vm.heap
             packed = vm.packed()
             hosts, slots = robot.compiled_hosts()
@@ -207,7 +211,9 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
     """`swarm_batch.control_steps`, compiled where covered (see the module comment)."""
     count = len(robots)
     failed_before = [r is not None and r.failure is not None for r in robots]
-    is_covered = [covered(r) for r in robots]
+    ready = State.READY
+    is_covered = [type(r) is Robot and r.failure is None and r.booted
+                  and not (vm := r.vm).stress_gc and vm.state is ready for r in robots]
     bounds = deliveries.bounds(count)
     starts = bounds.tolist()
     deferred = np.zeros(count, dtype=bool)  # receives the compiled step will make
@@ -252,21 +258,17 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
                   ios: np.ndarray) -> None:
     """The robots ``todo`` through :func:`fastbatch.swarm_step`: their registers in and
     out, latches applied, ``steps_done`` counted for those it finished."""
-    dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
-    rows = []
-    pops = []
-    for index in todo.tolist():
-        robot = robots[index]
-        vm = robot.vm
+    chosen = [tables.machines[i] for i in todo.tolist()]
+    for vm, _heap, _robot in chosen:
         if not vm._packed_live:
             vm.packed()
-        h = vm.heap
-        budget = vm.instruction_budget
-        rows.append((vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms,
-                     h.gc_runs, vm.instructions_executed, h.peak_used,
-                     fastloop.NONE if budget is None else budget))
-        pops.append(robot.loop == "pop")
-    dynamic[todo] = rows
+    none = fastloop.NONE
+    dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
+    dynamic[todo] = [(vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms, h.gc_runs,
+                      vm.instructions_executed, h.peak_used,
+                      none if (b := vm.instruction_budget) is None else b)
+                     for vm, h, _robot in chosen]
+    pops = [robot.loop == "pop" for _vm, _h, robot in chosen]
     flags = np.zeros(len(robots), np.int64)
     flags[todo] = np.where(deferred[todo], F_RECEIVE, 0) | np.where(stepping[todo], F_STEP, 0) \
         | np.where(pops, F_POP, 0)
@@ -276,10 +278,7 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
         fastloop.RULES, deliveries.payloads, deliveries.lengths, deliveries.distances,
         deliveries.azimuths, deliveries.elevations, bounds, outbox.payloads, outbox.lengths,
         outbox.robots, outbox.cursor, ios, phases, tables.groups, tables.targets, latched)
-    for index, row in zip(todo.tolist(), dynamic[todo].tolist(), strict=True):
-        robot = robots[index]
-        vm = robot.vm
-        h = vm.heap
+    for (vm, h, _robot), row in zip(chosen, dynamic[todo].tolist(), strict=True):
         (vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms, h.gc_runs,
          vm.instructions_executed, h.peak_used, _budget) = row
     finished = todo[(phases[todo] == 0) & stepping[todo]]
