@@ -8,11 +8,11 @@ runs :func:`fastbatch.robot_step` for each of them in index order: it receives t
 rows of the deliveries (XTREME/u8 profiles; the others receive through ``receive_all``
 first), runs its in-queue, ``step`` and out-queue on its packed queues
 (:mod:`packed_queues`: they stay packed between steps) and writes what it sent straight
-into the outbox columns. The per-robot arrays reach the kernel as numba typed lists built
-once per swarm (:class:`_SwarmTables`, rebuilt when ``packed_queues.GENERATION`` says a
-VM changed an array); the registers Python keeps as attributes go in and out as one
-matrix (``dynamic``). Every other robot (a recorder's wrapper, the stress mode, a failed or
-unbooted robot) takes the reference calls.
+into the outbox columns. The per-robot arrays reach the kernel by address and length
+(:mod:`fastviews`), recorded once per swarm (:class:`_SwarmTables`, rebuilt when
+``packed_queues.GENERATION`` says a VM changed an array); the registers Python keeps as
+attributes go in and out as one matrix (``dynamic``). Every other robot (a recorder's
+wrapper, the stress mode, a failed or unbooted robot) takes the reference calls.
 
 Order. The kernel's part of a robot's step touches only that robot (its VM, its packed
 queues, its outbox rows, its latch slots), never the world: so it may run for every robot
@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm import fastbatch, fasthost, fastinbox, fastloop, messages, neighbors, packed_queues
+from bbzide.vm import fastbatch, fastinbox, fastloop, fastviews, messages, neighbors, packed_queues
 from bbzide.vm.fastbatch import (
     F_POP,
     F_RECEIVE,
@@ -135,25 +135,26 @@ class _Outbox:
 
 
 class _SwarmTables:
-    """Per-robot arrays of one robots sequence as numba typed lists (what
-    :func:`fastbatch.swarm_step` indexes), with each robot's constant registers, heap
-    geometry and latch groups. Valid while the robots are the same objects and no VM
-    changed an array or constant (``packed_queues.GENERATION``)."""
+    """Per-robot arrays of one robots sequence by address and length (what
+    :func:`fastbatch.swarm_step` makes its views from: :mod:`fastviews`), with each
+    robot's constant registers, heap geometry and latch groups. Valid while the robots
+    are the same objects and no VM changed an array or constant
+    (``packed_queues.GENERATION``)."""
 
     def __init__(self, robots: Sequence[Any]) -> None:
-        from numba.typed import List
-
         self.generation = packed_queues.GENERATION[0]
         self.robots = list(robots)
         count = len(robots)
-        names = ("heaps", "stacks", "bcodes", "infos", "traverseds", "inqs", "outqs",
-                 "rings", "ctls", "latches", "hostss")
-        lists = {name: List() for name in names}
+        #: each robot's arrays (fastbatch.A_* order) by address and length (rows for the
+        #: 2-D ones); ``kept`` holds them alive while the table is used
+        self.addresses = np.zeros((count, fastbatch.ARRAYS), np.int64)
+        self.sizes = np.zeros((count, fastbatch.ARRAYS), np.int64)
+        self.kept: list[np.ndarray] = []
         self.geometry = np.zeros((count, 3), np.int64)
         self.registers = np.zeros((count, fastloop.REGISTERS), np.int64)
         self.groups = np.zeros((count, LATCH_SLOTS), np.int64)
         self.targets = np.zeros((count, LATCH_SLOTS), np.int64)
-        #: one ``apply`` per latch group (equal applies share a group)
+        #: one ``apply`` per latch group (equal applies share a group), and its argc
         self.applies: list[Any] = []
         self.argcs: list[int] = []
         self.max_out = 1
@@ -161,20 +162,19 @@ class _SwarmTables:
         self.machines: list[tuple[Any, Any, Robot] | None] = []
         for i, robot in enumerate(robots):
             if type(robot) is not Robot or robot.vm.stress_gc or not robot.booted:
-                for name, dummy in zip(names, _dummies(), strict=True):
-                    lists[name].append(dummy)
                 self.machines.append(None)
                 continue
             vm = robot.vm
-            self.machines.append((vm, vm.heap, robot))
             h = vm.heap
+            self.machines.append((vm, h, robot))
             packed = vm.packed()
             hosts, slots = robot.compiled_hosts()
-            for name, array in zip(names, (
-                    h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
-                    h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
-                    packed.latch, np.ascontiguousarray(hosts)), strict=True):
-                lists[name].append(array)
+            arrays = (h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
+                      h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
+                      packed.latch, np.ascontiguousarray(hosts, np.int64))
+            self.kept.extend(arrays)
+            self.addresses[i] = [fastviews.address_of(array) for array in arrays]
+            self.sizes[i] = [len(array) for array in arrays]
             self.geometry[i] = (h.obj_size, h.elems, h.reserved)
             self.registers[i] = vm.kernel_registers(None, None)
             for slot, fn in enumerate(slots):
@@ -186,20 +186,10 @@ class _SwarmTables:
                 self.groups[i, slot] = self.applies.index(fn.apply)
                 self.targets[i, slot] = fn.target
             self.max_out = max(self.max_out, robot.profile.out_queue_cap + 1)
-        self.lists = tuple(lists[name] for name in names)
 
     def valid_for(self, robots: Sequence[Any]) -> bool:
         return self.generation == packed_queues.GENERATION[0] \
             and len(robots) == len(self.robots) and all(map(is_, robots, self.robots))
-
-
-def _dummies() -> tuple[np.ndarray, ...]:
-    """Stand-ins of the typed lists' types for a robot the compiled step never takes."""
-    return (np.zeros(1, np.uint8), np.zeros(1, np.uint16), np.frombuffer(b"\0", np.uint8),
-            np.zeros(1, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.uint8),
-            np.zeros(1, np.uint8), np.zeros((1, 5), np.int64), np.zeros(1, np.int64),
-            np.zeros((1, 1 + LATCH_ARGS), np.int64),
-            np.zeros((0, fasthost.HOST_COLUMNS), np.int64))
 
 
 #: the tables of the swarms stepped last (a few: tests and tools step several swarms)
@@ -283,7 +273,8 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
     flags = np.zeros(len(robots), np.int64)
     flags[todo] = np.where(deferred[todo], F_RECEIVE, 0) | np.where(stepping[todo], F_STEP, 0) \
         | np.where(pops, F_POP, 0)
-    kernel_args = (*tables.lists, tables.geometry, tables.registers, dynamic)
+    kernel_args = (tables.addresses, tables.sizes, tables.geometry, tables.registers,
+                   dynamic)
     rest = (flags, fastloop.RULES, deliveries.payloads, deliveries.lengths,
             deliveries.distances, deliveries.azimuths, deliveries.elevations, bounds)
     chunks = _chunks(todo)
