@@ -13,6 +13,7 @@ events, collection count, queues and neighbor records, failure.
 from __future__ import annotations
 
 import pickle
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -239,6 +240,34 @@ def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  #
                           WORLDS["kilobot"].host_names, [])
     seen = _run_batches(program, "kilobot", 20, 14, options={"width": 0.35, "height": 0.35})
     assert seen["messages"] > 150 and handed == []
+
+
+def test_batch_latching_switched_off_identical(monkeypatch) -> None:  # noqa: ANN001
+    """`Robot.latch_host_calls = False` (a recorder logging every host call) sends the
+    latched `led` to Python — a hand-over every step — with the same robots and LEDs."""
+    from bbzide.vm import swarm_batch_fast
+
+    handed: list[int] = []
+    finish = swarm_batch_fast._finish
+
+    def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
+        handed.append(phase)
+        return finish(robot, phase, regs, io)
+
+    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    build = _batch_swarms
+
+    def swarms(*args):  # noqa: ANN002, ANN202
+        sims = build(*args)
+        for state in sims[1].robots:
+            state.robot.latch_host_calls = False
+        return sims
+
+    monkeypatch.setattr(sys.modules[__name__], "_batch_swarms", swarms)
+    program = load_script(REPO / "examples/kilobot/gradient.bzz",
+                          WORLDS["kilobot"].host_names, [])
+    seen = _run_batches(program, "kilobot", 12, 6, options={"width": 0.3, "height": 0.3})
+    assert seen["messages"] > 40 and len(handed) >= 12 * 4
 
 
 BATCH_HAND_OVERS = """
