@@ -382,10 +382,9 @@ class Robot:
     @staticmethod
     def comparable(snapshot: bytes) -> bytes:
         """A `snapshot()` decoded and pickled again the plain way, for comparing two robots'
-        states. `snapshot_pickle` writes a list of records flat or as a list depending on
-        whether anything else holds it (`sys.getrefcount`), and a transient holder outside the
-        state (a garbage cycle not yet collected) can change that choice: two snapshots of
-        equal states may then differ in bytes. Their decoded states do not."""
+        states: equal states give equal bytes here whatever encoding `snapshot_pickle`
+        chose for the live objects (an earlier version picked a list layout by
+        `sys.getrefcount`, so equal states could differ in snapshot bytes)."""
         vm_state, *rest = pickle.loads(snapshot)
         return pickle.dumps((pickle.loads(vm_state), *rest))
 
