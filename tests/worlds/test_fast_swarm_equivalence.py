@@ -378,3 +378,42 @@ def test_batch_threads_identical(monkeypatch, tmp_path: Path) -> None:  # noqa: 
     seen = _run_batches(program, "kilobot", 14, 12, budget=3000,
                         options={"width": 0.3, "height": 0.3})
     assert seen["messages"] > 200
+
+
+def test_batch_mixed_swarm_identical(tmp_path: Path) -> None:
+    """A swarm the compiled path takes only in part: empty slots (None), robots in the
+    stress mode among fast ones (they take the reference calls inside the compiled
+    `control_steps`), and a robot restored from its snapshot between steps (the cached
+    per-swarm tables are rebuilt; the run goes on identically)."""
+    from bbzide.vm.swarm_batch import PackedMessages, control_steps
+
+    program = _compile(tmp_path, BATCH_HAND_OVERS)
+    options = {"width": 0.3, "height": 0.3}
+    reference_sim = Simulation("kilobot", program, robots=10, seed=5, world_options=options,
+                               robot_factory=_factory(True, 3000, "pop"), watch=())
+    mixed_sim = Simulation("kilobot", program, robots=10, seed=5, world_options=options,
+                           robot_factory=lambda p, prof, rid, hosts: Robot(
+                               p, prof, rid, host_functions=hosts, instruction_budget=3000,
+                               stress_gc=rid % 3 == 1), watch=())
+    teams = [[s.robot for s in sim.robots] for sim in (reference_sim, mixed_sim)]
+    for team in teams:
+        team[4] = None
+    boxes = [PackedMessages.empty(), PackedMessages.empty()]
+    for step in range(10):
+        if step == 5:
+            for team in teams:
+                team[2].restore(team[2].snapshot())
+        stepping = np.array([(i + step) % 4 != 0 for i in range(10)])
+        a, b = (control_steps(team, _deliveries(box, sim, 0.12, 1000.0), stepping,
+                              reference=ref)
+                for team, box, sim, ref in zip(teams, boxes, (reference_sim, mixed_sim),
+                                               (True, False), strict=True))
+        for column in ("robots", "payloads", "lengths"):
+            assert (getattr(a.outbox, column) == getattr(b.outbox, column)).all(), step
+        assert (a.failed == b.failed).all(), step
+        assert (reference_sim.leds == mixed_sim.leds).all(), step
+        boxes = [a.outbox, b.outbox]
+        assert 4 not in a.outbox.robots.tolist()
+    for x, y in zip(*teams, strict=True):
+        if x is not None:
+            assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())
