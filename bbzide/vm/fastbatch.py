@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.vm.fastgc import COMPILED, _compile, _i
+from bbzide.vm.fasthost import HOST_COLUMNS
 from bbzide.vm.fastinbox import (
     CALLED,
     DONE,
@@ -51,12 +52,14 @@ from bbzide.vm.fastinbox import (
 )
 from bbzide.vm.fastloop import R_SP
 from bbzide.vm.fastreceive import _inmsg_append, _neighbors_add, _to_u8
+from bbzide.vm.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
 from bbzide.vm.packed_queues import (
     CLEAR_COUNTER,
     CLEAR_PERIOD,
     IN_END,
     IN_SLOTS,
     IN_START,
+    LATCH_ARGS,
     LISTENERS,
     MARK_TIME,
     MSG_MAX,
@@ -67,6 +70,7 @@ from bbzide.vm.packed_queues import (
     OUT_SLOTS,
     OUT_START,
     RECORD,
+    RING_COLUMNS,
     XTREME,
 )
 
@@ -267,6 +271,10 @@ D_PC, D_SP, D_BP, D_RTOBJ, D_LTSEG, D_LSYMS, D_GC_RUNS, D_EXECUTED, D_PEAK, D_BU
 DYNAMIC = 10
 #: ``fastloop``'s register slot of each ``dynamic`` column
 _DYNAMIC_REGISTER = (0, 1, 2, 3, 4, 5, 6, 7, 11, 15)
+# Columns of ``addresses``/``sizes``: a robot's arrays (swarm_batch_fast._SwarmTables).
+A_HEAP, A_STACK, A_BCODE, A_INFO, A_TRAVERSED, A_INQ, A_OUTQ = range(7)
+A_RING, A_CTL, A_LATCH, A_HOSTS = 7, 8, 9, 10
+ARRAYS = 11
 # Columns of ``geometry``: the heap geometry of each robot.
 G_OBJ, G_ELEMS, G_RESERVED = range(3)
 # Columns of a ``latched`` row: the latch group (see swarm_batch_fast), target, arguments.
@@ -274,17 +282,16 @@ L_GROUP, L_TARGET, L_ARGS = 0, 1, 2
 
 
 @_compile
-def swarm_step(heaps: Any, stacks: Any, bcodes: Any, infos: Any, traverseds: Any,
-               inqs: Any, outqs: Any, rings: Any, ctls: Any, latches: Any, hostss: Any,
-               geometry: Any, registers: Any, dynamic: Any, todo: Any, flags: Any,
-               rules: Any, payloads: Any, lengths: Any, distances: Any, azimuths: Any,
-               elevations: Any, bounds: Any, out_payloads: Any, out_lengths: Any,
-               out_robots: Any, cursor: Any, ios: Any, phases: Any, groups: Any,
-               targets: Any, latched: Any) -> int:
-    """:func:`robot_step` of robot ``i`` for each ``i`` in ``todo`` (its per-robot arrays
-    at ``[i]`` of the typed lists, ``registers[i]`` its register row with the constant
-    slots filled, ``dynamic[i]`` the rest in and out, ``flags[i]`` its flags, its
-    deliveries ``bounds[i]:bounds[i + 1]``). Its phase goes to ``phases[i]`` (without
+def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynamic: Any,
+               todo: Any, flags: Any, rules: Any, payloads: Any, lengths: Any,
+               distances: Any, azimuths: Any, elevations: Any, bounds: Any,
+               out_payloads: Any, out_lengths: Any, out_robots: Any, cursor: Any, ios: Any,
+               phases: Any, groups: Any, targets: Any, latched: Any) -> int:
+    """:func:`robot_step` of robot ``i`` for each ``i`` in ``todo``: its arrays are views
+    made from ``addresses[i, A_*]`` and ``sizes[i, A_*]`` (:mod:`fastviews`; lengths, or
+    rows for the 2-D ones), ``registers[i]`` its register row with the constant slots
+    filled, ``dynamic[i]`` the rest in and out, ``flags[i]`` its flags, its deliveries
+    ``bounds[i]:bounds[i + 1]``. Its phase goes to ``phases[i]`` (without
     :data:`LATCHED`) and its hand-over state to ``ios[i]``; the outbox rows are filled
     from ``cursor[0]`` on (and ``cursor[0]`` moved past them). Written latch slots are
     cleared and listed as rows of ``latched`` (``groups[i, slot]``, ``targets[i, slot]``,
@@ -292,6 +299,19 @@ def swarm_step(heaps: Any, stacks: Any, bcodes: Any, infos: Any, traverseds: Any
     rows = cursor[0]
     count = 0
     for i in todo:
+        a = addresses[i]
+        n = sizes[i]
+        heap = view_u8(a[A_HEAP], n[A_HEAP])
+        stack = view_u16(a[A_STACK], n[A_STACK])
+        bcode = view_u8(a[A_BCODE], n[A_BCODE])
+        info = view_u8(a[A_INFO], n[A_INFO])
+        traversed = view_i32(a[A_TRAVERSED], n[A_TRAVERSED])
+        inq = view_u8(a[A_INQ], n[A_INQ])
+        outq = view_u8(a[A_OUTQ], n[A_OUTQ])
+        ring = view_i64_rows(a[A_RING], n[A_RING], RING_COLUMNS)
+        ctl = view_i64(a[A_CTL], n[A_CTL])
+        latch = view_i64_rows(a[A_LATCH], n[A_LATCH], 1 + LATCH_ARGS)
+        hosts = view_i64_rows(a[A_HOSTS], n[A_HOSTS], HOST_COLUMNS)
         regs = registers[i]
         dyn = dynamic[i]
         for k in range(DYNAMIC):
@@ -299,17 +319,16 @@ def swarm_step(heaps: Any, stacks: Any, bcodes: Any, infos: Any, traverseds: Any
         io = ios[i]
         io[IO_ROWS] = rows
         g = geometry[i]
-        phase = robot_step(heaps[i], stacks[i], bcodes[i], regs, infos[i], traverseds[i],
-                           rules, g[G_OBJ], g[G_ELEMS], g[G_RESERVED], inqs[i], outqs[i],
-                           rings[i], ctls[i], latches[i], hostss[i], payloads, lengths,
-                           distances, azimuths, elevations, bounds[i], bounds[i + 1],
-                           flags[i], i, out_payloads, out_lengths, out_robots, io)
+        phase = robot_step(heap, stack, bcode, regs, info, traversed, rules, g[G_OBJ],
+                           g[G_ELEMS], g[G_RESERVED], inq, outq, ring, ctl, latch, hosts,
+                           payloads, lengths, distances, azimuths, elevations, bounds[i],
+                           bounds[i + 1], flags[i], i, out_payloads, out_lengths,
+                           out_robots, io)
         rows = io[IO_ROWS]
         for k in range(DYNAMIC):
             dyn[k] = regs[_DYNAMIC_REGISTER[k]]
         if phase & LATCHED:
             phase ^= LATCHED
-            latch = latches[i]
             for slot in range(latch.shape[0]):
                 if latch[slot, 0]:
                     latch[slot, 0] = 0
@@ -323,5 +342,5 @@ def swarm_step(heaps: Any, stacks: Any, bcodes: Any, infos: Any, traverseds: Any
     return count
 
 
-__all__ += ["swarm_step", "DYNAMIC", "D_BUDGET", "G_OBJ", "G_ELEMS", "G_RESERVED",
+__all__ += ["swarm_step", "ARRAYS", "DYNAMIC", "D_BUDGET", "G_OBJ", "G_ELEMS", "G_RESERVED",
             "L_GROUP", "L_TARGET", "L_ARGS"]

@@ -134,6 +134,7 @@ class Robot:
         #: host functions a compiled swarm step runs in place (compiled_hosts), cached
         self._latched: dict[str, LatchedHostFunction] = {}
         self._hosts: tuple[int, np.ndarray, list[LatchedHostFunction | None]] | None = None
+        self._latching = True
 
     # ---- boot --------------------------------------------------------------------------
     def boot(self) -> None:
@@ -209,6 +210,19 @@ class Robot:
     def _symbol(self, name: str) -> str:
         return self.host_symbols.get(name, name)
 
+    @property
+    def latch_host_calls(self) -> bool:
+        """Whether a compiled swarm step may run this robot's latched host functions in
+        machine code (True) or must call them in Python like any other (False: e.g. while a
+        recorder logs every host call). Either way the robot ends in the same state."""
+        return self._latching
+
+    @latch_host_calls.setter
+    def latch_host_calls(self, value: bool) -> None:
+        self._latching = bool(value)
+        self._hosts = None
+        packed_queues.arrays_changed()
+
     def compiled_hosts(self) -> tuple[np.ndarray, list[LatchedHostFunction | None]]:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
         (address, pointer size, kind, latch slot, argument count) for the closure address of
@@ -225,7 +239,7 @@ class Robot:
         for address, call in registry.by_address.items():
             if call.function is neighbors.neighbors_broadcast:
                 rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2))
-        for symbol, fn in self._latched.items():
+        for symbol, fn in self._latched.items() if self._latching else ():
             call = registry.by_symbol.get(symbol)
             if call is None or registry.by_address.get(call.address) is not call \
                     or len(slots) >= packed_queues.LATCH_SLOTS \
@@ -368,10 +382,9 @@ class Robot:
     @staticmethod
     def comparable(snapshot: bytes) -> bytes:
         """A `snapshot()` decoded and pickled again the plain way, for comparing two robots'
-        states. `snapshot_pickle` writes a list of records flat or as a list depending on
-        whether anything else holds it (`sys.getrefcount`), and a transient holder outside the
-        state (a garbage cycle not yet collected) can change that choice: two snapshots of
-        equal states may then differ in bytes. Their decoded states do not."""
+        states: equal states give equal bytes here whatever encoding `snapshot_pickle`
+        chose for the live objects (an earlier version picked a list layout by
+        `sys.getrefcount`, so equal states could differ in snapshot bytes)."""
         vm_state, *rest = pickle.loads(snapshot)
         return pickle.dumps((pickle.loads(vm_state), *rest))
 

@@ -8,11 +8,11 @@ runs :func:`fastbatch.robot_step` for each of them in index order: it receives t
 rows of the deliveries (XTREME/u8 profiles; the others receive through ``receive_all``
 first), runs its in-queue, ``step`` and out-queue on its packed queues
 (:mod:`packed_queues`: they stay packed between steps) and writes what it sent straight
-into the outbox columns. The per-robot arrays reach the kernel as numba typed lists built
-once per swarm (:class:`_SwarmTables`, rebuilt when ``packed_queues.GENERATION`` says a
-VM changed an array); the registers Python keeps as attributes go in and out as one
-matrix (``dynamic``). Every other robot (a recorder's wrapper, the stress mode, a failed or
-unbooted robot) takes the reference calls.
+into the outbox columns. The per-robot arrays reach the kernel by address and length
+(:mod:`fastviews`), recorded once per swarm (:class:`_SwarmTables`, rebuilt when
+``packed_queues.GENERATION`` says a VM changed an array); the registers Python keeps as
+attributes go in and out as one matrix (``dynamic``). Every other robot (a recorder's
+wrapper, the stress mode, a failed or unbooted robot) takes the reference calls.
 
 Order. The kernel's part of a robot's step touches only that robot (its VM, its packed
 queues, its outbox rows, its latch slots), never the world: so it may run for every robot
@@ -36,12 +36,13 @@ step (the contract of a latched function), so applying the others' early changes
 from __future__ import annotations
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from operator import is_
 from typing import Any
 
 import numpy as np
 
-from bbzide.vm import fastbatch, fasthost, fastinbox, fastloop, messages, neighbors, packed_queues
+from bbzide.vm import fastbatch, fastinbox, fastloop, fastviews, messages, neighbors, packed_queues
 from bbzide.vm.fastbatch import (
     F_POP,
     F_RECEIVE,
@@ -97,6 +98,16 @@ class _Outbox:
             new[:used] = old[:used]
             setattr(self, name, new)
 
+    def extend(self, other: _Outbox) -> None:
+        """Another outbox's rows after these."""
+        n = int(other.cursor[0])
+        self.room(n)
+        row = int(self.cursor[0])
+        self.payloads[row:row + n] = other.payloads[:n]
+        self.lengths[row:row + n] = other.lengths[:n]
+        self.robots[row:row + n] = other.robots[:n]
+        self.cursor[0] = row + n
+
     def add(self, index: int, sent: list[bytes]) -> None:
         """Payloads a robot sent through Python."""
         self.room(len(sent))
@@ -124,42 +135,46 @@ class _Outbox:
 
 
 class _SwarmTables:
-    """Per-robot arrays of one robots sequence as numba typed lists (what
-    :func:`fastbatch.swarm_step` indexes), with each robot's constant registers, heap
-    geometry and latch groups. Valid while the robots are the same objects and no VM
-    changed an array or constant (``packed_queues.GENERATION``)."""
+    """Per-robot arrays of one robots sequence by address and length (what
+    :func:`fastbatch.swarm_step` makes its views from: :mod:`fastviews`), with each
+    robot's constant registers, heap geometry and latch groups. Valid while the robots
+    are the same objects and no VM changed an array or constant
+    (``packed_queues.GENERATION``)."""
 
     def __init__(self, robots: Sequence[Any]) -> None:
-        from numba.typed import List
-
         self.generation = packed_queues.GENERATION[0]
         self.robots = list(robots)
         count = len(robots)
-        names = ("heaps", "stacks", "bcodes", "infos", "traverseds", "inqs", "outqs",
-                 "rings", "ctls", "latches", "hostss")
-        lists = {name: List() for name in names}
+        #: each robot's arrays (fastbatch.A_* order) by address and length (rows for the
+        #: 2-D ones); ``kept`` holds them alive while the table is used
+        self.addresses = np.zeros((count, fastbatch.ARRAYS), np.int64)
+        self.sizes = np.zeros((count, fastbatch.ARRAYS), np.int64)
+        self.kept: list[np.ndarray] = []
         self.geometry = np.zeros((count, 3), np.int64)
         self.registers = np.zeros((count, fastloop.REGISTERS), np.int64)
         self.groups = np.zeros((count, LATCH_SLOTS), np.int64)
         self.targets = np.zeros((count, LATCH_SLOTS), np.int64)
-        #: one ``apply`` per latch group (equal applies share a group)
+        #: one ``apply`` per latch group (equal applies share a group), and its argc
         self.applies: list[Any] = []
         self.argcs: list[int] = []
         self.max_out = 1
+        #: (VM, heap, robot) of each robot the kernel may take (None for the others)
+        self.machines: list[tuple[Any, Any, Robot] | None] = []
         for i, robot in enumerate(robots):
             if type(robot) is not Robot or robot.vm.stress_gc or not robot.booted:
-                for name, dummy in zip(names, _dummies(), strict=True):
-                    lists[name].append(dummy)
+                self.machines.append(None)
                 continue
             vm = robot.vm
             h = vm.heap
+            self.machines.append((vm, h, robot))
             packed = vm.packed()
             hosts, slots = robot.compiled_hosts()
-            for name, array in zip(names, (
-                    h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
-                    h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
-                    packed.latch, np.ascontiguousarray(hosts)), strict=True):
-                lists[name].append(array)
+            arrays = (h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
+                      h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
+                      packed.latch, np.ascontiguousarray(hosts, np.int64))
+            self.kept.extend(arrays)
+            self.addresses[i] = [fastviews.address_of(array) for array in arrays]
+            self.sizes[i] = [len(array) for array in arrays]
             self.geometry[i] = (h.obj_size, h.elems, h.reserved)
             self.registers[i] = vm.kernel_registers(None, None)
             for slot, fn in enumerate(slots):
@@ -171,20 +186,10 @@ class _SwarmTables:
                 self.groups[i, slot] = self.applies.index(fn.apply)
                 self.targets[i, slot] = fn.target
             self.max_out = max(self.max_out, robot.profile.out_queue_cap + 1)
-        self.lists = tuple(lists[name] for name in names)
 
     def valid_for(self, robots: Sequence[Any]) -> bool:
         return self.generation == packed_queues.GENERATION[0] \
             and len(robots) == len(self.robots) and all(map(is_, robots, self.robots))
-
-
-def _dummies() -> tuple[np.ndarray, ...]:
-    """Stand-ins of the typed lists' types for a robot the compiled step never takes."""
-    return (np.zeros(1, np.uint8), np.zeros(1, np.uint16), np.frombuffer(b"\0", np.uint8),
-            np.zeros(1, np.uint8), np.zeros(1, np.int32), np.zeros(1, np.uint8),
-            np.zeros(1, np.uint8), np.zeros((1, 5), np.int64), np.zeros(1, np.int64),
-            np.zeros((1, 1 + LATCH_ARGS), np.int64),
-            np.zeros((0, fasthost.HOST_COLUMNS), np.int64))
 
 
 #: the tables of the swarms stepped last (a few: tests and tools step several swarms)
@@ -207,7 +212,9 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
     """`swarm_batch.control_steps`, compiled where covered (see the module comment)."""
     count = len(robots)
     failed_before = [r is not None and r.failure is not None for r in robots]
-    is_covered = [covered(r) for r in robots]
+    ready = State.READY
+    is_covered = [type(r) is Robot and r.failure is None and r.booted
+                  and not (vm := r.vm).stress_gc and vm.state is ready for r in robots]
     bounds = deliveries.bounds(count)
     starts = bounds.tolist()
     deferred = np.zeros(count, dtype=bool)  # receives the compiled step will make
@@ -252,47 +259,81 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
                   ios: np.ndarray) -> None:
     """The robots ``todo`` through :func:`fastbatch.swarm_step`: their registers in and
     out, latches applied, ``steps_done`` counted for those it finished."""
-    dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
-    rows = []
-    pops = []
-    for index in todo.tolist():
-        robot = robots[index]
-        vm = robot.vm
+    chosen = [tables.machines[i] for i in todo.tolist()]
+    for vm, _heap, _robot in chosen:
         if not vm._packed_live:
             vm.packed()
-        h = vm.heap
-        budget = vm.instruction_budget
-        rows.append((vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms,
-                     h.gc_runs, vm.instructions_executed, h.peak_used,
-                     fastloop.NONE if budget is None else budget))
-        pops.append(robot.loop == "pop")
-    dynamic[todo] = rows
+    none = fastloop.NONE
+    dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
+    dynamic[todo] = [(vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms, h.gc_runs,
+                      vm.instructions_executed, h.peak_used,
+                      none if (b := vm.instruction_budget) is None else b)
+                     for vm, h, _robot in chosen]
+    pops = [robot.loop == "pop" for _vm, _h, robot in chosen]
     flags = np.zeros(len(robots), np.int64)
     flags[todo] = np.where(deferred[todo], F_RECEIVE, 0) | np.where(stepping[todo], F_STEP, 0) \
         | np.where(pops, F_POP, 0)
-    latched = np.zeros((len(todo) * LATCH_SLOTS, fastbatch.L_ARGS + LATCH_ARGS), np.int64)
-    n_latched = fastbatch.swarm_step(
-        *tables.lists, tables.geometry, tables.registers, dynamic, todo, flags,
-        fastloop.RULES, deliveries.payloads, deliveries.lengths, deliveries.distances,
-        deliveries.azimuths, deliveries.elevations, bounds, outbox.payloads, outbox.lengths,
-        outbox.robots, outbox.cursor, ios, phases, tables.groups, tables.targets, latched)
-    for index, row in zip(todo.tolist(), dynamic[todo].tolist(), strict=True):
-        robot = robots[index]
-        vm = robot.vm
-        h = vm.heap
+    kernel_args = (tables.addresses, tables.sizes, tables.geometry, tables.registers,
+                   dynamic)
+    rest = (flags, fastloop.RULES, deliveries.payloads, deliveries.lengths,
+            deliveries.distances, deliveries.azimuths, deliveries.elevations, bounds)
+    chunks = _chunks(todo)
+    outboxes = [outbox] + [_Outbox(len(part) * tables.max_out + 4) for part in chunks[1:]]
+    latched = [np.zeros((len(part) * LATCH_SLOTS, fastbatch.L_ARGS + LATCH_ARGS), np.int64)
+               for part in chunks]
+
+    def run(k: int) -> int:
+        box = outboxes[k]
+        return fastbatch.swarm_step(
+            *kernel_args, chunks[k], *rest, box.payloads, box.lengths, box.robots,
+            box.cursor, ios, phases, tables.groups, tables.targets, latched[k])
+
+    if len(chunks) == 1:
+        counts = [run(0)]
+    else:  # the other chunks on worker threads (the kernels release the GIL), then in order
+        futures = [_pool().submit(run, k) for k in range(1, len(chunks))]
+        counts = [run(0)] + [f.result() for f in futures]
+        for box in outboxes[1:]:
+            outbox.extend(box)
+    rows_latched = np.concatenate([rows[:n] for rows, n in zip(latched, counts, strict=True)])
+    n_latched = len(rows_latched)
+    for (vm, h, _robot), row in zip(chosen, dynamic[todo].tolist(), strict=True):
         (vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms, h.gc_runs,
          vm.instructions_executed, h.peak_used, _budget) = row
     finished = todo[(phases[todo] == 0) & stepping[todo]]
     for index in finished.tolist():
         robots[index].steps_done += 1
     if n_latched:
-        rows_latched = latched[:n_latched]
         for group, apply in enumerate(tables.applies):
             mine = rows_latched[rows_latched[:, fastbatch.L_GROUP] == group]
             if len(mine):
                 argc = tables.argcs[group]
                 apply(mine[:, fastbatch.L_TARGET].copy(),
                       mine[:, fastbatch.L_ARGS:fastbatch.L_ARGS + argc].copy())
+
+
+#: threads of a swarm step's kernel part (robots' kernel parts are independent, so a swarm
+#: split in contiguous index ranges gives the same result whatever the threads' timing).
+#: 1 by default: on the shared 2-core machine (load ~2.9) two threads gave no wall-clock
+#: gain for 1,000 Kilobots (168-177 against 107-149 µs per robot-step, the same CPU time);
+#: on an idle multi-core machine set it to the cores to spare
+THREADS = 1
+#: the fewest robots per thread worth a thread's hand-off (~20 µs)
+MIN_ROBOTS_PER_THREAD = 64
+_POOL: list[ThreadPoolExecutor] = []
+
+
+def _pool() -> ThreadPoolExecutor:
+    if not _POOL:
+        _POOL.append(ThreadPoolExecutor(max_workers=max(1, THREADS - 1),
+                                        thread_name_prefix="swarm-step"))
+    return _POOL[0]
+
+
+def _chunks(todo: np.ndarray) -> list[np.ndarray]:
+    """``todo`` in contiguous parts, one per thread (fewer for a small swarm)."""
+    parts = max(1, min(THREADS, len(todo) // MIN_ROBOTS_PER_THREAD))
+    return np.array_split(todo, parts)
 
 
 def _finish(robot: Robot, phase: int, regs: np.ndarray, io: np.ndarray) -> list[bytes]:

@@ -13,6 +13,7 @@ events, collection count, queues and neighbor records, failure.
 from __future__ import annotations
 
 import pickle
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -241,6 +242,34 @@ def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  #
     assert seen["messages"] > 150 and handed == []
 
 
+def test_batch_latching_switched_off_identical(monkeypatch) -> None:  # noqa: ANN001
+    """`Robot.latch_host_calls = False` (a recorder logging every host call) sends the
+    latched `led` to Python — a hand-over every step — with the same robots and LEDs."""
+    from bbzide.vm import swarm_batch_fast
+
+    handed: list[int] = []
+    finish = swarm_batch_fast._finish
+
+    def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
+        handed.append(phase)
+        return finish(robot, phase, regs, io)
+
+    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    build = _batch_swarms
+
+    def swarms(*args):  # noqa: ANN002, ANN202
+        sims = build(*args)
+        for state in sims[1].robots:
+            state.robot.latch_host_calls = False
+        return sims
+
+    monkeypatch.setattr(sys.modules[__name__], "_batch_swarms", swarms)
+    program = load_script(REPO / "examples/kilobot/gradient.bzz",
+                          WORLDS["kilobot"].host_names, [])
+    seen = _run_batches(program, "kilobot", 12, 6, options={"width": 0.3, "height": 0.3})
+    assert seen["messages"] > 40 and len(handed) >= 12 * 4
+
+
 BATCH_HAND_OVERS = """
 var heard = 0
 var calls = 0
@@ -335,3 +364,56 @@ def test_batch_other_profiles_identical(tmp_path: Path, world: str) -> None:
     program = _compile(tmp_path, text, world)
     seen = _run_batches(program, world, 8, 14, budget=3000, comm_range=30.0, unit=1.0)
     assert seen["messages"] > 100
+
+
+def test_batch_threads_identical(monkeypatch, tmp_path: Path) -> None:  # noqa: ANN001
+    """The kernel part split over threads (contiguous robot ranges) leaves the same robots,
+    outboxes and LEDs as the reference, hand-overs included."""
+    from bbzide.vm import swarm_batch_fast
+
+    monkeypatch.setattr(swarm_batch_fast, "THREADS", 3)
+    monkeypatch.setattr(swarm_batch_fast, "MIN_ROBOTS_PER_THREAD", 4)
+    assert len(swarm_batch_fast._chunks(np.arange(14))) == 3
+    program = _compile(tmp_path, BATCH_HAND_OVERS)
+    seen = _run_batches(program, "kilobot", 14, 12, budget=3000,
+                        options={"width": 0.3, "height": 0.3})
+    assert seen["messages"] > 200
+
+
+def test_batch_mixed_swarm_identical(tmp_path: Path) -> None:
+    """A swarm the compiled path takes only in part: empty slots (None), robots in the
+    stress mode among fast ones (they take the reference calls inside the compiled
+    `control_steps`), and a robot restored from its snapshot between steps (the cached
+    per-swarm tables are rebuilt; the run goes on identically)."""
+    from bbzide.vm.swarm_batch import PackedMessages, control_steps
+
+    program = _compile(tmp_path, BATCH_HAND_OVERS)
+    options = {"width": 0.3, "height": 0.3}
+    reference_sim = Simulation("kilobot", program, robots=10, seed=5, world_options=options,
+                               robot_factory=_factory(True, 3000, "pop"), watch=())
+    mixed_sim = Simulation("kilobot", program, robots=10, seed=5, world_options=options,
+                           robot_factory=lambda p, prof, rid, hosts: Robot(
+                               p, prof, rid, host_functions=hosts, instruction_budget=3000,
+                               stress_gc=rid % 3 == 1), watch=())
+    teams = [[s.robot for s in sim.robots] for sim in (reference_sim, mixed_sim)]
+    for team in teams:
+        team[4] = None
+    boxes = [PackedMessages.empty(), PackedMessages.empty()]
+    for step in range(10):
+        if step == 5:
+            for team in teams:
+                team[2].restore(team[2].snapshot())
+        stepping = np.array([(i + step) % 4 != 0 for i in range(10)])
+        a, b = (control_steps(team, _deliveries(box, sim, 0.12, 1000.0), stepping,
+                              reference=ref)
+                for team, box, sim, ref in zip(teams, boxes, (reference_sim, mixed_sim),
+                                               (True, False), strict=True))
+        for column in ("robots", "payloads", "lengths"):
+            assert (getattr(a.outbox, column) == getattr(b.outbox, column)).all(), step
+        assert (a.failed == b.failed).all(), step
+        assert (reference_sim.leds == mixed_sim.leds).all(), step
+        boxes = [a.outbox, b.outbox]
+        assert 4 not in a.outbox.robots.tolist()
+    for x, y in zip(*teams, strict=True):
+        if x is not None:
+            assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())
