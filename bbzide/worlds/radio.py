@@ -358,8 +358,11 @@ class Radio:
         settings = self.settings
         queued = self.queued
         now = group_ranks(queued.robots) < settings.messages_per_step
-        out = take_rows(queued, now)                     # sorted by sender, queue order
-        self.queued = take_rows(queued, ~now)
+        if now.all():                                    # every queue empties (the usual)
+            out, self.queued = queued, queued.empty()
+        else:
+            out = take_rows(queued, now)                 # sorted by sender, queue order
+            self.queued = take_rows(queued, ~now)
         sent_now = np.bincount(out.robots, minlength=self.count)
         counters.sent += sent_now
         counters.bytes_sent += np.bincount(out.robots, weights=out.lengths,
