@@ -28,6 +28,7 @@ from bbzide.ui.pitfalls import find_pitfalls
 from bbzide.ui.program_session import CompileOutcome, Diagnostic, ProgramSession
 from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
 from bbzide.ui.scene import SwarmScene
+from bbzide.ui.viser_server import open_server, page_url
 from bbzide.ui.world_backend import SwarmFrame, WorldBackend
 
 #: How often the status line and inspectors refresh: 4 Hz reads as "live" and costs little.
@@ -51,13 +52,7 @@ class IdeApp:
         port: int = 8080,
     ) -> None:
         self.backend = backend
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        self.server.gui.configure_theme(
-            control_width="large", show_share_button=False, dark_mode=False
-        )
-        # Docked, not floating: the 3D view then spans only the free area between the panels, so
-        # the camera's centre (where the swarm is framed) is visible, not behind the controls.
-        self.server.gui.main_panel.dock_right()
+        self.server = open_server(host, port)
         self.controller = RunController(backend, settings)
         self.session = ProgramSession(
             source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls
@@ -89,10 +84,7 @@ class IdeApp:
     # ---- lifetime ------------------------------------------------------------------------------
     @property
     def url(self) -> str:
-        host = self.server.get_host()
-        return (
-            f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}/"
-        )
+        return page_url(self.server)
 
     def start(self, run: bool = True) -> IdeApp:
         self.editor_server.start()

@@ -24,6 +24,7 @@ from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
 from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
 from bbzide.ui.scene import SwarmScene
+from bbzide.ui.viser_server import open_server, page_url
 
 #: Playback speeds offered, as multiples of the mission's real time (the issue: 0.25x-16x).
 SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0, "8×": 8.0, "16×": 16.0}
@@ -36,13 +37,7 @@ SOURCE_PANEL_WIDTH = 560
 class ReplayApp:
     def __init__(self, session: ReplaySession, host: str = "127.0.0.1", port: int = 8080) -> None:
         self.session = session
-        self.server = viser.ViserServer(host=host, port=port, verbose=False)
-        self.server.gui.configure_theme(
-            control_width="large", show_share_button=False, dark_mode=False
-        )
-        # Docked, not floating: the 3D view then spans only the free area between the panels, so
-        # the camera's centre (where the swarm is framed) is visible, not behind the controls.
-        self.server.gui.main_panel.dock_right()
+        self.server = open_server(host, port)
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.scene.set_world(session.geometry(), session.frame(session.first_step).positions)
         self.overlays = OverlayView(self.server)
@@ -61,10 +56,7 @@ class ReplayApp:
 
     @property
     def url(self) -> str:
-        host = self.server.get_host()
-        return (
-            f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.server.get_port()}/"
-        )
+        return page_url(self.server)
 
     def start(self) -> ReplayApp:
         self.seek(self.session.first_step)

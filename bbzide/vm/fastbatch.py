@@ -258,3 +258,70 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
 
 __all__ += ["F_RECEIVE", "F_STEP", "F_POP", "IO_STATUS", "IO_COUNT", "IO_COLLECTED",
             "IO_INNER", "IO_ROWS", "IO_SLOTS", "PYTHON_MESSAGE"]
+
+
+# ---- a whole swarm's control step: robot_step for each robot, in one call ---------------------
+#: columns of ``dynamic``: the VM registers Python keeps as attributes (``VM``/``Heap``),
+#: copied in before a robot's step and out after it
+D_PC, D_SP, D_BP, D_RTOBJ, D_LTSEG, D_LSYMS, D_GC_RUNS, D_EXECUTED, D_PEAK, D_BUDGET = range(10)
+DYNAMIC = 10
+#: ``fastloop``'s register slot of each ``dynamic`` column
+_DYNAMIC_REGISTER = (0, 1, 2, 3, 4, 5, 6, 7, 11, 15)
+# Columns of ``geometry``: the heap geometry of each robot.
+G_OBJ, G_ELEMS, G_RESERVED = range(3)
+# Columns of a ``latched`` row: the latch group (see swarm_batch_fast), target, arguments.
+L_GROUP, L_TARGET, L_ARGS = 0, 1, 2
+
+
+@_compile
+def swarm_step(heaps: Any, stacks: Any, bcodes: Any, infos: Any, traverseds: Any,
+               inqs: Any, outqs: Any, rings: Any, ctls: Any, latches: Any, hostss: Any,
+               geometry: Any, registers: Any, dynamic: Any, todo: Any, flags: Any,
+               rules: Any, payloads: Any, lengths: Any, distances: Any, azimuths: Any,
+               elevations: Any, bounds: Any, out_payloads: Any, out_lengths: Any,
+               out_robots: Any, cursor: Any, ios: Any, phases: Any, groups: Any,
+               targets: Any, latched: Any) -> int:
+    """:func:`robot_step` of robot ``i`` for each ``i`` in ``todo`` (its per-robot arrays
+    at ``[i]`` of the typed lists, ``registers[i]`` its register row with the constant
+    slots filled, ``dynamic[i]`` the rest in and out, ``flags[i]`` its flags, its
+    deliveries ``bounds[i]:bounds[i + 1]``). Its phase goes to ``phases[i]`` (without
+    :data:`LATCHED`) and its hand-over state to ``ios[i]``; the outbox rows are filled
+    from ``cursor[0]`` on (and ``cursor[0]`` moved past them). Written latch slots are
+    cleared and listed as rows of ``latched`` (``groups[i, slot]``, ``targets[i, slot]``,
+    the arguments). Returns the number of latched rows."""
+    rows = cursor[0]
+    count = 0
+    for i in todo:
+        regs = registers[i]
+        dyn = dynamic[i]
+        for k in range(DYNAMIC):
+            regs[_DYNAMIC_REGISTER[k]] = dyn[k]
+        io = ios[i]
+        io[IO_ROWS] = rows
+        g = geometry[i]
+        phase = robot_step(heaps[i], stacks[i], bcodes[i], regs, infos[i], traverseds[i],
+                           rules, g[G_OBJ], g[G_ELEMS], g[G_RESERVED], inqs[i], outqs[i],
+                           rings[i], ctls[i], latches[i], hostss[i], payloads, lengths,
+                           distances, azimuths, elevations, bounds[i], bounds[i + 1],
+                           flags[i], i, out_payloads, out_lengths, out_robots, io)
+        rows = io[IO_ROWS]
+        for k in range(DYNAMIC):
+            dyn[k] = regs[_DYNAMIC_REGISTER[k]]
+        if phase & LATCHED:
+            phase ^= LATCHED
+            latch = latches[i]
+            for slot in range(latch.shape[0]):
+                if latch[slot, 0]:
+                    latch[slot, 0] = 0
+                    latched[count, L_GROUP] = groups[i, slot]
+                    latched[count, L_TARGET] = targets[i, slot]
+                    for a in range(latch.shape[1] - 1):
+                        latched[count, L_ARGS + a] = latch[slot, 1 + a]
+                    count += 1
+        phases[i] = phase
+    cursor[0] = rows
+    return count
+
+
+__all__ += ["swarm_step", "DYNAMIC", "D_BUDGET", "G_OBJ", "G_ELEMS", "G_RESERVED",
+            "L_GROUP", "L_TARGET", "L_ARGS"]

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 from bbzide.compiler import bbzfloat
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
+from bbzide.vm.packed_queues import arrays_changed
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
@@ -84,6 +85,7 @@ class HostRegistry:
         self.by_address[address] = call
         self.by_symbol[symbol] = call
         self.version += 1
+        arrays_changed()
         return address
 
     def lookup(self, address: int) -> RegisteredHostFunction | None:

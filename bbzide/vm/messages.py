@@ -425,22 +425,27 @@ def _process_broadcast_checked(vm: VM, rec: bytearray) -> bool:
     return True
 
 
-def process_inmsgs(vm: VM, count: int = 0, collected: bool = False,
-                   taken: bool = False) -> None:
+def process_inmsgs(vm: VM) -> None:
     """``bbzvm_process_inmsgs``: at most ``msg_in_proc_max`` messages, each after a GC.
 
     The fast mode hands the loop to the compiled :func:`fastinbox.process_broadcasts`,
     which stops at the first message (or listener step) it does not cover; from there
     this loop goes on with the reference routines, then calls the kernel again.
-    ``count``/``collected``/``taken``: go on from where a compiled swarm step stopped
-    (``fastbatch``): ``count`` messages taken, the heap just ``collected``; ``taken``:
-    message ``count``'s collection is done, its extraction is next.
     """
-    from bbzide.vm import vstig
     from bbzide.vm.vm import State
 
     if vm.state == State.ERROR:
         return
+    go_on_inmsgs(vm, 0, False)
+
+
+def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> None:
+    """The loop of :func:`process_inmsgs` from where a compiled step stopped
+    (``fastbatch``): ``count`` messages taken, the heap just ``collected``; ``taken``:
+    message ``count``'s collection is done, its extraction is next."""
+    from bbzide.vm import vstig
+    from bbzide.vm.vm import State
+
     q = vm.queues
     # collected: the heap is what a collection just left, so the next one would change
     # nothing (the fast mode's PC_ONLY rule, vm._SKIP_RULES): fast mode counts it only

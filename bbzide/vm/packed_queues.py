@@ -54,6 +54,17 @@ LATCH_ARGS = 4
 LATCH_SLOTS = 4
 
 
+#: bumped whenever an array or constant register a compiled swarm step may have cached
+#: for some VM can change (a VM built, its code set, a restore, a host registration, a
+#: ring re-allocated): ``swarm_batch_fast`` rebuilds its per-swarm tables then
+GENERATION = [0]
+
+
+def arrays_changed() -> None:
+    """Invalidate every compiled swarm step's cached per-robot tables."""
+    GENERATION[0] += 1
+
+
 class PackedQueues:
     """One robot's queues and neighbor ring as arrays (see the module comment)."""
 
@@ -80,6 +91,7 @@ class PackedQueues:
             flat += (e.robot, e.distance, e.azimuth, e.elevation, e.mark)
         if len(ring.records) != len(self.ring):
             self.ring = np.zeros((len(ring.records), RING_COLUMNS), np.int64)
+            arrays_changed()
         self.ring[:] = np.frombuffer(array("q", flat), np.int64).reshape(-1, RING_COLUMNS)
         self.ctl[:MSG_MAX] = (inbox.start, inbox.end, inbox.capacity, ring.start, ring.end,
                        ring.capacity, outbox.start, outbox.end, outbox.capacity,

@@ -54,7 +54,7 @@ from bbzide.vm.heap import (
 from bbzide.vm.host import HostFunction, HostRegistry
 from bbzide.vm.messages import MessageQueues
 from bbzide.vm.neighbors import NeighborsState
-from bbzide.vm.packed_queues import PackedQueues
+from bbzide.vm.packed_queues import PackedQueues, arrays_changed
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (
@@ -161,6 +161,7 @@ class VM:
         #: arrays hold the truth now (packed_queues.py: one form is the truth at a time)
         self._packed: PackedQueues | None = None
         self._packed_live = False
+        arrays_changed()
         self.neighbors = NeighborsState()
         self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap, profile.obj_size)
 
@@ -214,6 +215,7 @@ class VM:
 
         if robot is not None:
             self.robot = robot
+        arrays_changed()
         self.bcode = b""
         self.bcode_size = 0
         self.pc = 0
@@ -249,6 +251,7 @@ class VM:
         """``bbzvm_set_bcode``: run the string-registration preamble up to its ``nop``."""
         self.bcode = bytes(bcode)
         self.bcode_size = len(self.bcode)
+        arrays_changed()
         self.state = State.READY
         self.error = Error.NONE
         self.pc = 2
@@ -506,6 +509,7 @@ class VM:
         self.swarm, self.vstig, self.neighbors, self.queues = recs  # fresh from pickle.loads
         self.bcode = bcode
         self.bcode_size = len(bcode)
+        arrays_changed()
 
     # =================================================================== execution
     def step(self) -> None:

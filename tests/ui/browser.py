@@ -77,3 +77,19 @@ def chromium_context(width: int = 1400, height: int = 900) -> Iterator[object]:
             yield context
         finally:
             context.close()
+
+
+def open_app_page(context: object, app: object) -> object:
+    """A new tab on `app` (IdeApp or ReplayApp), returned once the websocket is up and a
+    first frame has been rendered: what a user sees when the page has loaded."""
+    page = context.new_page()  # type: ignore[attr-defined]
+    page.set_default_timeout(FIRST_RENDER_TIMEOUT_MS)
+    page.goto(app.url, wait_until="domcontentloaded")  # type: ignore[attr-defined]
+    server = app.server  # type: ignore[attr-defined]
+    wait_until(lambda: server.get_clients(), 30, message="websocket")
+    page.wait_for_selector("canvas")
+    client = next(iter(server.get_clients().values()))
+    started = time.monotonic()
+    client.get_render(height=200, width=300)  # barrier: a frame was rendered
+    print(f"first render after {time.monotonic() - started:.1f} s")
+    return page

@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from browser import FIRST_RENDER_TIMEOUT_MS, chromium_context, free_port, wait_until
+from browser import chromium_context, free_port, open_app_page, wait_until
 
 from bbzide.ui.app import IdeApp
 from bbzide.ui.run_controller import RunSettings
@@ -103,15 +103,6 @@ def running_ide(
     )
     try:
         with chromium_context() as context:
-            page = context.new_page()  # type: ignore[attr-defined]
-            page.set_default_timeout(FIRST_RENDER_TIMEOUT_MS)
-            page.goto(app.url, wait_until="domcontentloaded")
-            wait_until(lambda: app.server.get_clients(), 30, message="websocket")
-            page.wait_for_selector("canvas")
-            client = next(iter(app.server.get_clients().values()))
-            started = time.monotonic()
-            client.get_render(height=200, width=300)  # barrier: a frame was rendered
-            print(f"first render after {time.monotonic() - started:.1f} s")
-            yield IdeSession(app, context, page)
+            yield IdeSession(app, context, open_app_page(context, app))
     finally:
         app.stop()

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from browser import FIRST_RENDER_TIMEOUT_MS, chromium_context, free_port, wait_until
+from browser import chromium_context, free_port, open_app_page, wait_until
 
 from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
@@ -41,13 +41,7 @@ def replay(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ReplayApp
     app = ReplayApp(session, port=free_port()).start()
     try:
         with chromium_context() as context:
-            page = context.new_page()  # type: ignore[attr-defined]
-            page.set_default_timeout(FIRST_RENDER_TIMEOUT_MS)
-            page.goto(app.url, wait_until="domcontentloaded")
-            wait_until(lambda: app.server.get_clients(), 30, message="websocket")
-            page.wait_for_selector("canvas")
-            client = next(iter(app.server.get_clients().values()))
-            client.get_render(height=200, width=300)  # a frame was drawn
+            page = open_app_page(context, app)
             page.context.foreign = context.foreign_requests  # type: ignore[attr-defined]
             yield app, page
     finally:

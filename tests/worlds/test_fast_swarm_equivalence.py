@@ -335,3 +335,17 @@ def test_batch_other_profiles_identical(tmp_path: Path, world: str) -> None:
     program = _compile(tmp_path, text, world)
     seen = _run_batches(program, world, 8, 14, budget=3000, comm_range=30.0, unit=1.0)
     assert seen["messages"] > 100
+
+
+def test_batch_threads_identical(monkeypatch, tmp_path: Path) -> None:  # noqa: ANN001
+    """The kernel part split over threads (contiguous robot ranges) leaves the same robots,
+    outboxes and LEDs as the reference, hand-overs included."""
+    from bbzide.vm import swarm_batch_fast
+
+    monkeypatch.setattr(swarm_batch_fast, "THREADS", 3)
+    monkeypatch.setattr(swarm_batch_fast, "MIN_ROBOTS_PER_THREAD", 4)
+    assert len(swarm_batch_fast._chunks(np.arange(14))) == 3
+    program = _compile(tmp_path, BATCH_HAND_OVERS)
+    seen = _run_batches(program, "kilobot", 14, 12, budget=3000,
+                        options={"width": 0.3, "height": 0.3})
+    assert seen["messages"] > 200
