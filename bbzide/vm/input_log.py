@@ -630,16 +630,10 @@ def encode_steps(stepped: Sequence[np.ndarray],
     firsts = np.concatenate([[0], np.cumsum(per_step)]).tolist()
     records = per_step.tolist()
     size = _HEAD.size
-    out = []
-    for k in range(steps):
-        blob = bytearray(_U16.pack(records[k]))
-        blob += head_bytes[size * firsts[k]:size * firsts[k + 1]]
-        if columns[k] is not None:
-            for column in columns[k]:
-                blob += column
-        blob += calls[k][1]
-        out.append(bytes(blob))
-    return out
+    join, pack, none = b"".join, _U16.pack, (b"", b"", b"")
+    return [join((pack(records[k]), head_bytes[size * firsts[k]:size * firsts[k + 1]],
+                  *(columns[k] or none), calls[k][1]))
+            for k in range(steps)]
 
 
 def encode_calls(records: Iterable[HostCallRecord]) -> bytes:
