@@ -178,3 +178,18 @@ def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: 
         for step in (10, 13, 30):
             assert vm_state(rebuilder.robot_at(index, step))[:6] == live[step][index][:6], (
                 index, step)
+
+
+def test_latched_led_stays_latched_and_out_of_the_input_log(recorded: dict) -> None:
+    """A Kilobot's `led` is a latched host function: in a recorded swarm it stays one (the
+    compiled swarm step keeps running it), so its happy-path calls are not in the input log
+    (format 3), the meta says so, and the rebuilds above still match the live robots."""
+    from bbzide.recording.compression import decompress
+    from bbzide.vm.input_log import decode_step
+
+    recording = recorded["recording"]
+    assert all(dict(pairs) == {"led": 1} for pairs in recording.meta["latched"])
+    names = {call.name for blob in recording.inputs if blob
+             for inputs in decode_step(decompress(blob)).values()
+             for call in inputs.host_calls}
+    assert "led" not in names
