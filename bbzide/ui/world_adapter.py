@@ -5,8 +5,8 @@ compile for a world's platform, start a swarm) and `WorldsSimulation` (step, dra
 record). The names are the ones the rooms settled in ARCHITECTURE.md: `WORLDS` (`WorldSpec`:
 example, profile, host_names, default_robots), `Simulation(world, program, robots=N, seed=K,
 robot_factory=...)` with `step_count`, the `positions`/`headings`/`leds` arrays, `robots`
-(`RobotState`: failure, robot, robot_id), `links` (robot ids) and `world` (bounds, walls,
-robot_radius, robot_height, comm_range); `Profile` (heap_size, obj_size, rsv_actrec,
+(`RobotState`: failure, robot, robot_id), `link_indexes` (robot index pairs) and `world`
+(bounds, walls, robot_radius, robot_height, comm_range); `Profile` (heap_size, obj_size, rsv_actrec,
 elems_per_tseg); the VM's `heap` (data, rtobj, ltseg, peak_used, gc_runs), `gsyms`, `vstig`,
 `neighbors`, `queues`.
 
@@ -190,10 +190,8 @@ class WorldsSimulation:
         states = sim.robots
         failed = np.fromiter((s.failure is not None for s in states), dtype=bool, count=len(states))
         ids = [int(s.robot_id) for s in states]
-        index_of = {robot_id: i for i, robot_id in enumerate(ids)}
-        links = np.array(
-            [(index_of[a], index_of[b]) for a, b in sim.links], dtype=np.int32
-        ).reshape(-1, 2)
+        # (sender, receiver) robot indexes as the engine keeps them: no id round trip
+        links = np.asarray(sim.link_indexes, dtype=np.int32).reshape(-1, 2)
         return SwarmFrame(
             int(sim.step_count),
             np.array(sim.positions[:, :2], dtype=np.float64),

@@ -75,3 +75,11 @@ def test_a_lone_robot_sending_a_table_is_warned(tmp_path: Path) -> None:
 def test_no_table_no_warning(tmp_path: Path) -> None:
     view = run(tmp_path, "7").inspect(0)
     assert not any("table" in w for w in view.warnings)
+
+
+def test_frame_links_are_the_engine_links_as_indexes(tmp_path: Path) -> None:
+    sim = run(tmp_path, "7")
+    frame = sim.frame()
+    engine = sim.sim
+    by_id = [(frame.robot_ids[a], frame.robot_ids[b]) for a, b in frame.links.tolist()]
+    assert by_id == engine.links and len(by_id) > 0
