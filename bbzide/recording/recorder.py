@@ -189,6 +189,8 @@ class Recordable:
         robot.bbzide_latched = latched
         self.built.add(robot)
         if hasattr(robot, "on_phase"):
+            if self.listener is None:  # not recording: a recorder's start keyframes them all
+                self.booting.clear()  # (so failed boots do not pile up in an IDE session)
             self.booting.append(robot)
             robot.on_phase = self._phase_hook(robot, live)
         else:  # a firmware loop that cannot say when it booted: all its calls are inputs

@@ -193,3 +193,38 @@ def test_latched_led_stays_latched_and_out_of_the_input_log(recorded: dict) -> N
              for inputs in decode_step(decompress(blob)).values()
              for call in inputs.host_calls}
     assert "led" not in names
+
+
+def test_a_reload_whose_boot_fails_is_keyframed_failed(tmp_path: Path) -> None:
+    """A program whose top level fails (a VM error during boot) loaded mid-recording: no hook
+    says the boot ended well, so the recorder keyframes those robots at its next step; the
+    error is an event, and robots rebuilt after it equal the live failed ones."""
+    from bbzide import compiler
+
+    spec = WORLDS["kilobot"]
+    first = load_script(REPO / "examples/kilobot/gradient.bzz", spec.host_names, [])
+    script = tmp_path / "broken.bzz"
+    script.write_text("x = rand() / 0\nfunction init() { }\nfunction step() { }\n")
+    broken = compiler.compile_file(
+        str(script), string_table=compiler.bittybuzz_string_table(list(spec.host_names))
+    ).to_bbo()
+    recordable = Recordable()
+    sim = Simulation("kilobot", first, robots=3, seed=3, robot_factory=recordable.factory)
+    path = tmp_path / "broken.rrd"
+    live = {}
+    with MissionRecorder(path, sim, recordable, keyframe_every=50) as recorder:
+        for _ in range(12):
+            if sim.step_count == 6:
+                sim.load_program(broken, keep_state=True)
+            sim.step()
+            recorder.record_step()
+            live[sim.step_count] = [Robot.comparable(s.robot.snapshot()) for s in sim.robots]
+    assert len(sim.failures) == 3
+    recording = read_recording(path)
+    assert [k.step for k in recording.keyframes[0]] == [0, 7]
+    assert sum(e.kind == "error" for e in recording.events) == 3
+    rebuilder = RobotRebuilder(recording)
+    for index in range(3):
+        for step in (5, 7, 12):
+            assert Robot.comparable(rebuilder.robot_at(index, step).snapshot()) == \
+                live[step][index], (index, step)
