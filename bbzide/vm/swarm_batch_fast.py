@@ -231,6 +231,11 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
     covered_mask = np.array(is_covered, dtype=bool)
     todo = np.flatnonzero(covered_mask & (stepping | deferred))
     tables = _tables_for(robots) if len(todo) else None
+    if tables is not None and any(tables.machines[i] is None for i in todo.tolist()):
+        # a robot the tables left out is covered now (e.g. its stress mode switched off
+        # without a new VM): build them again
+        _TABLES.remove(tables)
+        tables = _tables_for(robots)
     outbox = _Outbox(len(todo) * (tables.max_out if tables else 1) + 4)
     phases = np.zeros(count, np.int64)
     ios = np.zeros((count, IO_SLOTS), np.int64)

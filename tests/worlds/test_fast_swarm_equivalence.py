@@ -417,3 +417,31 @@ def test_batch_mixed_swarm_identical(tmp_path: Path) -> None:
     for x, y in zip(*teams, strict=True):
         if x is not None:
             assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())
+
+
+def test_batch_robot_leaving_stress_mode_is_taken_identically(tmp_path: Path) -> None:
+    """A robot switched from the stress mode to the fast mode between two steps (no new VM,
+    so nothing tells the cached tables) is taken by the compiled step and stays exact."""
+    from bbzide.vm.swarm_batch import PackedMessages, control_steps
+
+    program = load_script(REPO / "examples/kilobot/gradient.bzz",
+                          WORLDS["kilobot"].host_names, [])
+    options = {"width": 0.25, "height": 0.25}
+    sims = [Simulation("kilobot", program, robots=6, seed=2, world_options=options,
+                       robot_factory=_factory(True, 100_000, "pop"), watch=())
+            for _ in range(2)]
+    teams = [[s.robot for s in sim.robots] for sim in sims]
+    teams[1][0].vm.stress_gc = False  # the compiled step takes robot 0 from the start
+    boxes = [PackedMessages.empty(), PackedMessages.empty()]
+    for step in range(6):
+        if step == 3:
+            teams[1][1].vm.stress_gc = False
+        results = [control_steps(team, _deliveries(box, sim, 0.12, 1000.0),
+                                 np.ones(6, dtype=bool), reference=ref)
+                   for team, box, sim, ref in zip(teams, boxes, sims, (True, False),
+                                                  strict=True)]
+        boxes = [r.outbox for r in results]
+        assert (boxes[0].payloads == boxes[1].payloads).all()
+    assert teams[1][1].vm._packed_live  # the compiled step took it
+    for x, y in zip(*teams, strict=True):
+        assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())
