@@ -19,16 +19,27 @@ with `--world` the worlds room runs it (`run_world(args)`), otherwise the VM roo
 `bbzide.recording.commands.add_record_arguments`) the recording room runs it
 (`run_recorded(args)`, above the worlds, which never import it). This file only routes and
 turns `UserError` into a one-screen message with exit status 1: no traceback reaches a user.
+Any other exception is a bug of ours: the user sees one line naming it and the file where its
+traceback was saved (exit status 70, `EX_SOFTWARE` of sysexits.h); `BBZIDE_TRACEBACK=1` lets it
+propagate for whoever debugs bbzide. A `.bo` given to `run` (the reference VM's bytecode, which
+the BittyBuzz model does not run) is named as such with the `bo2bbo` command that converts it.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import tempfile
+import traceback
 from collections.abc import Sequence
+from pathlib import Path
 
 from bbzide.diagnostics import UserError
+
+#: Exit status of a bug (an exception that is not a UserError): EX_SOFTWARE of sysexits.h.
+EXIT_BUG = 70
 
 #: Rooms that contribute subcommands, lowest first (the order of the help text).
 COMMAND_MODULES = (
@@ -84,6 +95,11 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
         record_commands.add_record_arguments(run)
 
     def dispatch(args: argparse.Namespace) -> int:
+        script = Path(str(getattr(args, "script", "")))
+        if script.suffix == ".bo":
+            raise UserError(f"{script} is bytecode for the reference Buzz VM; the BittyBuzz model "
+                            f"runs a .bbo: bbzide bo2bbo {script}, then run "
+                            f"{script.with_suffix('.bbo')} (or run the .bzz)")
         if getattr(args, "record", None):
             if record_commands is None:
                 raise UserError("recording is not available in this build")
@@ -118,6 +134,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except BrokenPipeError:
         return 0
+    except Exception as bug:
+        if os.environ.get("BBZIDE_TRACEBACK"):
+            raise
+        print(_report_bug(bug), file=sys.stderr)
+        return EXIT_BUG
+
+
+def _report_bug(bug: Exception) -> str:
+    """One line for the user; the traceback goes to a file they can attach to a bug report."""
+    what = f"{type(bug).__name__}: {bug}"
+    try:
+        with tempfile.NamedTemporaryFile("w", prefix="bbzide-bug-", suffix=".txt",
+                                         delete=False, encoding="utf-8") as saved:
+            saved.write(f"bbzide {' '.join(sys.argv[1:])}\n\n")
+            saved.write("".join(traceback.format_exception(bug)))
+        where = f"; traceback saved in {saved.name}"
+    except OSError:
+        where = ""
+    return f"error: internal error (a bug in bbzide): {what}{where}"
 
 
 if __name__ == "__main__":

@@ -9,6 +9,11 @@
 names (`--host`, repeatable; for `kilobot` the Kilobot firmware's `led set_motor delay abs` when
 no `--host` is given), so that string ids match what the firmware expects. Every error is a
 `UserError` (the router prints it and exits 1).
+
+Outputs are build products and are rewritten on every run, with two exceptions that would lose
+work (`check_outputs`, before anything is written): an output that is one of the inputs (the
+script, the `.bst`, the `.bo`) is always refused, and an existing `.bzz` (someone's source) is
+overwritten only with `--force`. Two outputs naming one file are refused too.
 """
 
 from __future__ import annotations
@@ -55,6 +60,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     compile_parser.add_argument(
         "--reference-quirks", action="store_true", help="reproduce bzzparse's quirks"
     )
+    compile_parser.add_argument(
+        "--force", action="store_true", help="overwrite an existing .bzz named as an output"
+    )
     compile_parser.set_defaults(handler=run_compile)
 
     disasm_parser = subparsers.add_parser("disasm", help="list the instructions of a .bo or .bbo")
@@ -68,6 +76,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     convert_parser.add_argument("bo", help="the .bo file")
     convert_parser.add_argument("-o", dest="bbo", help="output .bbo (default: beside the .bo)")
+    convert_parser.add_argument(
+        "--force", action="store_true", help="overwrite an existing .bzz named as the output"
+    )
     convert_parser.set_defaults(handler=run_bo2bbo)
 
 
@@ -85,6 +96,30 @@ def _write(path: Path, data: bytes) -> None:
         raise UserError(f"cannot write {path}: {error.strerror}") from None
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b))
+    except OSError:
+        return False
+
+
+def check_outputs(inputs: list[Path], outputs: list[Path], force: bool) -> None:
+    """Refuse, before anything is written, outputs that would destroy an input or a source."""
+    for index, output in enumerate(outputs):
+        for source in inputs:
+            if _same_file(output, source):
+                raise UserError(f"{output} is the input {source}: "
+                                "name another file for this output")
+        for other in outputs[:index]:
+            if _same_file(output, other):
+                raise UserError(f"two outputs both name {output}")
+        if output.is_dir():
+            raise UserError(f"cannot write {output}: it is a folder")
+        if output.suffix == ".bzz" and output.exists() and not force:
+            raise UserError(f"{output} is an existing Buzz source; "
+                            "give --force to overwrite it")
+
+
 def include_path_from_environment() -> list[str]:
     """The folders of `$BUZZ_INCLUDE_PATH` (colon-separated, as bzzparse reads it)."""
     folders = os.environ.get("BUZZ_INCLUDE_PATH", "").split(os.pathsep)
@@ -93,6 +128,8 @@ def include_path_from_environment() -> list[str]:
 
 def run_compile(args: argparse.Namespace) -> int:
     script = Path(args.script)
+    if script.is_dir():
+        raise UserError(f"{script} is a folder, not a Buzz script")
     if not script.is_file():
         raise UserError(f"no such script: {script}")
     if args.bst:
@@ -106,6 +143,8 @@ def run_compile(args: argparse.Namespace) -> int:
                            args.reference_quirks)
     bo_path = Path(args.bo) if args.bo else script.with_suffix(".bo")
     bdb_path = Path(args.bdb) if args.bdb else bo_path.with_suffix(".bdb")
+    outputs = [bo_path, bdb_path, *(Path(p) for p in (args.basm, args.bbo) if p)]
+    check_outputs([script, *([Path(args.bst)] if args.bst else [])], outputs, args.force)
     bbo = program.to_bbo()
     _write(bo_path, program.bo)
     _write(bdb_path, program.bdb)
@@ -156,7 +195,9 @@ def run_disasm(args: argparse.Namespace) -> int:
 def run_bo2bbo(args: argparse.Namespace) -> int:
     path = Path(args.bo)
     conversion = bo_to_bbo(_read(path), path.name)
+    output = Path(args.bbo) if args.bbo else path.with_suffix(".bbo")
+    check_outputs([path], [output], args.force)
     for warning in conversion.warnings:
         print(warning, file=sys.stderr)
-    _write(Path(args.bbo) if args.bbo else path.with_suffix(".bbo"), conversion.bbo)
+    _write(output, conversion.bbo)
     return 0

@@ -20,6 +20,8 @@ queue's ``CAP + 2`` records concatenated (record ``k`` at ``k * record``, the la
 scratch record); ``ring`` has a row per neighbor slot (``fastreceive.NB_*`` columns);
 ``ctl`` holds the ring indices (the first six in :mod:`fastreceive`'s ``rings`` order, so
 its routines work on ``ctl`` directly) and the scalars of ``NeighborsState`` the step reads.
+Only an XTREME profile's ring rows are packed (the compiled step touches no other ring:
+those profiles keep their neighbor data in the heap and receive through Python).
 """
 
 from __future__ import annotations
@@ -68,10 +70,13 @@ def arrays_changed() -> None:
 class PackedQueues:
     """One robot's queues and neighbor ring as arrays (see the module comment)."""
 
-    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "record")
+    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "record", "xtreme")
 
     def __init__(self, profile: Profile, record: int) -> None:
         self.record = record
+        #: only an XTREME ring is the compiled step's to touch (receive, data GC): the
+        #: others' ring entries stay Python's and are neither packed nor unpacked
+        self.xtreme = profile.xtreme
         self.inq = np.zeros((profile.in_queue_cap + 2) * record, np.uint8)
         self.outq = np.zeros((profile.out_queue_cap + 2) * record, np.uint8)
         self.ring = np.zeros((profile.neighbors_cap + 1, RING_COLUMNS), np.int64)
@@ -86,16 +91,18 @@ class PackedQueues:
         inbox, outbox, ring = queues.inbox, queues.outbox, neighbors.ring
         self.inq[:] = np.frombuffer(bytearray().join(inbox.records), np.uint8)
         self.outq[:] = np.frombuffer(bytearray().join(outbox.records), np.uint8)
-        flat: list[int] = []
-        for e in ring.records:
-            flat += (e.robot, e.distance, e.azimuth, e.elevation, e.mark)
-        if len(ring.records) != len(self.ring):
-            self.ring = np.zeros((len(ring.records), RING_COLUMNS), np.int64)
-            arrays_changed()
-        self.ring[:] = np.frombuffer(array("q", flat), np.int64).reshape(-1, RING_COLUMNS)
+        if self.xtreme:
+            flat: list[int] = []
+            for e in ring.records:
+                flat += (e.robot, e.distance, e.azimuth, e.elevation, e.mark)
+            if len(ring.records) != len(self.ring):
+                self.ring = np.zeros((len(ring.records), RING_COLUMNS), np.int64)
+                arrays_changed()
+            self.ring[:] = np.frombuffer(array("q", flat), np.int64).reshape(-1, RING_COLUMNS)
         self.ctl[:MSG_MAX] = (inbox.start, inbox.end, inbox.capacity, ring.start, ring.end,
-                       ring.capacity, outbox.start, outbox.end, outbox.capacity,
-                       neighbors.clear_counter, neighbors.listeners, robot, self.record)
+                              ring.capacity, outbox.start, outbox.end, outbox.capacity,
+                              neighbors.clear_counter, neighbors.listeners, robot,
+                              self.record)
 
     def unpack(self, queues: MessageQueues, neighbors: NeighborsState) -> None:
         """The arrays back into the Python records (they become the truth again)."""
@@ -106,8 +113,9 @@ class PackedQueues:
         outq = self.outq.tobytes()
         for k, record in enumerate(queues.outbox.records):
             record[:] = outq[k * n:(k + 1) * n]
-        for e, row in zip(neighbors.ring.records, self.ring.tolist(), strict=True):
-            e.robot, e.distance, e.azimuth, e.elevation, e.mark = row
+        if self.xtreme:
+            for e, row in zip(neighbors.ring.records, self.ring.tolist(), strict=True):
+                e.robot, e.distance, e.azimuth, e.elevation, e.mark = row
         (queues.inbox.start, queues.inbox.end, _in_slots, neighbors.ring.start,
          neighbors.ring.end, _nb_slots, queues.outbox.start, queues.outbox.end, _out_slots,
          neighbors.clear_counter) = self.ctl[:CLEAR_COUNTER + 1].tolist()

@@ -231,6 +231,11 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
     covered_mask = np.array(is_covered, dtype=bool)
     todo = np.flatnonzero(covered_mask & (stepping | deferred))
     tables = _tables_for(robots) if len(todo) else None
+    if tables is not None and any(tables.machines[i] is None for i in todo.tolist()):
+        # a robot the tables left out is covered now (e.g. its stress mode switched off
+        # without a new VM): build them again
+        _TABLES.remove(tables)
+        tables = _tables_for(robots)
     outbox = _Outbox(len(todo) * (tables.max_out if tables else 1) + 4)
     phases = np.zeros(count, np.int64)
     ios = np.zeros((count, IO_SLOTS), np.int64)
@@ -314,9 +319,11 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
 
 #: threads of a swarm step's kernel part (robots' kernel parts are independent, so a swarm
 #: split in contiguous index ranges gives the same result whatever the threads' timing).
-#: 1 by default: on the shared 2-core machine (load ~2.9) two threads gave no wall-clock
-#: gain for 1,000 Kilobots (168-177 against 107-149 µs per robot-step, the same CPU time);
-#: on an idle multi-core machine set it to the cores to spare
+#: 1 by default. Measured on the shared 2-core machine, 1,000 gradient Kilobots: at load
+#: ~2.9 two threads lost wall time (168-177 against 107-149 µs per robot-step); at load
+#: ~1.1 they gained (`control_steps` 37-46 against 65-66 µs wall, CPU the same or +13 %;
+#: world_bench 15.2-19.0 against 14.6-14.7 steps/s). A gain only when a core is free, so
+#: it is the caller's choice (a multi-core desktop: the cores to spare)
 THREADS = 1
 #: the fewest robots per thread worth a thread's hand-off (~20 µs)
 MIN_ROBOTS_PER_THREAD = 64

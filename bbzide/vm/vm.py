@@ -1200,7 +1200,9 @@ class VM:
         """The registers the compiled kernels take, in ``fastloop``'s ``R_*`` order (one
         array per loop: host functions nest loops), and the bytecode view refreshed."""
         if self._bcode_of_view is not self.bcode:
-            self._bcode_view = np.frombuffer(self.bcode, np.uint8)
+            # a writable copy: the same numba type as the swarm step's views (fastviews),
+            # so each kernel is compiled once, not once for read-only bytes as well
+            self._bcode_view = np.frombuffer(bytearray(self.bcode), np.uint8)
             self._bcode_of_view = self.bcode
         heap = self.heap
         return np.array((

@@ -100,6 +100,8 @@ def run_world(args: argparse.Namespace) -> int:
     steps = int(args.steps if args.steps is not None else DEFAULT_STEPS)
     if steps < 0:
         raise WorldConfigError(f"--steps must be >= 0, got {steps}")
+    if int(args.seed or 0) < 0:  # numpy's seed sequences take non-negative integers only
+        raise WorldConfigError(f"--seed must be >= 0, got {args.seed}")
     robots = args.robots if args.robots is not None else spec.default_robots
     program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
                                                                     or []))

@@ -4,20 +4,64 @@ Design: the registry is data, so the UI and the CLI can list worlds, pick the ex
 compile for the right string table without building a world (no pymunk space, no light field).
 Each factory imports its world module only when called. A world module added later (the M300
 field) registers itself here with one entry.
+
+Options come from users (`--set KEY=VALUE`, already turned into int/float/str), so the factory
+checks them against the world class's keyword parameters before building it: an unknown name lists
+the names there are; a word where the annotation says number, a fraction where it says int, a
+NaN or infinity, or a scalar for a list-valued parameter (obstacles) is refused by name. The world
+classes then check ranges (sizes, spacings) themselves.
 """
 
 from __future__ import annotations
 
 import importlib
+import inspect
+import math
+import numbers
 from typing import Any
 
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.world import World, WorldSpec
 
+#: Parameter annotations (strings: the world modules use postponed annotations) whose values a
+#: `KEY=VALUE` option can give. Anything else (a `Sequence[...]`) cannot come from a command line.
+_NUMBER_ANNOTATIONS = {"float", "int", "float | None", "int | None"}
+
+
+def check_options(world_class: type, options: dict[str, Any]) -> None:
+    """Refuse an option `world_class(**options)` cannot take, naming it (WorldConfigError)."""
+    parameters = {name: parameter
+                  for name, parameter in inspect.signature(world_class).parameters.items()
+                  if parameter.kind is inspect.Parameter.KEYWORD_ONLY
+                  or parameter.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD}
+    for key, value in options.items():
+        parameter = parameters.get(key)
+        if parameter is None:
+            raise WorldConfigError(f"bad option {key!r} for the {world_class.__name__} world; "
+                                   f"its options are {', '.join(parameters)}")
+        annotation = parameter.annotation
+        if not isinstance(annotation, str):  # not written by our world modules: no check
+            continue
+        shown = f"{key}={value}"
+        if isinstance(value, numbers.Real) and not math.isfinite(value):
+            raise WorldConfigError(f"world option {shown}: a finite number is needed")
+        if annotation in _NUMBER_ANNOTATIONS:
+            if value is None and "None" in annotation:
+                continue
+            if not isinstance(value, numbers.Real) or isinstance(value, bool):
+                raise WorldConfigError(f"world option {shown}: a number is needed")
+            if annotation.startswith("int") and not isinstance(value, numbers.Integral):
+                raise WorldConfigError(f"world option {shown}: a whole number is needed")
+        elif ("Sequence" in annotation and "str" not in annotation and "Any" not in annotation
+              and isinstance(value, (str, numbers.Real))):
+            raise WorldConfigError(f"world option {key} cannot be set as KEY=VALUE "
+                                   f"(it is a list; give it from Python)")
+
 
 def _lazy(module: str, cls: str) -> Any:
     def build(**options: Any) -> World:
         world_class = getattr(importlib.import_module(module), cls)
+        check_options(world_class, options)
         try:
             return world_class(**options)
         except TypeError as error:

@@ -151,6 +151,10 @@ def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
         raise UserError("--jobs must be at least 1")
     if settings.max_steps < 1:
         raise UserError("--max-steps must be at least 1")
+    if settings.seed < 0:  # numpy's seed sequences take non-negative integers only
+        raise UserError(f"--seed must be >= 0, got {settings.seed}")
+    if settings.out.exists() and not settings.out.is_dir():
+        raise UserError(f"--out {settings.out} is not a folder (a file of that name exists)")
 
 
 def run_seed(seed: int, drones: int, arena: float, trial: int) -> int:
@@ -428,7 +432,10 @@ class Progress:
 def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     validate(settings, settings.extra.get("comm_range", COMM_RANGE))
     out = settings.out
-    (out / "runs").mkdir(parents=True, exist_ok=True)
+    try:
+        (out / "runs").mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise UserError(f"cannot create the output folder {out}: {error.strerror}") from None
     specs = plan_runs(settings)
     results: dict[str, dict[str, Any]] = {}
     todo = []
@@ -486,10 +493,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "experiment", help="reproduce a paper experiment (sar: thesis §5.4 / §5.5)")
     parser.add_argument("name", choices=["sar"], help="the experiment")
-    parser.add_argument("--drones", default="15,20,25", help="drone counts (comma-separated)")
-    parser.add_argument("--arena", default="20,30,40", help="arena sides in metres")
+    parser.add_argument("--drones", default=None,
+                        help=f"drone counts (comma-separated; default {DEFAULT_DRONES})")
+    parser.add_argument("--arena", default=None,
+                        help=f"arena sides in metres (default {DEFAULT_ARENAS})")
     parser.add_argument("--search", default="random,belief", help="random and/or belief")
-    parser.add_argument("--trials", type=int, default=30, help="trials per configuration")
+    parser.add_argument("--trials", type=int, default=None,
+                        help=f"trials per configuration (default {DEFAULT_TRIALS}; "
+                             f"{FIELD_TRIALS} with --preset field)")
     parser.add_argument("--seed", type=int, default=0, help="sweep seed")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
                         help="parallel worker processes (default: all cores)")
@@ -505,17 +516,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(handler=run_command)
 
 
+#: The §5.4 sweep's grid (thesis Figs. 5.6-5.11) and the runs per configuration we use.
+DEFAULT_DRONES, DEFAULT_ARENAS, DEFAULT_TRIALS = "15,20,25", "20,30,40", 30
+#: The field test's trials when --trials is not given: the paper's Table 5.1 has 3 runs.
+FIELD_TRIALS = 3
+
+
 def settings_from_args(args: argparse.Namespace) -> SweepSettings:
     searches = [s.strip() for s in args.search.split(",") if s.strip()]
+    if args.preset == "field" and (args.drones is not None or args.arena is not None):
+        raise UserError("--preset field has 3 drones on a 36 m field: "
+                        "leave out --drones and --arena")
+    trials = args.trials
+    if trials is None:
+        trials = FIELD_TRIALS if args.preset == "field" else DEFAULT_TRIALS
     settings = SweepSettings(
-        drones=_int_list(args.drones, "drones"), arenas=_float_list(args.arena, "arena"),
-        searches=searches, trials=args.trials, seed=args.seed, jobs=args.jobs,
+        drones=_int_list(args.drones or DEFAULT_DRONES, "drones"),
+        arenas=_float_list(args.arena or DEFAULT_ARENAS, "arena"),
+        searches=searches, trials=trials, seed=args.seed, jobs=args.jobs,
         out=Path(args.out), max_steps=args.max_steps, preset=args.preset)
     settings.extra["targets_where"] = args.targets_where
     if args.preset == "field":
         settings.drones, settings.arenas = [3], [36.0]
-        if "--trials" not in sys.argv:
-            settings.trials = 3
         settings.extra = {"targets": (FIELD_TARGET,), "belief_map": str(FIELD_BELIEF),
                           "comm_range": FIELD_COMM_RANGE}
     return settings

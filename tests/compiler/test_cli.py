@@ -131,3 +131,57 @@ def test_compile_searches_buzz_include_path(tmp_path, monkeypatch):
     assert b"twice" in (tmp_path / "main.bo").read_bytes()
     monkeypatch.setenv("BUZZ_INCLUDE_PATH", "")
     assert main(["compile", str(script), "--platform", "pc"]) == 1
+
+
+SCRIPT = "function init() {\n  x = 1\n}\n"
+
+
+def _script(tmp_path: Path, name: str = "mine.bzz") -> Path:
+    script = tmp_path / name
+    script.write_text(SCRIPT)
+    return script
+
+
+def test_an_output_onto_the_script_itself_is_refused_and_the_script_kept(tmp_path, capsys):
+    script = _script(tmp_path)
+    for option in ("-o", "--bbo", "--basm", "--bdb"):
+        for force in ([], ["--force"]):
+            assert main(["compile", str(script), option, str(script), *force]) == 1
+            err = capsys.readouterr().err
+            assert "is the input" in err and "Traceback" not in err
+            assert script.read_text() == SCRIPT
+
+
+def test_an_output_onto_another_buzz_source_needs_force(tmp_path, capsys):
+    script = _script(tmp_path)
+    other = _script(tmp_path, "other.bzz")
+    assert main(["compile", str(script), "--basm", str(other)]) == 1
+    assert "--force" in capsys.readouterr().err
+    assert other.read_text() == SCRIPT
+    assert main(["compile", str(script), "--basm", str(other), "--force"]) == 0
+    assert other.read_text().startswith("!")     # the .basm's string section
+
+
+def test_two_outputs_on_one_path_are_refused(tmp_path, capsys):
+    script = _script(tmp_path)
+    assert main(["compile", str(script), "-o", str(tmp_path / "x.bin"),
+                 "--bbo", str(tmp_path / "x.bin")]) == 1
+    assert "both name" in capsys.readouterr().err
+    assert not (tmp_path / "x.bin").exists()
+
+
+def test_bo2bbo_onto_its_own_bo_is_refused(tmp_path, capsys):
+    script = _script(tmp_path)
+    assert main(["compile", str(script)]) == 0
+    bo = script.with_suffix(".bo")
+    before = bo.read_bytes()
+    assert main(["bo2bbo", str(bo), "-o", str(bo)]) == 1
+    assert "is the input" in capsys.readouterr().err
+    assert bo.read_bytes() == before
+
+
+def test_compiling_a_folder_says_it_is_a_folder(tmp_path, capsys):
+    folder = tmp_path / "lesson.bzz"
+    folder.mkdir()
+    assert main(["compile", str(folder)]) == 1
+    assert "is a folder" in capsys.readouterr().err

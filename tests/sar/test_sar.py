@@ -167,11 +167,42 @@ def test_sign_test():
     (["--search", "belief,spiral"], "unknown search 'spiral'"),
     (["--drones", "a"], "integers"),
     (["--trials", "0"], "--trials"),
+    (["--seed", "-1"], "--seed must be >= 0"),
 ])
 def test_bad_parameters_are_clear_errors(extra, words, tmp_path, capsys):
     assert main(["experiment", "sar", "--out", str(tmp_path), *extra]) == 1
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+def test_an_output_folder_that_is_a_file_is_refused_and_kept(tmp_path, capsys):
+    notes = tmp_path / "notes.txt"
+    notes.write_text("my notes\n")
+    assert main(["experiment", "sar", "--drones", "3", "--arena", "20", "--search", "random",
+                 "--trials", "1", "--out", str(notes)]) == 1
+    err = capsys.readouterr().err
+    assert "is not a folder" in err and "Traceback" not in err
+    assert notes.read_text() == "my notes\n"
+
+
+def _settings(*argv):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    sx.register(parser.add_subparsers())
+    return sx.settings_from_args(parser.parse_args(["experiment", "sar", *argv]))
+
+
+def test_the_field_preset_runs_3_trials_unless_trials_is_given_in_either_spelling():
+    assert _settings("--preset", "field").trials == 3
+    assert _settings("--preset", "field", "--trials", "5").trials == 5
+    assert _settings("--preset", "field", "--trials=1").trials == 1
+    assert _settings().trials == 30
+
+
+def test_the_field_preset_refuses_drone_counts_and_arenas_it_would_ignore():
+    with pytest.raises(UserError, match="--preset field"):
+        _settings("--preset", "field", "--drones", "5")
 
 
 @pytest.mark.parametrize("extra, words", [

@@ -165,8 +165,9 @@ def test_growing_stack_identical() -> None:
 # in-range radio (no loss), so the test does not depend on the engine's radio: the reference
 # swarm's robots are in the stress mode on the reference path, the other's in the fast mode
 # on the compiled path. Outboxes, failures and LEDs are compared after every step, each
-# robot's whole state every third step (a snapshot unpacks the packed queues: the steps in
-# between run on queues that stay packed, the path a swarm nobody inspects takes).
+# robot's whole state after every step or every third one (a snapshot unpacks the packed
+# queues: the steps in between run on queues that stay packed, the path a swarm nobody
+# inspects takes).
 
 def _batch_swarms(program, world: str, robots: int, budget: int, loop: str,
                   options: dict) -> list[Simulation]:
@@ -194,7 +195,7 @@ def _deliveries(outbox, sim: Simulation, comm_range: float, unit: float):
 
 def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100_000,
                  loop: str = "pop", options: dict | None = None, comm_range: float = 0.12,
-                 unit: float = 1000.0) -> dict[str, int]:
+                 unit: float = 1000.0, every: int = 3) -> dict[str, int]:
     from bbzide.vm.swarm_batch import PackedMessages, control_steps
 
     sims = _batch_swarms(program, world, robots, budget, loop, options or {})
@@ -212,7 +213,7 @@ def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100
             assert (getattr(a.outbox, column) == getattr(b.outbox, column)).all(), step
         assert (a.failed == b.failed).all(), step
         assert (sims[0].leds == sims[1].leds).all(), step
-        if step % 3 == 2 or step == steps - 1:
+        if step % every == every - 1 or step == steps - 1:
             for i, (x, y) in enumerate(zip(reference, fast, strict=True)):
                 assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot()), \
                     (step, i)
@@ -330,8 +331,11 @@ def test_batch_hand_overs_identical(tmp_path: Path, loop: str) -> None:
     ring (every 11th step), robots that only receive (not stepping), and with the firmware
     loop a stack that grows until the STACK error."""
     program = _compile(tmp_path, BATCH_HAND_OVERS)
+    # states compared after every step in one mode (each step then starts from unpacked
+    # queues), every third in the other (the queues stay packed over two steps)
     seen = _run_batches(program, "kilobot", 14, 24, budget=3000, loop=loop,
-                        options={"width": 0.3, "height": 0.3})
+                        options={"width": 0.3, "height": 0.3},
+                        every=1 if loop == "pop" else 3)
     assert seen["messages"] > 300 and 0 < seen["failed"] < 14, seen
 
 
@@ -417,3 +421,31 @@ def test_batch_mixed_swarm_identical(tmp_path: Path) -> None:
     for x, y in zip(*teams, strict=True):
         if x is not None:
             assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())
+
+
+def test_batch_robot_leaving_stress_mode_is_taken_identically(tmp_path: Path) -> None:
+    """A robot switched from the stress mode to the fast mode between two steps (no new VM,
+    so nothing tells the cached tables) is taken by the compiled step and stays exact."""
+    from bbzide.vm.swarm_batch import PackedMessages, control_steps
+
+    program = load_script(REPO / "examples/kilobot/gradient.bzz",
+                          WORLDS["kilobot"].host_names, [])
+    options = {"width": 0.25, "height": 0.25}
+    sims = [Simulation("kilobot", program, robots=6, seed=2, world_options=options,
+                       robot_factory=_factory(True, 100_000, "pop"), watch=())
+            for _ in range(2)]
+    teams = [[s.robot for s in sim.robots] for sim in sims]
+    teams[1][0].vm.stress_gc = False  # the compiled step takes robot 0 from the start
+    boxes = [PackedMessages.empty(), PackedMessages.empty()]
+    for step in range(6):
+        if step == 3:
+            teams[1][1].vm.stress_gc = False
+        results = [control_steps(team, _deliveries(box, sim, 0.12, 1000.0),
+                                 np.ones(6, dtype=bool), reference=ref)
+                   for team, box, sim, ref in zip(teams, boxes, sims, (True, False),
+                                                  strict=True)]
+        boxes = [r.outbox for r in results]
+        assert (boxes[0].payloads == boxes[1].payloads).all()
+    assert teams[1][1].vm._packed_live  # the compiled step took it
+    for x, y in zip(*teams, strict=True):
+        assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())

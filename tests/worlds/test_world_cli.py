@@ -20,6 +20,17 @@ GRADIENT = REPO / "examples" / "kilobot" / "gradient.bzz"
     (["--world", "kilobot", "--set", "colour=red"], "bad option"),
     (["--world", "kilobot", "--set", "width"], "KEY=VALUE"),
     (["--world", "crazyflie", "--set", "formation=chain", "--robots", "40"], "do not fit"),
+    # an unknown option names the ones the world has
+    (["--world", "kilobot", "--set", "colour=red"], "width, height, light"),
+    # a word where a number is expected, a fraction where a count is, a non-finite number
+    (["--world", "kilobot", "--set", "width=abc"], "width=abc: a number is needed"),
+    (["--world", "kilobot", "--set", "loss=abc"], "loss=abc: a number is needed"),
+    (["--world", "m300", "--set", "cells=2.5"], "cells=2.5: a whole number is needed"),
+    (["--world", "kilobot", "--set", "width=nan"], "width=nan: a finite number is needed"),
+    (["--world", "kilobot", "--set", "spacing=inf"], "a finite number is needed"),
+    # a list-valued option cannot be given as KEY=VALUE
+    (["--world", "crazyflie", "--set", "obstacles=3"], "obstacles cannot be set"),
+    (["--world", "kilobot", "--seed", "-1"], "--seed must be >= 0"),
 ])
 def test_bad_parameters(extra, words, capsys):
     assert main(["run", str(GRADIENT), *extra]) == 1
