@@ -254,3 +254,24 @@ def test_passive_bodies_are_recorded_without_a_vm(tmp_path: Path) -> None:
     for index in range(4):
         for step in (9, 23, 30):
             assert rebuilder.robot_at(index, step).snapshot() == live[step][index]
+
+
+def test_a_format_2_recording_still_opens_and_rebuilds(tmp_path: Path,
+                                                       monkeypatch: pytest.MonkeyPatch) -> None:
+    """Format 3 only added the latched host functions (none in this toy swarm), so a file
+    that says version 2 reads and rebuilds as before."""
+    from bbzide.recording import layout
+
+    path = tmp_path / "v2.rrd"
+    sim, recordable = toy_swarm()
+    live = {}
+    with monkeypatch.context() as patched:
+        patched.setattr(layout, "FORMAT_VERSION", 2)
+        with MissionRecorder(path, sim, recordable, keyframe_every=5) as recorder:
+            for _ in range(8):
+                sim.step()
+                recorder.record_step()
+                live[sim.step_count] = sim.robots[2].robot.snapshot()
+    recording = read_recording(path)
+    assert recording.meta["version"] == 2
+    assert RobotRebuilder(recording, build=ToyRobot).robot_at(2, 8).snapshot() == live[8]
