@@ -7,7 +7,9 @@ drones running the flocking example and the search-and-rescue mission (examples/
 README "Search and rescue"). Each case boots the swarm,
 runs a few warm-up steps, then times `seconds` of steps and prints steps/s next to the goal
 (100 Kilobots >= 60 steps/s, 1,000 >= 10) and the share of step time spent in the engine's
-phases (`Simulation.timings`: sense, vm = receive + control_step, radio, physics).
+phases (`Simulation.timings`: sense, vm = `swarm_batch.control_steps` (receive and control
+step of every robot), radio (deliveries due, counters, queues, transmission), physics), and
+the microseconds per robot-step of the VM phase and of the rest (the engine's own share).
 
     PYTHONPATH=. python benchmarks/world_bench.py [seconds per case, default 5] [world]
 """
@@ -54,7 +56,10 @@ def bench(world: str, robots: int, script: str | None, options: dict, seconds: f
     elapsed = time.perf_counter() - t0
     cpu = time.process_time() - c0
     spent = sum(sim.timings.values()) or 1.0
+    robot_steps = steps * robots
     return {
+        "vm_us": 1e6 * sim.timings["vm"] / robot_steps,
+        "engine_us": 1e6 * (spent - sim.timings["vm"]) / robot_steps,
         "steps_per_s": steps / elapsed, "steps_per_cpu_s": steps / max(cpu, 1e-9),
         "steps": steps, "boot_s": boot,
         "shares": {k: v / spent for k, v in sim.timings.items()},
@@ -68,6 +73,8 @@ def main() -> None:
     only = sys.argv[2] if len(sys.argv) > 2 else None      # e.g. `m300`: one world's cases
     print(f"{'case':28} {'steps/s':>9} {'goal':>6} {'vm':>5} {'radio':>6} {'physics':>8} "
           f"{'sense':>6} {'msg/step':>9} {'boot s':>7} errors")
+    # vm / engine us: microseconds per robot-step in the VM phase (`control_steps`) and in
+    # everything else (sense, radio, physics), from `Simulation.timings`
     # steps/s is wall clock (what the goals mean); the last column, steps per CPU second of
     # this process, is what a busy shared machine distorts least
     for world, robots, script, options, goal in CASES:
@@ -85,7 +92,8 @@ def main() -> None:
         print(f"{label:28} {r['steps_per_s']:9.2f} {verdict:>6} {100 * s['vm']:4.0f}% "
               f"{100 * s['radio']:5.0f}% {100 * s['physics']:7.0f}% {100 * s['sense']:5.0f}% "
               f"{r['messages_per_step']:9.1f} {r['boot_s']:7.2f} {r['failures']}{ratio}"
-              f"  [{r['steps_per_cpu_s']:.2f} per CPU s]")
+              f"  [{r['steps_per_cpu_s']:.2f} per CPU s; us per robot-step: vm "
+              f"{r['vm_us']:.1f}, engine {r['engine_us']:.1f}]")
 
 
 if __name__ == "__main__":

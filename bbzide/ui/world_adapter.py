@@ -5,8 +5,8 @@ compile for a world's platform, start a swarm) and `WorldsSimulation` (step, dra
 record). The names are the ones the rooms settled in ARCHITECTURE.md: `WORLDS` (`WorldSpec`:
 example, profile, host_names, default_robots), `Simulation(world, program, robots=N, seed=K,
 robot_factory=...)` with `step_count`, the `positions`/`headings`/`leds` arrays, `robots`
-(`RobotState`: failure, robot, robot_id), `links` (robot ids) and `world` (bounds, walls,
-robot_radius, robot_height, comm_range); `Profile` (heap_size, obj_size, rsv_actrec,
+(`RobotState`: failure, robot, robot_id), `link_indexes` (robot index pairs) and `world`
+(bounds, walls, robot_radius, robot_height, comm_range); `Profile` (heap_size, obj_size, rsv_actrec,
 elems_per_tseg); the VM's `heap` (data, rtobj, ltseg, peak_used, gc_runs), `gsyms`, `vstig`,
 `neighbors`, `queues`.
 
@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import importlib
 import json
+from collections.abc import Sequence
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -189,10 +190,8 @@ class WorldsSimulation:
         states = sim.robots
         failed = np.fromiter((s.failure is not None for s in states), dtype=bool, count=len(states))
         ids = [int(s.robot_id) for s in states]
-        index_of = {robot_id: i for i, robot_id in enumerate(ids)}
-        links = np.array(
-            [(index_of[a], index_of[b]) for a, b in sim.links], dtype=np.int32
-        ).reshape(-1, 2)
+        # (sender, receiver) robot indexes as the engine keeps them: no id round trip
+        links = np.asarray(sim.link_indexes, dtype=np.int32).reshape(-1, 2)
         return SwarmFrame(
             int(sim.step_count),
             np.array(sim.positions[:, :2], dtype=np.float64),
@@ -220,7 +219,7 @@ class WorldsSimulation:
         if state.robot is None:
             raise UserError(f"robot #{index} has no VM (a passive body)")
         return inspect_robot(state.robot, self.profile, state.program or self.program, index,
-                             self.step_count)
+                             self.step_count, _sent_last_step(self.sim, index))
 
 
 def world_geometry(world: Any) -> WorldGeometry:
@@ -236,9 +235,10 @@ def world_geometry(world: Any) -> WorldGeometry:
     )
 
 
-def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int
-                  ) -> RobotInspection:
-    """The inspector's view of one robot's VM (a live robot, or one rebuilt from a recording)."""
+def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
+                  last_sent: Sequence[bytes] = ()) -> RobotInspection:
+    """The inspector's view of one robot's VM (a live robot, or one rebuilt from a recording).
+    `last_sent`: the payloads it sent in its last step (the out-queue is drained by then)."""
     vm = robot.vm
     heap = vm.heap
     geometry = HeapGeometry(
@@ -288,7 +288,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int
         out_queue=[_message_text(m) for m in vm.queues.out_messages()],
         last_error=error_text,
         last_error_line=error_line,
-        warnings=_runtime_warnings(vm, getattr(robot, "last_sent", None) or []),
+        warnings=_runtime_warnings(vm, last_sent),
     )
 
 
@@ -350,7 +350,13 @@ def _swarm_rows(vm: Any) -> list[str]:
     return rows
 
 
-def _runtime_warnings(vm: Any, last_sent: list[bytes]) -> list[str]:
+def _sent_last_step(sim: Any, index: int) -> list[bytes]:
+    """The payloads robot `index` sent in the last step (the engine's `step_outbox`)."""
+    outbox = sim.step_outbox
+    return [outbox.payload(k) for k in np.flatnonzero(outbox.robots == index).tolist()]
+
+
+def _runtime_warnings(vm: Any, last_sent: Sequence[bytes]) -> list[str]:
     """Pitfalls only a running VM can see in its queues.
 
     * A table sent in a message (queued, sent in the last step, or received): the 9-byte

@@ -286,6 +286,9 @@ class Simulation:
         #: The deliveries handed to the robots in the last step (receivers alive), as
         #: `swarm_batch.control_steps` got them (a recorder captures its inputs from them).
         self.step_deliveries = self.radio.due(-1)
+        #: What the robots sent in the last step (rows by sender, out-queue order; a robot
+        #: that failed during its step sends nothing): the inspector's "table being sent".
+        self.step_outbox = self.step_deliveries
         #: alive[i]: robot i has a firmware loop that has not failed (`RobotState.alive`)
         self._alive = np.zeros(self.count, dtype=bool)
         #: What `control_steps` steps: each robot's firmware loop (an adapter when it has no
@@ -371,6 +374,7 @@ class Simulation:
                 self._check_failure(robots[index])
             if len(outbox):             # a robot that failed in its step sends nothing
                 outbox = take_rows(outbox, ~failed[outbox.robots])
+        self.step_outbox = outbox
         radio.queue_outbox(outbox, counters)
         self._set_links(radio.transmit(step, self.positions, self.headings, self._alive,
                                        counters))
@@ -411,6 +415,7 @@ class Simulation:
         t1 = clock()
         radio.begin_step(step, self.positions, self.headings, self._alive.copy())
         vm_time = 0.0
+        sent: list[tuple[int, int, bytes, float, float, float]] = []
         for index in np.argsort(self.phases, kind="stable").tolist():
             state = robots[index]
             now = step + float(self.phases[index])
@@ -430,9 +435,13 @@ class Simulation:
                     self._check_failure(state)
                 elif outgoing:
                     radio.enqueue(index, outgoing, counters)
+                    sent.extend((index, index, message, 0.0, 0.0, 0.0) for message in outgoing)
             vm_time += clock() - started
             radio.send_from(index, now, counters)
         self._set_links(radio.step_links())
+        from bbzide.vm.swarm_batch import PackedMessages  # the VM room (late, as above)
+        sent.sort(key=lambda row: row[0])  # stable: each robot's messages keep their order
+        self.step_outbox = PackedMessages.from_rows(sent)
         t2 = clock()
         world.advance(self, world.step_seconds)
         t3 = clock()

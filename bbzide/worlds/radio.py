@@ -306,6 +306,13 @@ class Radio:
         window = max(1, round(1.0 / self.step_seconds))
         self.history = np.zeros((window, self.count), dtype=np.int64)
 
+    def _pairs(self, positions: np.ndarray) -> RadioLinks:
+        """The pairs within range now, sorted by receiver then sender (the cache follows a
+        range changed in `settings`)."""
+        if self.neighbours.comm_range != self.settings.comm_range:
+            self.neighbours = NeighbourCache(self.settings.comm_range)
+        return self.neighbours.pairs(positions)
+
     def queue_outbox(self, outbox: PackedMessages, counters: TrafficCounters) -> None:
         """Append each sender's outgoing rows to its send queue, in order; what finds the
         queue full (`send_queue_cap`) is dropped and counted at the sender."""
@@ -358,8 +365,11 @@ class Radio:
         settings = self.settings
         queued = self.queued
         now = group_ranks(queued.robots) < settings.messages_per_step
-        out = take_rows(queued, now)                     # sorted by sender, queue order
-        self.queued = take_rows(queued, ~now)
+        if now.all():                                    # every queue empties (the usual)
+            out, self.queued = queued, queued.empty()
+        else:
+            out = take_rows(queued, now)                 # sorted by sender, queue order
+            self.queued = take_rows(queued, ~now)
         sent_now = np.bincount(out.robots, minlength=self.count)
         counters.sent += sent_now
         counters.bytes_sent += np.bincount(out.robots, weights=out.lengths,
@@ -368,7 +378,7 @@ class Radio:
         no_links = np.empty((0, 2), dtype=np.int64)
         if len(out) == 0:
             return no_links
-        links = self.neighbours.pairs(positions)      # sorted by receiver, then sender
+        links = self._pairs(positions)      # sorted by receiver, then sender
         is_sender = sent_now > 0
         keep = is_sender[links.senders] & listening[links.receivers]
         s_idx, r_idx = links.senders[keep], links.receivers[keep]
@@ -445,7 +455,7 @@ class Radio:
     def begin_step(self, step: int, positions: np.ndarray, headings: np.ndarray,
                    listening: np.ndarray) -> None:
         """Links and situated data of this step, grouped by sender (asynchronous mode)."""
-        links = self.neighbours.pairs(positions)
+        links = self._pairs(positions)
         keep = listening[links.receivers]
         s_idx, r_idx = links.senders[keep], links.receivers[keep]
         order = np.lexsort((r_idx, s_idx))

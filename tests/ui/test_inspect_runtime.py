@@ -35,13 +35,13 @@ function step() {
 """
 
 
-def run(tmp_path: Path, value: str) -> object:
+def run(tmp_path: Path, value: str, robots: int = 4) -> object:
     assert BACKEND is not None
     path = tmp_path / "probe.bzz"
     text = SCRIPT.replace("TABLE", value)
     path.write_text(text)
     _, program = BACKEND.compile(text, path, "kilobot")
-    sim = BACKEND.create("kilobot", program, 4, 1)
+    sim = BACKEND.create("kilobot", program, robots, 1)
     for _ in range(3):
         sim.step()
     return sim
@@ -63,6 +63,23 @@ def test_neighbors_swarms_and_the_table_warning(tmp_path: Path) -> None:
     assert any("a table is being sent" in w for w in view.warnings)
 
 
+def test_a_lone_robot_sending_a_table_is_warned(tmp_path: Path) -> None:
+    """Nothing received, nothing queued at the end of a step: the warning comes from what the
+    robot sent in its last step (the engine's step_outbox)."""
+    sim = run(tmp_path, "{.a = 1}", robots=1)
+    view = sim.inspect(0)
+    assert view.in_queue == [] and view.out_queue == []
+    assert any("a table is being sent" in w for w in view.warnings)
+
+
 def test_no_table_no_warning(tmp_path: Path) -> None:
     view = run(tmp_path, "7").inspect(0)
     assert not any("table" in w for w in view.warnings)
+
+
+def test_frame_links_are_the_engine_links_as_indexes(tmp_path: Path) -> None:
+    sim = run(tmp_path, "7")
+    frame = sim.frame()
+    engine = sim.sim
+    by_id = [(frame.robot_ids[a], frame.robot_ids[b]) for a, b in frame.links.tolist()]
+    assert by_id == engine.links and len(by_id) > 0

@@ -176,6 +176,10 @@ def test_asynchronous_robots_hear_later_phases_in_the_same_step():
     sim.step()
     assert [m for m, *_ in sim.robots[early].robot.inbox] == [bytes([late, 0])]
     assert sim.totals["sent"] == 4 and sim.totals["received"] == 3
+    # what each robot sent this step, by robot index (phase order does not matter)
+    outbox = sim.step_outbox
+    assert outbox.robots.tolist() == [0, 1]
+    assert [outbox.payload(k) for k in range(2)] == [bytes([0, 1]), bytes([1, 1])]
 
 
 def test_asynchronous_runs_are_deterministic_and_lose_at_the_set_rate():

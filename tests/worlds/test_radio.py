@@ -82,3 +82,25 @@ def test_neighbour_cache_gives_the_search_s_pairs_while_robots_move():
         pairs = np.column_stack([got.receivers, got.senders])
         assert (np.diff(pairs[:, 0] * 400 + pairs[:, 1]) > 0).all()   # receiver, sender
     assert 2 < cache.searches < 20                               # reused, yet rebuilt
+
+
+def test_radio_follows_a_range_changed_in_its_settings():
+    import dataclasses
+
+    from bbzide.vm.swarm_batch import PackedMessages
+    from bbzide.worlds.radio import Radio, TrafficCounters
+    from bbzide.worlds.world import RadioSettings
+
+    points = np.array([[0.0, 0, 0], [0.15, 0, 0]])
+    r = Radio(RadioSettings(comm_range=0.1), 2, 0.1, np.random.default_rng(0),
+              np.random.default_rng(1))
+
+    def links(step: int) -> list:
+        counters = TrafficCounters.zeros(2)
+        r.queue_outbox(PackedMessages.from_rows([(0, 0, b"a", 0, 0, 0), (1, 1, b"b", 0, 0, 0)]),
+                       counters)
+        return r.transmit(step, points, np.zeros(2), np.ones(2, dtype=bool), counters).tolist()
+
+    assert links(0) == []
+    r.settings = dataclasses.replace(r.settings, comm_range=0.2)
+    assert links(1) == [[0, 1], [1, 0]]
