@@ -38,7 +38,10 @@ it); the default mode is for users. Each row: reference behaviour -> default / r
    character in column 0 we report column 0, not -1.
 12. An include cycle (a file includes one that is still being read) is skipped silently.
    default: skipped (same code) + warning naming the cycle; reference: skipped, no warning.
-13. Not quirks but easy to trip on, kept in both modes as the reference: `0x1F` is `0` then
+13. A script without statements (empty, or only comments) compiles to a lone `nop` with no
+   `done` (corpus: empty_file): a robot runs past its end and stops with a PC error.
+   default: same code + warning; reference: same code, no warning.
+14. Not quirks but easy to trip on, kept in both modes as the reference: `0x1F` is `0` then
    `x1F`; `1.2.3` is a float; newlines and `;` are optional separators
    (`for (i = 0; ...)` fails with "expected ,").
 """

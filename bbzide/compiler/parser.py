@@ -117,6 +117,10 @@ class Parser:
         self.nodes.append(root.children)
         self.advance()
         if self.tok.kind == T.EOF:
+            if not self.reference_quirks:  # quirk 13 of the frontend's table
+                self.warn(f"{user_text(self.scanner.main_realpath)}: the script has no "
+                          "statements: like bzzc it compiles to a lone nop without `done`, so a "
+                          "robot running it stops with a PC error (program counter out of range)")
             return root
         self.scopes.append({})
         self.gen.open_chunk(self.gen.new_label())

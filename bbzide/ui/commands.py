@@ -6,7 +6,9 @@
 Without a script the IDE opens the world's example. The example is copied once to a scratch
 file in the user's data directory (`~/.local/share/bbzide/scratch/`), because the editor saves
 every change and the shipped example must stay as it is. The server listens on 127.0.0.1 unless
-`--host` says otherwise, prints its URL and, unless `--no-browser`, opens it.
+`--host` says otherwise, prints its URL and, unless `--no-browser`, opens it. Everything that
+can be wrong with the arguments (address, seed, a script that is a folder or not UTF-8) is an
+`IdeError` raised before a server starts.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import socket
 import time
 import webbrowser
 from pathlib import Path
@@ -74,10 +77,28 @@ def register_replay(subparsers: argparse._SubParsersAction) -> None:
     replay.set_defaults(handler=run_replay)
 
 
+def check_listen_address(host: str, port: int) -> None:
+    """Refuse an address the server cannot listen on, before it starts.
+
+    viser's server thread would otherwise die with a traceback on a port outside 0..65535, or
+    keep trying further ports on an address that is not this machine's, without a word.
+    """
+    if not 0 <= port <= 65535:  # TCP ports are 16-bit
+        raise IdeError(f"--port must be 0..65535, got {port}")
+    try:
+        family, kind, _, _, address = socket.getaddrinfo(host, 0, type=socket.SOCK_STREAM)[0]
+        with socket.socket(family, kind) as probe:
+            probe.bind(address)  # port 0: any free port; only the address is tested
+    except OSError as error:
+        raise IdeError(f"cannot listen on {host}: {error.strerror or error}") from None
+
+
 def run_replay(args: argparse.Namespace) -> int:
     from bbzide.recording.reader import read_recording
     from bbzide.ui.replay_app import ReplayApp
     from bbzide.ui.replay_session import ReplaySession
+
+    check_listen_address(args.host, args.port)
 
     recording = read_recording(args.recording)
     app = ReplayApp(ReplaySession(recording), host=args.host, port=args.port).start()
@@ -95,6 +116,9 @@ def run_ide(args: argparse.Namespace) -> int:
     from bbzide.ui.run_controller import RunSettings
     from bbzide.ui.world_adapter import WorldsBackend
 
+    check_listen_address(args.host, args.port)
+    if args.seed < 0:  # numpy's seed sequences take non-negative integers only
+        raise IdeError(f"--seed must be >= 0, got {args.seed}")
     if args.script is not None:
         resolve_script(args.script, None)  # a bad path fails before any room is loaded
     backend = WorldsBackend()
@@ -130,11 +154,28 @@ def serve_until_interrupted(app: IdeApp | ReplayApp, open_browser: bool) -> int:
     return 0
 
 
+def _check_utf8(script: Path) -> None:
+    """The editor reads and saves UTF-8: refuse other bytes, naming where they are."""
+    data = script.read_bytes()
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError as error:
+        before = data[: error.start]
+        line = before.count(b"\n") + 1
+        col = len(before) - (before.rfind(b"\n") + 1)
+        raise IdeError(f"{script}:{line}:{col}: byte 0x{data[error.start]:02x} is not UTF-8; "
+                       "the IDE edits and saves UTF-8 text: convert the file (e.g. "
+                       f"iconv -f latin1 -t utf-8) and open it again") from None
+
+
 def resolve_script(script: Path | None, example: Path | None) -> Path:
     """The file to edit: the user's script, or a scratch copy of the world's example."""
     if script is not None:
+        if script.is_dir():
+            raise IdeError(f"{script} is a folder, not a Buzz script")
         if not script.is_file():
             raise IdeError(f"no such Buzz script: {script}")
+        _check_utf8(script)
         if not os.access(script, os.W_OK):
             raise IdeError(f"{script} is read-only: the IDE saves your edits to it")
         return script.resolve()

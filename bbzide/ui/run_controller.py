@@ -9,6 +9,8 @@ status line shows how long the current step has been running.
 Readers that need a consistent view (the inspector) take `locked()`, which waits for the end of
 the current step; while the swarm runs that gives a live view, while paused an exact one.
 Frames go to `on_frame` at most `MAX_FRAME_HZ` times a second (and after every single step).
+A new world drops the program: bytecode names host functions by the old world's string ids, so
+the new world is built only when the program compiled for it arrives.
 """
 
 from __future__ import annotations
@@ -206,8 +208,14 @@ class RunController:
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
-            rebuild_keys = ("world", "robots", "seed")
-            if any(getattr(old, k) != getattr(self.settings, k) for k in rebuild_keys):
+            if old.world != self.settings.world:
+                # The program was compiled for the old world's host-function ids: the new world
+                # waits for the one compiled for it (`load_program`); none runs meanwhile.
+                self._stop_recording()
+                self._program = None
+                with self._sim_lock:
+                    self._sim = None
+            elif old.robots != self.settings.robots or old.seed != self.settings.seed:
                 self._rebuild()
         self.status.running = self._running
 

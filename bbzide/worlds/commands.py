@@ -14,6 +14,7 @@ radio traffic and every robot error with its source line. Every problem is a `Us
 from __future__ import annotations
 
 import argparse
+import re
 import time
 from pathlib import Path
 from typing import Any
@@ -149,13 +150,15 @@ def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> st
                str(getattr(f, "message", "")))
         groups.setdefault(key, []).append(state)
     for states in groups.values():
-        lines.append("  " + describe_failure(states[0], others=len(states) - 1))
+        lines.append("  " + describe_failure(states[0], others=len(states) - 1,
+                                             world=world.name))
     return "\n".join(lines)
 
 
-def describe_failure(state: Any, others: int = 0) -> str:
+def describe_failure(state: Any, others: int = 0, world: str | None = None) -> str:
     """`robot 3 (step 12): MEM at gradient.bzz:14:2, pc 37: <message>` plus the source line
-    (`robot 3 and 4 others ...` when `others` robots failed the same way)."""
+    (`robot 3 and 4 others ...` when `others` robots failed the same way). A TYPE error on a
+    line that calls a host function of another world (nil in this one) gets a hint naming it."""
     failure = state.failure
     reason = getattr(failure, "reason", str(failure))
     location = getattr(failure, "location", None)
@@ -172,15 +175,37 @@ def describe_failure(state: Any, others: int = 0) -> str:
     line = _source_line(location)
     if line is not None:
         text += f"\n      {line.strip()}"
+        if reason == "TYPE" and world is not None:
+            # bzzparse's debug positions point at the token after a statement (often the next
+            # line's `}`), so the call can be on the line before.
+            before = _source_line(location, offset=-1) or ""
+            hints = _other_world_calls(before + "\n" + line, world)
+            text += "".join(f"\n      hint: {hint}" for hint in hints)
     return text
 
 
-def _source_line(location: Any) -> str | None:
-    try:
-        lines = Path(location.file).read_text(encoding="utf-8").splitlines()
+def _other_world_calls(line: str, world: str) -> list[str]:
+    """Calls on `line` of host functions that other worlds have and `world` has not."""
+    own = set(world_spec(world).host_names)
+    hints = []
+    for name in dict.fromkeys(re.findall(r"([A-Za-z]\w*)\s*\(", line)):
+        if name in own:
+            continue
+        others = [spec.name for spec in WORLDS.values() if name in spec.host_names]
+        if others:
+            hints.append(f"{name}() is a host function of the {', '.join(others)} "
+                         f"world{'s' if len(others) > 1 else ''}, not of {world}")
+    return hints
+
+
+def _source_line(location: Any, offset: int = 0) -> str | None:
+    try:  # the compiler reads bytes; a line with non-UTF-8 bytes is shown with U+FFFD
+        text = Path(location.file).read_text(encoding="utf-8", errors="replace")
+        lines = text.splitlines()
+        number = location.line + offset
+        return lines[number - 1] if 1 <= number <= len(lines) else None
     except (OSError, AttributeError, TypeError):
         return None
-    return lines[location.line - 1] if 1 <= location.line <= len(lines) else None
 
 
 def run_list_worlds(args: argparse.Namespace) -> int:

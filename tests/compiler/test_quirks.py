@@ -127,3 +127,13 @@ def test_include_cycle_is_skipped_with_a_warning(tmp_path, monkeypatch):
     [warning] = [w for w in default.warnings if "include cycle" in w]
     assert warning.startswith(f"{tmp_path / 'b.bzz'}:2:")
     assert "a.bzz -> b.bzz -> a.bzz" in warning
+
+
+@pytest.mark.parametrize("source", ["", "# only a comment\n\n"])
+def test_a_script_without_statements_warns_that_it_has_no_done(tmp_path, source):
+    # bzzc compiles it to a lone nop (corpus: empty_file), so a robot runs past the end and
+    # stops with a PC error; the bytes are kept, the default mode says why.
+    result = compile_text(tmp_path, source)
+    assert "done" not in result.basm
+    assert any("no statements" in w and "PC error" in w for w in result.warnings)
+    assert compile_text(tmp_path, source, reference_quirks=True).warnings == []

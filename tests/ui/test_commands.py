@@ -50,3 +50,40 @@ def test_cli_prints_one_line_and_exits_1(tmp_path: Path) -> None:
     )
     assert result.returncode == 1
     assert "Traceback" not in result.stderr and result.stderr.startswith("error:")
+
+
+def test_a_script_that_is_not_utf8_is_refused_with_its_position(tmp_path: Path) -> None:
+    script = tmp_path / "latin1.bzz"
+    script.write_bytes(b"x = 1\ns = \"caf\xe9\"\n")
+    with pytest.raises(IdeError, match=r"latin1.bzz:2:8: .*not UTF-8"):
+        resolve_script(script, None)
+    assert script.read_bytes() == b"x = 1\ns = \"caf\xe9\"\n"
+
+
+def test_a_folder_is_named_as_a_folder(tmp_path: Path) -> None:
+    with pytest.raises(IdeError, match="is a folder"):
+        resolve_script(tmp_path, None)
+
+
+@pytest.mark.parametrize("command, extra, words", [
+    ("ide", ["--seed", "-1"], "--seed must be >= 0"),
+    ("ide", ["--port", "70000"], "--port must be 0..65535"),
+    ("ide", ["--host", "999.1.1.1"], "cannot listen on 999.1.1.1"),
+    ("replay", ["--port", "-2"], "--port must be 0..65535"),
+    ("replay", ["--host", "999.1.1.1"], "cannot listen on 999.1.1.1"),
+])
+def test_bad_server_arguments_fail_before_any_server_starts(command, extra, words, tmp_path,
+                                                            monkeypatch, capsys) -> None:
+    from bbzide.cli import main
+    from bbzide.ui import commands
+
+    def no_serving(app, open_browser):  # a server that started is itself the failure
+        app.stop()
+        return 99
+
+    monkeypatch.setattr(commands, "serve_until_interrupted", no_serving)
+    target = tmp_path / ("s.bzz" if command == "ide" else "s.rrd")
+    target.write_text("function step() {}\n")
+    assert main([command, str(target), "--no-browser", *extra]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err

@@ -87,3 +87,23 @@ def test_a_stuck_step_leaves_commands_and_status_working() -> None:
         assert not controller.status.running
     finally:
         controller.stop()
+
+
+def test_a_new_world_waits_for_the_program_compiled_for_it() -> None:
+    # A program is compiled for one world's string table (its host-function ids): switching
+    # worlds must not run the old world's bytecode in the new world, even for a step; the app
+    # compiles for the new world and sends that program (or nothing, if the text has errors).
+    controller, backend = make_controller()
+    try:
+        controller.play()
+        controller.update_settings(world="fake-lab")
+        wait_until(lambda: controller.settings.world == "fake-lab", 5, message="switch")
+        time.sleep(0.2)
+        assert all(sim.world != "fake-lab" for sim in backend.created)
+        assert not controller.has_program
+        controller.load_program(FakeProgram("lab", b"l"))
+        wait_until(lambda: backend.created[-1].world == "fake-lab", 5, message="lab world")
+        assert backend.created[-1].program.text == "lab"
+        wait_until(lambda: controller.status.step > 0, 5, message="lab runs")
+    finally:
+        controller.stop()

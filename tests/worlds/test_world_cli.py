@@ -67,3 +67,20 @@ def test_a_run_prints_speed_traffic_and_errors_with_source_lines(tmp_path, capsy
     assert "messages: 6 sent" in out                  # 2 steps x 3 robots before the crash
     assert "errors: 3 robot(s)" in out
     assert "robot 0 and 2 other(s) (step 2): MATH" in out and "crash.bzz:" in out
+
+
+def test_a_host_function_of_another_world_is_named_in_the_error(tmp_path, capsys):
+    script = tmp_path / "wrong_world.bzz"
+    script.write_text("function init() {}\nfunction step() {\n  takeoff()\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "2", "--steps", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "TYPE at" in out and "wrong_world.bzz:" in out
+    assert "hint: takeoff() is a host function of the crazyflie, m300 worlds, not of kilobot" in out
+
+
+def test_an_error_in_a_script_with_non_utf8_bytes_still_shows_its_line(tmp_path, capsys):
+    script = tmp_path / "latin1.bzz"
+    script.write_bytes(b"s = \"caf\xe9\"\nfunction init() {}\nfunction step() {\n  y = 1 / 0\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "1", "--steps", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "MATH at" in out and "latin1.bzz:5:0" in out   # bzzparse's position: the `}`
