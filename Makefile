@@ -13,6 +13,7 @@ STAMP  := $(VENV)/.installed-stamp
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --disable-pip-version-check -q -e '.[dev]'
+	$(PY) scripts/warm_kernels.py
 	touch $(STAMP)
 
 setup: $(STAMP)

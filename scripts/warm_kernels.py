@@ -1,0 +1,38 @@
+"""Compile the VM's machine code once, at set-up, so the first swarm a user opens starts at once.
+
+The fast VM mode runs its hot loops as numba kernels cached on disk (`cache=True`, next to
+their sources in bbzide/vm/__pycache__). Without a cache, the first control step of the first
+swarm compiles them all: ~30 s on an idle 2-core machine, ~65 s under load (measured in
+session 5) — long enough for a student running `make run` to think the IDE is broken. `make
+setup` runs this once after installing: a few steps of each world's default example, which
+reaches every kernel a world run uses; later runs load the cached code in about a second.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from bbzide.worlds.commands import load_script
+from bbzide.worlds.engine import Simulation
+from bbzide.worlds.registry import WORLDS
+
+REPO = Path(__file__).resolve().parents[1]
+#: Steps per world: the first step boots every robot and runs init, the next ones the
+#: in-queue with received messages; three reach every kernel the examples use.
+STEPS = 3
+ROBOTS = 4
+
+
+def main() -> None:
+    started = time.perf_counter()
+    print("compiling the VM's machine code once (numba cache; ~30-60 s the first time)...",
+          flush=True)
+    for name, spec in WORLDS.items():
+        program = load_script(REPO / spec.example, spec.host_names, [])
+        Simulation(name, program, robots=ROBOTS, seed=1, watch=()).run(STEPS)
+    print(f"done in {time.perf_counter() - started:.1f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
