@@ -30,7 +30,8 @@ class UserError(Exception):
     """An error caused by the user's input, shown without a traceback.
 
     `location` (optional) points into a source file; `source_line` is that line's text when known,
-    so `render()` can show it with a caret under the column.
+    so `render()` can show it with a caret under the column; `hint` (optional) is shown last,
+    after the line: what the user can do about it.
     """
 
     def __init__(
@@ -38,16 +39,19 @@ class UserError(Exception):
         message: str,
         location: SourceLocation | None = None,
         source_line: str | None = None,
+        hint: str | None = None,
     ) -> None:
         super().__init__(message)
         self.message = message
         self.location = location
         self.source_line = source_line
+        self.hint = hint
 
     def render(self) -> str:
         """The error as the CLI prints it: `file:line:col: message`, the line, a caret."""
+        hint = f"\n  hint: {self.hint}" if self.hint else ""
         if self.location is None:
-            return f"error: {self.message}"
+            return f"error: {self.message}{hint}"
         text = f"{self.location}: error: {self.message}"
         line = self.source_line
         if line is None:
@@ -56,7 +60,7 @@ class UserError(Exception):
             line = line.rstrip("\r\n").replace("\t", " ")
             caret_col = max(0, min(self.location.col, len(line)))
             text += f"\n  {line}\n  {' ' * caret_col}^"
-        return text
+        return text + hint
 
 
 class CompileError(UserError):

@@ -19,7 +19,9 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
+from bbzide.compiler.opcodes import Op
 from bbzide.diagnostics import UserError
 from bbzide.vm.harness_options import Registration, group_registrations
 from bbzide.vm.profiles import PROFILES
@@ -116,5 +118,21 @@ def run_single_robot(args: argparse.Namespace) -> int:
     failure = run.robot.failure
     if failure is not None:
         raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
-                        f"{failure.message}", failure.location)
+                        f"{failure.message}", failure.location,
+                        hint=_call_hint(run.robot, failure))
     return 0
+
+
+def _call_hint(robot: Any, failure: Any) -> str | None:
+    """A TYPE error on a ``callc`` called something that is not a function: most often a
+    host function this run does not register (a one-robot run registers only what `--reg`
+    names; a world's `led`, `goTo`... exist only with `--world`). bzzparse places a call's
+    debug position at the token after it, often the next line's `}`, so say so."""
+    bcode = robot.vm.bcode
+    if failure.reason != "TYPE" or not 0 <= failure.pc < len(bcode) \
+            or bcode[failure.pc] != Op.CALLC:
+        return None
+    return ("the value called is not a function (the call can be on the line before "
+            "the one shown). A host function such as led() exists only where it is "
+            "registered: --reg NAME=ACTION here, or run the script in its world "
+            "(--world kilobot|crazyflie|m300).")

@@ -47,6 +47,25 @@ def test_run_error_names_the_source_position(tmp_path: Path, capsys) -> None:  #
     assert "bad.bzz:2:" in err and "SWARM" in err
 
 
+def test_calling_an_unregistered_host_function_gets_a_hint(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """A world's host function (led) is nil in a one-robot run: the TYPE error at the call
+    names what to do, after the source line."""
+    script = tmp_path / "blink.bzz"
+    script.write_text("function step() {\n  led(3)\n}\n")
+    assert main(["run", str(script), "--platform", "kilobot", "--steps", "1"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert "TYPE" in err[0] and err[-1].startswith("  hint: the value called is not a function")
+    assert "--world" in err[-1]
+
+
+def test_a_type_error_that_is_not_a_call_has_no_call_hint(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    script = tmp_path / "add.bzz"
+    script.write_text("function step() {\n  x = 1\n  x.y = 2\n}\n")
+    assert main(["run", str(script), "--platform", "kilobot", "--steps", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "TYPE" in err and "hint" not in err
+
+
 def test_run_missing_file_is_a_user_error(tmp_path: Path, capsys) -> None:  # noqa: ANN001
     assert main(["run", str(tmp_path / "nope.bzz")]) == 1
     assert "no such file" in capsys.readouterr().err
