@@ -50,18 +50,22 @@ from bbzide.vm.host import LatchedHostFunction
 from bbzide.vm.input_log import SwarmCapture, encode_steps
 from bbzide.vm.vm import State
 
-#: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
-KEYFRAME_EVERY = 100
+#: A robot is keyframed at least every 200 steps (20 s of Kilobot time)...
+KEYFRAME_EVERY = 200
 #: ...and sooner once its VM work since the last keyframe (receiving and control steps) took
 #: 30 ms of CPU time: a seek re-executes at most that much live VM time, which replays in up
 #: to ~1.5x as long (each step's inputs are decoded too), so with restoring and the inspector
 #: a seek stays well under 100 ms whatever the script costs per step (the issue's seek goal;
 #: the machine's load adds to both; measured: worst ~40-50 ms of CPU time for SAR). The step
-#: bound decides for cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the
-#: budget first (after ~70-85 steps at ~0.35 ms of VM time a step). A keyframe of an M300 drone
-#: costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes are the recorder's largest
-#: cost, ~0.15 ms per SAR step (benchmarks/record_bench.py). Until session 5 the budget was
-#: 25 ms of control steps alone, the receiving not counted: about the same keyframe rate.
+#: bound decides for cheap firmware, whose steps replay in ~0.2 ms each; SAR drones reach
+#: the budget first (after ~70-85 steps at ~0.35 ms of VM time a step). The step bound was
+#: 100 until session 5: a Kilobot's keyframe (~0.2-0.4 ms) every 100 steps was a fifth of
+#: the recorder's time once the compiled swarm step made its simulation ~2 ms a step; 200
+#: steps of a Kilobot replay in ~40 ms (worst seek 41 ms, benchmarks/record_bench.py).
+#: A keyframe of an M300 drone costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes
+#: are the recorder's largest cost, ~0.15 ms per SAR step (benchmarks/record_bench.py).
+#: Until session 5 the budget was 25 ms of control steps alone, the receiving not counted:
+#: about the same keyframe rate.
 KEYFRAME_BUDGET_SECONDS = 0.030
 #: Robots are not timed one by one (an engine steps them in one batch, and a wrapper that
 #: timed each would keep them off its compiled path): the engine's VM time of each step
@@ -85,7 +89,8 @@ KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 250 steps (25 s of Kilobot time, ~2.5 s of a 25-drone SAR
 #: swarm): each flush costs ~18 `send_columns` calls of Rerun's Python-side conversion and
 #: our own preparation of the columns (~15 ms in all for 100 SAR steps, ~25 ms for 250), so
-#: fewer, larger chunks (100 steps cost 0.15 ms per step, 250 0.10)...
+#: fewer, larger chunks (100 steps cost 0.15 ms per step, 250 0.10; 500 no less than 250,
+#: measured on 25 Kilobots in session 5: ~0.1 ms a step either way)...
 FLUSH_EVERY = 250
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
@@ -102,6 +107,11 @@ BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: done every step; building the overlays alone is still ~50 us a step, so a world that can
 #: count its found targets directly, `World.targets_found`, is asked that instead).
 OVERLAY_EVERY = 10
+#: Overlays that did not change when looked at are looked at half as often the next time, down
+#: to every 80 steps (8 s of Kilobot time); any change brings back `OVERLAY_EVERY`, and the
+#: last step is always looked at when the recording closes. A Kilobot's light field never
+#: changes, and building its raster every 10 steps was ~0.02 ms a step, ~7 % of the recorder.
+OVERLAY_EVERY_MAX = 80
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
@@ -402,7 +412,12 @@ class MissionRecorder:
         self._overlay_fingerprint: Any = None
         self._targets_found = 0
         self._watch_in_program: dict[int, bool] = {}
+        self._label_programs: list[Any] = []  # each robot's program when labels were last read
+        self._globals_watched = True  # some robot's program can have a watched global
         self._has_targets = False  # targets still to find: poll every step (found events)
+        self._overlay_every = OVERLAY_EVERY // 2  # doubled at the first look
+        self._overlays_due = self.start_step + OVERLAY_EVERY  # the next look at the overlays
+        self._last_step = self.start_step  # the last step recorded
         self.closed = False
         self.steps_recorded = 0
         self.seconds_spent = 0.0
@@ -612,6 +627,7 @@ class MissionRecorder:
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
+        self._last_step = step
         buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
@@ -629,7 +645,7 @@ class MissionRecorder:
             self._link_indexes(sim.links) if pairs is None else pairs)
         buffer.setdefault("inputs", []).append(inputs)
         self._keyframe(due, step)
-        if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
+        if not first and (self._has_targets or step >= self._overlays_due):
             self._record_overlays(step)
 
     def _step_inputs(self, stepped: np.ndarray) -> tuple[Any, ...]:
@@ -676,7 +692,15 @@ class MissionRecorder:
     def _labels(self, states: list[Any], step: int, first: bool) -> dict[str, np.ndarray]:
         """The watched labels of every robot as one text array per name (the last step's
         array again when nothing changed), and a `role` event per change."""
-        current = [self._labels_of(state) for state in states]
+        programs = [state.program for state in states]
+        if programs != self._label_programs:  # (re)loaded: which robots can have them?
+            self._label_programs = programs
+            self._globals_watched = any(
+                self._can_have_watched(p) for p in {id(p): p for p in programs}.values())
+        if self._globals_watched or not hasattr(states[0], "_labels"):
+            current = [state.labels for state in states]
+        else:  # no watched global in any program: the world's labels (read only)
+            current = [state._labels for state in states]
         labels = {}
         for name in self.sim.watch:
             texts = ["" if (value := c.get(name)) is None else str(value) for c in current]
@@ -712,24 +736,25 @@ class MissionRecorder:
         index_of = self._index_of
         return np.array([index_of[i] for i in ids.tolist()], dtype=np.int32).reshape(-1, 2)
 
-    def _labels_of(self, state: Any) -> dict[str, Any]:
-        """The robot's labels. Reading them makes the engine look each watched name up in the
-        VM's globals (0.6 ms for a 60 KB M300 heap); when the program's string table lacks
-        every watched name, no such global can exist and the world's own labels (`set_label`)
-        are all there is."""
-        program = state.program
+    def _can_have_watched(self, program: Any) -> bool:
+        """Whether robots running `program` can have a watched global. Reading the labels
+        makes the engine look each watched name up in the VM's globals (0.6 ms for a 60 KB
+        M300 heap); when the program's string table lacks every watched name, no such global
+        can exist and the world's own labels (`set_label`) are all there is."""
         key = id(program)
         can_have = self._watch_in_program.get(key)
         if can_have is None:
             strings = set(getattr(_bbo(program), "strings", []) or [])
             can_have = any(name in strings for name in self.sim.watch)
             self._watch_in_program[key] = can_have
-        if can_have or not hasattr(state, "_labels"):
-            return state.labels
-        return state._labels  # the world's labels, without the global look-ups (read only)
+        return can_have
 
-    def _record_overlays(self, step: int) -> None:
-        due = (step - self.start_step) % OVERLAY_EVERY == 0
+    def _record_overlays(self, step: int, due: bool | None = None) -> None:
+        if due is None:
+            due = step >= self._overlays_due
+        if due:  # unchanged since the last look: look half as often (see OVERLAY_EVERY_MAX)
+            self._overlay_every = min(2 * self._overlay_every, OVERLAY_EVERY_MAX)
+            self._overlays_due = step + self._overlay_every
         if not due:  # a poll for a found target: cheap when the world can count them itself
             count = getattr(self.sim.world, "targets_found", None)  # a world of the World ABC
             found = count() if count is not None else None
@@ -750,6 +775,8 @@ class MissionRecorder:
         if fingerprint == self._overlay_fingerprint:
             return
         self._overlay_fingerprint = fingerprint
+        self._overlay_every = OVERLAY_EVERY  # changing: look every OVERLAY_EVERY steps again
+        self._overlays_due = step + OVERLAY_EVERY
         text = json.dumps(_jsonable(overlays))
         if text == self._last_overlays:
             return
@@ -763,6 +790,9 @@ class MissionRecorder:
     # ---- columns --------------------------------------------------------------------------------
     def _flush(self) -> None:
         if not self._steps:
+            if self._keyframe_rows or self._event_rows or self._overlay_rows:
+                self._send_rare_rows()  # e.g. the last step's overlays, looked at by close()
+                self.rec.flush()
             return
         rr = self.rr
         import pyarrow as pa
@@ -928,6 +958,8 @@ class MissionRecorder:
         """Send what is buffered, write the file's footer, stop capturing."""
         if self.closed:
             return
+        if self._last_step > self.start_step:  # the last step's overlays, whatever the interval
+            self._record_overlays(self._last_step, due=True)
         self._flush()
         self.closed = True
         self.recordable.listener = None
