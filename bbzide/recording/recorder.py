@@ -78,10 +78,11 @@ KEYFRAME_BUDGET_SECONDS = 0.030
 #: The share is floored at 5 %, so a thread starved for a while (a share that low means
 #: ~20x more wall than CPU time) still keyframes.
 MIN_CPU_SHARE = 0.05
-#: The budget is looked at every 4th step (reading every robot's instruction counter and the
-#: arithmetic are ~0.05 ms, a tenth of the recorder's per-step time): a keyframe comes at
-#: most 3 steps late, ~1 ms of one drone's VM time against a 30 ms budget.
-KEYFRAME_CHECK_EVERY = 4
+#: The budget is looked at every 8th step (reading every robot's instruction counter and the
+#: arithmetic are ~0.05 ms; every 4th step until session 5, ~7 % of the recorder's time on
+#: a Kilobot swarm): a keyframe comes at most 7 steps late, ~2.5 ms of one drone's VM time
+#: against a 30 ms budget.
+KEYFRAME_CHECK_EVERY = 8
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
@@ -129,6 +130,8 @@ _NO_HEAP = (0, 0, 0, 0, 0, 0)
 #: The first five of those, read from a heap in one C call.
 _HEAP_FIGURES = operator.attrgetter("size", "rtobj", "ltseg", "peak_used", "gc_runs")
 _STEPS_DONE = operator.attrgetter("steps_done")
+#: A step's host calls when there were none (`CallLog.ordered` of an empty log).
+_NO_CALLS: tuple[list[int], bytes] = ([], b"")
 _INSTRUCTIONS = operator.attrgetter("instructions_executed")
 #: What the per-step pass reads of a robot slot without a firmware loop (a passive body).
 _NO_ROBOT = SimpleNamespace(steps_done=0, vm=SimpleNamespace(
@@ -349,6 +352,8 @@ class MissionRecorder:
         self._capture = recordable.capture
         #: per robot index: its firmware loop, or a stand-in with zero figures (no VM)
         self._robots: list[Any] = [_NO_ROBOT] * n
+        self._vms: list[Any] = [_NO_ROBOT.vm] * n  # ... its VM, and that VM's heap
+        self._heaps: list[Any] = [_NO_ROBOT.vm.heap] * n
         self._recorded = np.zeros(n, dtype=bool)  # has a firmware loop we record
         self._recorded_now = self._recorded.copy()
         self._all_recorded = False
@@ -509,6 +514,8 @@ class MissionRecorder:
     def _attach(self, index: int, robot: Any) -> None:
         """Record robot `index`'s firmware loop `robot` from now on."""
         self._robots[index] = robot
+        self._vms[index] = robot.vm  # a Robot's VM and its heap live as long as the robot
+        self._heaps[index] = robot.vm.heap
         self._recorded[index] = True
         self._recorded_now = self._recorded.copy()  # what the steps from now on hold
         self._all_recorded = bool(self._recorded.all())
@@ -610,8 +617,7 @@ class MissionRecorder:
                     self._known_failures.add(i)
                     self._event(step, layout.EVENT_ERROR, i,
                                 f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
-        vms = [r.vm for r in robots]
-        heap = np.fromiter(chain.from_iterable([_HEAP_FIGURES(vm.heap) for vm in vms]),
+        heap = np.fromiter(chain.from_iterable(map(_HEAP_FIGURES, self._heaps)),
                            dtype=np.int64, count=n * 5)
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
@@ -623,7 +629,7 @@ class MissionRecorder:
                 stepped = (stepped | new_failures) & self._recorded
             self._steps_done = steps_done
             inputs = self._step_inputs(stepped)
-            due = self._keyframes_due(step, vms, failed)
+            due = self._keyframes_due(step, self._vms, failed)
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
@@ -655,7 +661,8 @@ class MissionRecorder:
         or the hooked receives, and the host calls, already encoded by the capture."""
         calls, received = self._capture.take()
         deliveries = self.sim.step_deliveries if self._packed else received
-        return (stepped, deliveries, calls.ordered(self._index_of))
+        return (stepped, deliveries,
+                calls.ordered(self._index_of) if calls.robots else _NO_CALLS)
 
     def _keyframes_due(self, step: int, vms: list[Any], failed: np.ndarray) -> list[int]:
         """The robots whose keyframe is due: `keyframe_every` steps since their last one, or

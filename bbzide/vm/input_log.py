@@ -300,9 +300,9 @@ class SwarmCapture:
         calls, received = self.calls, self.received
         if calls is None:
             calls = CallLog()
-        else:
+        elif calls.robots:  # an empty log (a step without host calls) is kept for the next
             self.calls = CallLog()
-        self.received = ReceivedColumns()
+        self.received = ReceivedColumns()  # (a recorder may keep the last one until a flush)
         return calls, received
 
     def tap(self, key: int, name: str, function: Callable[[Any], None],
