@@ -50,18 +50,23 @@ from bbzide.vm.host import LatchedHostFunction
 from bbzide.vm.input_log import SwarmCapture, encode_steps
 from bbzide.vm.vm import State
 
-#: A robot is keyframed at least every 200 steps (20 s of Kilobot time)...
-KEYFRAME_EVERY = 200
+#: A robot is keyframed at least every 150 steps (15 s of Kilobot time)...
+KEYFRAME_EVERY = 150
 #: ...and sooner once its VM work since the last keyframe (receiving and control steps) took
 #: 30 ms of CPU time: a seek re-executes at most that much live VM time, which replays in up
-#: to ~1.5x as long (each step's inputs are decoded too), so with restoring and the inspector
-#: a seek stays well under 100 ms whatever the script costs per step (the issue's seek goal;
-#: the machine's load adds to both; measured: worst ~40-50 ms of CPU time for SAR). The step
-#: bound decides for cheap firmware, whose steps replay in ~0.2 ms each; SAR drones reach
-#: the budget first (after ~70-85 steps at ~0.35 ms of VM time a step). The step bound was
-#: 100 until session 5: a Kilobot's keyframe (~0.2-0.4 ms) every 100 steps was a fifth of
-#: the recorder's time once the compiled swarm step made its simulation ~2 ms a step; 200
-#: steps of a Kilobot replay in ~40 ms (worst seek 41 ms, benchmarks/record_bench.py).
+#: to ~2x as long (each step's inputs are decoded too; session 5: a drone's 40 steps at the
+#: budget replayed in 52 ms), so with restoring and the inspector (~5-10 ms) a seek stays
+#: under 100 ms whatever the script costs per step (the issue's seek goal; the machine's load
+#: adds to both). The step
+#: bound decides for cheap firmware; SAR drones reach the budget first on busy stretches
+#: (after ~40-85 steps at ~0.35 ms of VM time a step). A replay re-executes one robot at a
+#: time, without the live swarm's batched compiled step: measured in session 5, ~0.2 ms a
+#: step for a Kilobot and up to ~0.4 ms for a drone, two to four times its live VM time, so
+#: the step bound matters for seeks too. It was 100 until session 5: a Kilobot's keyframe
+#: (~0.2-0.4 ms) every 100 steps was a fifth of the recorder's time once the compiled swarm
+#: step made its simulation ~2 ms a step. 200 made the worst SAR seek 84-101 ms (drones that
+#: stay under the budget for 150-200 steps replay them in ~60 ms); 150: worst ~55-65 ms
+#: for both worlds (benchmarks/record_bench.py).
 #: A keyframe of an M300 drone costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes
 #: are the recorder's largest cost, ~0.15 ms per SAR step (benchmarks/record_bench.py).
 #: Until session 5 the budget was 25 ms of control steps alone, the receiving not counted:
