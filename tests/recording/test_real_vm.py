@@ -249,3 +249,15 @@ def test_a_warmed_up_replay_rebuilds_every_robot_exactly(recorded: dict) -> None
         for step in (frames[0].step, frames[1].step - 1, frames[1].step + 3, STEPS):
             rebuilt = vm_state(rebuilder.robot_at(index, step))
             assert rebuilt[:6] == live[step]["states"][index][:6], (index, step)
+
+
+def test_warm_up_of_one_robot_then_the_rest(recorded: dict) -> None:
+    """What the replay app does: one robot before it serves the page, the rest afterwards."""
+    from bbzide.ui.replay_session import ReplaySession
+
+    session = ReplaySession(recorded["recording"])
+    session.warm_up(count=1)
+    assert {index for index, _ in session.rebuilder._booted} == {0}
+    session.warm_up()
+    gc.unfreeze()
+    assert {index for index, _ in session.rebuilder._booted} == set(range(ROBOTS))
