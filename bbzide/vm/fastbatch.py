@@ -52,6 +52,7 @@ from bbzide.vm.fastinbox import (
 )
 from bbzide.vm.fastloop import R_SP
 from bbzide.vm.fastreceive import _inmsg_append, _neighbors_add, _to_u8
+from bbzide.vm.fastring import ring_size
 from bbzide.vm.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
 from bbzide.vm.packed_queues import (
     CLEAR_COUNTER,
@@ -102,11 +103,6 @@ _NB_MARK = 4
 
 
 @_compile
-def _ring_size(start: int, end: int, slots: int) -> int:
-    return end - start if end >= start else slots - (start - end)
-
-
-@_compile
 def _receive(inq: Any, ring: Any, ctl: Any, payloads: Any, lengths: Any, distances: Any,
              azimuths: Any, elevations: Any, first: int, last: int) -> None:
     """``Robot.receive`` of rows ``first:last`` (fastreceive.receive_all, row by row)."""
@@ -131,7 +127,7 @@ def _data_gc(ring: Any, ctl: Any) -> None:
     slots = ctl[NB_SLOTS]
     unmarked = 0
     i = 0
-    while i < _ring_size(start, ctl[NB_END], slots):
+    while i < ring_size(start, ctl[NB_END], slots):
         k = ((i + start) & 0xFF) % slots
         if not ring[k, _NB_MARK] & _MARK:
             pos = i

@@ -54,6 +54,7 @@ from bbzide.vm.fastloop import (
     _s16,
     run,
 )
+from bbzide.vm.fastring import ring_size, sort_ring_by_type
 from bbzide.vm.fasttables import darray_get, darray_size
 from bbzide.vm.packed_queues import CTL_SLOTS, LATCH_ARGS, OUT_END, OUT_SLOTS, OUT_START, ROBOT
 
@@ -82,40 +83,6 @@ NO_HOST_ARGS = (no_hosts(), np.zeros(1, np.uint8), np.zeros(CTL_SLOTS, np.int64)
 
 
 @_compile
-def _ring_size(start: int, end: int, slots: int) -> int:
-    return end - start if end >= start else slots - (start - end)
-
-
-@_compile
-def _sort_ring(records: Any, start: int, end: int, slots: int, size: int) -> None:
-    """``RingBuffer.sort_by_type``: a stable sort of the queued records by type byte."""
-    count = _ring_size(start, end, slots)
-    ordered = True
-    for i in range(1, count):
-        a = ((i - 1 + start) & 0xFF) % slots
-        b = ((i + start) & 0xFF) % slots
-        if records[a * size] > records[b * size]:
-            ordered = False
-    if ordered:
-        return
-    spare = np.empty(count * size, np.uint8)
-    for i in range(count):
-        k = ((i + start) & 0xFF) % slots
-        for j in range(size):
-            spare[i * size + j] = records[k * size + j]
-    placed = 0
-    for typ in range(256):  # a counting pass per type keeps the order of equal types
-        for i in range(count):
-            if spare[i * size] == typ:
-                k = ((placed + start) & 0xFF) % slots
-                for j in range(size):
-                    records[k * size + j] = spare[i * size + j]
-                placed += 1
-        if placed == count:
-            break
-
-
-@_compile
 def out_append_broadcast(d: Any, outq: Any, ctl: Any, size: int, topic: int, value: int,
                          s: int) -> None:
     """``messages.outmsg_append_broadcast`` of heap objects ``topic`` (its u16) and
@@ -125,7 +92,7 @@ def out_append_broadcast(d: Any, outq: Any, ctl: Any, size: int, topic: int, val
     start = ctl[OUT_START]
     end = ctl[OUT_END]
     m = (end & 0xFF) % slots
-    if _ring_size(start, end, slots) + 1 == slots:
+    if ring_size(start, end, slots) + 1 == slots:
         last = ((end - 1 + slots) & 0xFF) % slots
         for j in range(size):
             outq[last * size + j] = outq[m * size + j]
@@ -140,7 +107,7 @@ def out_append_broadcast(d: Any, outq: Any, ctl: Any, size: int, topic: int, val
     outq[o + _BC_TOPIC + 1] = d[topic * s + 2]
     for j in range(s):
         outq[o + _BC_VALUE + j] = d[value * s + j]
-    _sort_ring(outq, ctl[OUT_START], ctl[OUT_END], slots, size)
+    sort_ring_by_type(outq, ctl[OUT_START], ctl[OUT_END], slots, size, outq[:0])
 
 
 @_compile

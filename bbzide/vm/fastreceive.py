@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bbzide.vm.fastgc import COMPILED, _compile, _i
+from bbzide.vm.fastring import ring_size, sort_ring_by_type
 from bbzide.vm.messages import PAYLOAD_RING_CAPACITY, PAYLOAD_SIZE
 
 if TYPE_CHECKING:
@@ -69,11 +70,6 @@ def _to_u8(x: float) -> int:
 
 
 @_compile
-def _ring_size(start: int, end: int, slots: int) -> int:
-    return end - start if end >= start else slots - (start - end)
-
-
-@_compile
 def _read_object(records: Any, m: int, at: int, payload: Any, p: int, n: int) -> None:
     """``messages._read_object``: metadata and (when present) 2 payload bytes, valid bit."""
     records[m + at] = payload[p + 5]
@@ -81,37 +77,6 @@ def _read_object(records: Any, m: int, at: int, payload: Any, p: int, n: int) ->
         records[m + at + 1] = payload[p + 6]
         records[m + at + 2] = payload[p + 7]
     records[m + at] = _i(records[m + at]) | _VALID
-
-
-@_compile
-def _sort_by_type(records: Any, rings: Any, size: int, spare: Any) -> None:
-    """``RingBuffer.sort_by_type`` on the in-queue: a stable sort of the queued records by
-    type (``spare``: room for all records, the copies being moved)."""
-    start = rings[IN_START]
-    slots = rings[IN_SLOTS]
-    count = _ring_size(start, rings[IN_END], slots)
-    ordered = True
-    for i in range(1, count):
-        a = ((i - 1 + start) & 0xFF) % slots
-        b = ((i + start) & 0xFF) % slots
-        if records[a * size] > records[b * size]:
-            ordered = False
-    if ordered:
-        return
-    for i in range(count):
-        k = ((i + start) & 0xFF) % slots
-        for j in range(size):
-            spare[i * size + j] = records[k * size + j]
-    placed = 0
-    for typ in range(256):  # types are bytes: a counting pass per type keeps the order
-        for i in range(count):
-            if spare[i * size] == typ:
-                k = ((placed + start) & 0xFF) % slots
-                for j in range(size):
-                    records[k * size + j] = spare[i * size + j]
-                placed += 1
-        if placed == count:
-            break
 
 
 @_compile
@@ -155,7 +120,7 @@ def _inmsg_append(records: Any, rings: Any, size: int, payload: Any, p: int, n: 
     start = rings[IN_START]
     end = rings[IN_END]
     if t == _BROADCAST:
-        for i in range(_ring_size(start, end, slots)):
+        for i in range(ring_size(start, end, slots)):
             k = (((i + start) & 0xFF) % slots) * size
             same = True
             for j in range(_BROADCAST_KEY):
@@ -166,14 +131,15 @@ def _inmsg_append(records: Any, rings: Any, size: int, payload: Any, p: int, n: 
                 for j in range(size):
                     records[k + j] = records[m + j]
                 return
-    if _ring_size(start, end, slots) + 1 == slots:  # full: overwrite the last one
+    if ring_size(start, end, slots) + 1 == slots:  # full: overwrite the last one
         k = ((end - 1 + slots) & 0xFF) % slots
     else:  # makeslot
         k = end
         rings[IN_END] = ((end + 1) & 0xFF) % slots
     for j in range(size):
         records[k * size + j] = records[m + j]
-    _sort_by_type(records, rings, size, spare)
+    sort_ring_by_type(records, rings[IN_START], rings[IN_END], rings[IN_SLOTS], size,
+                      spare)
 
 
 @_compile
@@ -183,7 +149,7 @@ def _neighbors_add(ring: Any, rings: Any, robot: int, distance: int, azimuth: in
     start = rings[NB_START]
     end = rings[NB_END]
     slots = rings[NB_SLOTS]
-    count = _ring_size(start, end, slots)
+    count = ring_size(start, end, slots)
     i = count
     while i:
         i -= 1

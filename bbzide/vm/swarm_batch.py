@@ -18,9 +18,12 @@ robot by robot from Python, the calls around the VM cost more than the VM itself
   them, in receiver order, then every robot with `stepping[i]` runs one control step, in
   index order; returns the outbox and which robots failed during the call.
 
-This file is the contract and the reference implementation: plain calls of each robot's
-own methods, obviously right. A faster path must leave every robot in the same state and
-return the same outbox (tested against this one). Receiving everything before stepping
+This file is the contract and the reference implementation (`control_steps_reference`):
+plain calls of each robot's own methods, obviously right. `control_steps` takes the
+compiled path (`swarm_batch_fast`) unless asked for the reference (`reference=True`, or
+`REFERENCE = True` for every call, like clox's DEBUG_STRESS_GC); that path leaves every
+robot in the same state and returns the same outbox (tested against this one:
+tests/worlds/test_fast_swarm_equivalence.py). Receiving everything before stepping
 anyone is equivalent to receiving and stepping robot by robot: a robot's receive touches
 only its own VM, never a host function, so no robot's step can observe another's receive.
 """

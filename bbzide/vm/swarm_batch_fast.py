@@ -61,9 +61,10 @@ from bbzide.vm.robot import STR_STEP, Robot
 from bbzide.vm.swarm_batch import PackedMessages, StepResult
 from bbzide.vm.vm import State
 
-#: outbox rows reserved per robot before the kernel's drain (grown when a robot may need
-#: more: its out-queue capacity, 10 on every profile, is what one drain can send)
-_ROWS_PER_ROBOT = 12
+#: outbox rows allocated beyond what the kernel's drains can write (each robot at most its
+#: out-queue's capacity, ``_SwarmTables.max_out``): room for a few Python rows before the
+#: first growth (`_Outbox.room` grows it for the rest)
+_SPARE_ROWS = 4
 
 
 def covered(robot: Any) -> bool:
@@ -236,7 +237,7 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
         # without a new VM): build them again
         _TABLES.remove(tables)
         tables = _tables_for(robots)
-    outbox = _Outbox(len(todo) * (tables.max_out if tables else 1) + 4)
+    outbox = _Outbox(len(todo) * (tables.max_out if tables else 1) + _SPARE_ROWS)
     phases = np.zeros(count, np.int64)
     ios = np.zeros((count, IO_SLOTS), np.int64)
     if tables is not None:
@@ -280,10 +281,16 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
         | np.where(pops, F_POP, 0)
     kernel_args = (tables.addresses, tables.sizes, tables.geometry, tables.registers,
                    dynamic)
-    rest = (flags, fastloop.RULES, deliveries.payloads, deliveries.lengths,
-            deliveries.distances, deliveries.azimuths, deliveries.elevations, bounds)
+    # the kernel's argument types (no copy when the columns already are: the radio's are)
+    rest = (flags, fastloop.RULES, np.ascontiguousarray(deliveries.payloads, np.uint8),
+            np.ascontiguousarray(deliveries.lengths, np.int64),
+            np.ascontiguousarray(deliveries.distances, np.float64),
+            np.ascontiguousarray(deliveries.azimuths, np.float64),
+            np.ascontiguousarray(deliveries.elevations, np.float64),
+            np.ascontiguousarray(bounds, np.int64))
     chunks = _chunks(todo)
-    outboxes = [outbox] + [_Outbox(len(part) * tables.max_out + 4) for part in chunks[1:]]
+    outboxes = [outbox] + [_Outbox(len(part) * tables.max_out + _SPARE_ROWS)
+                          for part in chunks[1:]]
     latched = [np.zeros((len(part) * LATCH_SLOTS, fastbatch.L_ARGS + LATCH_ARGS), np.int64)
                for part in chunks]
 

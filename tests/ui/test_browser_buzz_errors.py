@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import pytest
-from browser import wait_until
+from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from doubles import FrontEndBackend
 from ide_harness import IdeSession, running_ide
 
@@ -45,7 +45,7 @@ def test_real_syntax_error_marker_and_fix(ide: IdeSession) -> None:
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("if count > 10 {\n")  # Buzz needs parentheses: error at line 11
     marker = ide.editor.locator("#gutter div.error-line")
-    marker.wait_for(timeout=10_000)
+    marker.wait_for(timeout=UI_WAIT_MS)
     first = app.session.outcome.diagnostics[0]
     assert (first.line, first.col) == (11, 3) and "expected (" in first.message
     assert marker.get_attribute("data-line") == "11"
@@ -54,15 +54,15 @@ def test_real_syntax_error_marker_and_fix(ide: IdeSession) -> None:
     ide.screenshot("buzz_syntax_error")
     assert app.controller.status.program_generation == generation  # old program keeps running
     source.fill(SCRIPT + "if (count > 10) {\n  count = 0\n}\n")
-    marker.wait_for(state="detached", timeout=10_000)
+    marker.wait_for(state="detached", timeout=UI_WAIT_MS)
     wait_until(
         lambda: app.controller.status.program_generation == generation + 1,
-        10,
+        UI_WAIT_S,
         message="robots reloaded",
     )
     ide.page.get_by_role("tab", name="Build").click()
     listing = ide.page.locator("pre.asm-listing")
-    listing.wait_for(timeout=10_000)
+    listing.wait_for(timeout=UI_WAIT_MS)
     assert "count = count + 1" in listing.inner_text() and "add" in listing.inner_text()
     ide.screenshot("buzz_build_view")
     ide.page.get_by_role("tab", name="counter.bzz").click()
@@ -72,7 +72,7 @@ def test_pitfall_warning_shows_in_the_editor(ide: IdeSession) -> None:
     source = ide.editor.locator("#source")
     source.fill(SCRIPT + "if (not count) {\n  count = 1\n}\n")
     warning = ide.editor.locator("#diagnostics .diag-warning")
-    warning.wait_for(timeout=10_000)
+    warning.wait_for(timeout=UI_WAIT_MS)
     assert "11:4:" in warning.first.inner_text() and "truth value" in warning.first.inner_text()
     assert ide.editor.locator('#gutter div.warning-line[data-line="11"]').count() == 1
     assert ide.editor.locator("#gutter div.error-line").count() == 0

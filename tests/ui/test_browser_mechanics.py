@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from browser import wait_until
+from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from doubles import FakeBackend
 from ide_harness import IdeSession, running_ide
 from PIL import Image
@@ -49,15 +49,15 @@ def test_page_loads_and_scene_renders(ide: IdeSession) -> None:
 
 def test_play_advances_the_step_counter(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Pause").click()
-    wait_until(lambda: "paused" in ide.status_text(), 10, message="paused")
+    wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="paused")
     before = ide.shown_step()
     ide.page.get_by_role("button", name="Play").click()
-    wait_until(lambda: ide.shown_step() > before + 5, 10, message="step counter to advance")
+    wait_until(lambda: ide.shown_step() > before + 5, UI_WAIT_S, message="step counter to advance")
     ide.page.get_by_role("button", name="Pause").click()
-    wait_until(lambda: "paused" in ide.status_text(), 10, message="paused")
+    wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="paused")
     paused = ide.shown_step()
     ide.page.get_by_role("button", name="Step").click()
-    wait_until(lambda: ide.shown_step() == paused + 1, 10, message="one step")
+    wait_until(lambda: ide.shown_step() == paused + 1, UI_WAIT_S, message="one step")
     ide.page.get_by_role("button", name="Play").click()
 
 
@@ -90,7 +90,7 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     line = app.session.text.splitlines().index("red = @@ 2") + 1
     assert line == SCRIPT.count("\n") + 2 == 10  # SCRIPT ends with a newline: one line past
     marker = ide.editor.locator("#gutter div.error-line")
-    wait_until(lambda: marker.get_attribute("data-line") == "10", 10, message="marker on 10")
+    wait_until(lambda: marker.get_attribute("data-line") == "10", UI_WAIT_S, message="marker on 10")
     assert ide.editor.locator(".error-span").first.inner_text().startswith("@")
     assert "10:6" in ide.editor.locator("#diagnostics").inner_text()
     ide.screenshot("mechanics_syntax_error")
@@ -98,7 +98,8 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     running = app.session.last_good
     assert running is not None and "@@" not in running.program.text
     step = ide.shown_step()
-    wait_until(lambda: ide.shown_step() > step + 3, 10, message="robots keep running the old code")
+    wait_until(lambda: ide.shown_step() > step + 3, UI_WAIT_S,
+               message="robots keep running the old code")
     assert app.controller.status.program_generation == generation
     assert "@@" in Path(app.session.path).read_text()  # the edit is saved, broken or not
     for _ in range(4):
@@ -106,13 +107,14 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     ide.page.keyboard.type("2")
     settled(ide, "\nred = 2")
     assert app.session.outcome is not None and app.session.outcome.ok
-    marker.wait_for(state="detached", timeout=10_000)
+    marker.wait_for(state="detached", timeout=UI_WAIT_MS)
     sim = app.backend.created[-1]  # type: ignore[attr-defined]
     wait_until(
-        lambda: sim.program.text.endswith("\nred = 2"), 10, message="robots on the fixed code"
+        lambda: sim.program.text.endswith("\nred = 2"), UI_WAIT_S,
+        message="robots on the fixed code",
     )
     assert app.controller.status.program_generation > generation
-    wait_until(lambda: ide.shown_step() > 0, 10, message="running")
+    wait_until(lambda: ide.shown_step() > 0, UI_WAIT_S, message="running")
 
 
 def choose_world(ide: IdeSession, current: str, wanted: str) -> None:
@@ -124,7 +126,7 @@ def test_build_view_and_world_selector(ide: IdeSession) -> None:
     app = ide.app
     backend = app.backend
     ide.page.get_by_role("tab", name="Build").click()
-    ide.page.get_by_text("Footprint on fakebot").wait_for(timeout=10_000)
+    ide.page.get_by_text("Footprint on fakebot").wait_for(timeout=UI_WAIT_MS)
     good = app.session.last_good
     assert good is not None
     assert ide.page.get_by_text(f"{len(good.program.bbo)}").count() >= 1
@@ -134,10 +136,10 @@ def test_build_view_and_world_selector(ide: IdeSession) -> None:
     ide.page.get_by_role("tab", name="main.bzz").click()
     created = len(backend.created)
     choose_world(ide, "fake-table", "fake-lab")
-    wait_until(lambda: len(backend.created) > created, 10, message="new world")
+    wait_until(lambda: len(backend.created) > created, UI_WAIT_S, message="new world")
     assert backend.created[-1].world == "fake-lab"
     choose_world(ide, "fake-lab", "fake-table")
-    wait_until(lambda: backend.created[-1].world == "fake-table", 10, message="back")
+    wait_until(lambda: backend.created[-1].world == "fake-table", UI_WAIT_S, message="back")
 
 
 def test_external_save_reloads_the_editor(ide: IdeSession) -> None:
@@ -149,7 +151,8 @@ def test_external_save_reloads_the_editor(ide: IdeSession) -> None:
     print(f"disk save -> recompiled in {time.monotonic() - saved_at:.2f} s")
     assert time.monotonic() - saved_at < 1.0
     source = ide.editor.locator("#source")
-    wait_until(lambda: source.input_value() == new_text, 5, message="editor shows the new text")
+    wait_until(lambda: source.input_value() == new_text, UI_WAIT_S,
+               message="editor shows the new text")
 
 
 def test_two_tabs_keep_their_own_selection(ide: IdeSession) -> None:
@@ -184,23 +187,24 @@ def test_infinite_loop_leaves_the_controls_responsive(ide: IdeSession) -> None:
             app.controller.status.step_started_at is not None
             and time.monotonic() - app.controller.status.step_started_at > 1.0
         ),
-        15,
+        UI_WAIT_S,
         message="a long step",
     )
-    wait_until(lambda: "one step has run for" in ide.status_text(), 10, message="long-step warning")
+    wait_until(lambda: "one step has run for" in ide.status_text(), UI_WAIT_S,
+               message="long-step warning")
     ide.screenshot("mechanics_stuck_step")
     clicked_at = time.monotonic()
     ide.page.get_by_role("button", name="Pause").click()
     wait_until(
         lambda: app.controls.status_line.content and "paused" in ide.status_text(),
-        10,
+        UI_WAIT_S,
         message="pause to take effect",
     )
     print(f"pause honoured after {time.monotonic() - clicked_at:.2f} s (one stuck step is 1.5 s)")
     source.fill(SCRIPT)
     ide.page.get_by_role("button", name="Play").click()
     step = ide.shown_step()
-    wait_until(lambda: ide.shown_step() > step + 5, 15, message="running again")
+    wait_until(lambda: ide.shown_step() > step + 5, UI_WAIT_S, message="running again")
 
 
 def test_tab_enter_and_shift_tab_indent_like_an_editor(ide: IdeSession) -> None:
@@ -224,12 +228,12 @@ def test_tab_enter_and_shift_tab_indent_like_an_editor(ide: IdeSession) -> None:
     expected = "function f() {\n  x = 1\ny = 2\n}"
     wait_until(
         lambda: source.input_value() == expected,
-        5,
+        UI_WAIT_S,
         message=f"{expected!r}, not {source.input_value()!r}",
     )
-    wait_until(lambda: app.session.text == expected, 5, message="saved")
+    wait_until(lambda: app.session.text == expected, UI_WAIT_S, message="saved")
     source.fill(SCRIPT)
-    wait_until(lambda: app.session.text == SCRIPT, 5, message="script restored")
+    wait_until(lambda: app.session.text == SCRIPT, UI_WAIT_S, message="script restored")
 
 
 def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:

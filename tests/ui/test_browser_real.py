@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from browser import wait_until
+from browser import UI_WAIT_S, wait_until
 from ide_harness import IdeSession, running_ide
 
 from bbzide.ui.program_session import write_atomically
@@ -101,7 +101,7 @@ def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> No
     marker = ide.editor.locator("#gutter div.error-line")
     wait_until(
         lambda: marker.get_attribute("data-line") == str(broken_line),
-        15,
+        UI_WAIT_S,
         message=f"marker on line {broken_line}",
     )
     ide.screenshot("real_compile_error")
@@ -120,7 +120,7 @@ def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> No
     assert session.outcome is not None and session.outcome.ok, session.outcome.diagnostics
     wait_until(
         lambda: app.controller.status.program_generation > generation,
-        15,
+        UI_WAIT_S,
         message="robots reloaded on the fix",
     )
     good = session.last_good
@@ -155,11 +155,11 @@ def test_infinite_loop_keeps_controls_responsive(ide: IdeSession) -> None:
     original = app.session.text
     source = ide.editor.locator("#source")
     source.fill(original + "\nfunction spin() {\n  while (1) { }\n}\nspin()\n")
-    wait_until(lambda: "spin()" in app.session.text, 10, message="loop uploaded")
+    wait_until(lambda: "spin()" in app.session.text, UI_WAIT_S, message="loop uploaded")
     time.sleep(2)
     clicked = time.monotonic()
     ide.page.get_by_role("button", name="Pause").click()
-    wait_until(lambda: "paused" in ide.status_text(), 15, message="pause honoured")
+    wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="pause honoured")
     print(f"pause honoured after {time.monotonic() - clicked:.2f} s; status: {ide.status_text()}")
     ide.screenshot("real_infinite_loop")
     source.fill(original)
