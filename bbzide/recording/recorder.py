@@ -665,7 +665,8 @@ class MissionRecorder:
         engine's deliveries (a new `PackedMessages` every step, never changed afterwards)
         or the hooked receives, and the host calls, already encoded by the capture."""
         calls, received = self._capture.take()
-        deliveries = self.sim.step_deliveries if self._packed else received
+        # (an empty `received` is the capture's next step's too: not kept, see `take`)
+        deliveries = self.sim.step_deliveries if self._packed else (received or None)
         return (stepped, deliveries,
                 calls.ordered(self._index_of) if calls.robots else _NO_CALLS)
 
