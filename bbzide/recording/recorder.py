@@ -50,18 +50,27 @@ from bbzide.vm.host import LatchedHostFunction
 from bbzide.vm.input_log import SwarmCapture, encode_steps
 from bbzide.vm.vm import State
 
-#: A robot is keyframed at least every 100 steps (10 s of Kilobot time)...
-KEYFRAME_EVERY = 100
+#: A robot is keyframed at least every 150 steps (15 s of Kilobot time)...
+KEYFRAME_EVERY = 150
 #: ...and sooner once its VM work since the last keyframe (receiving and control steps) took
 #: 30 ms of CPU time: a seek re-executes at most that much live VM time, which replays in up
-#: to ~1.5x as long (each step's inputs are decoded too), so with restoring and the inspector
-#: a seek stays well under 100 ms whatever the script costs per step (the issue's seek goal;
-#: the machine's load adds to both; measured: worst ~40-50 ms of CPU time for SAR). The step
-#: bound decides for cheap firmware, whose 100 steps replay in a few ms; SAR drones reach the
-#: budget first (after ~70-85 steps at ~0.35 ms of VM time a step). A keyframe of an M300 drone
-#: costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes are the recorder's largest
-#: cost, ~0.15 ms per SAR step (benchmarks/record_bench.py). Until session 5 the budget was
-#: 25 ms of control steps alone, the receiving not counted: about the same keyframe rate.
+#: to ~2x as long (each step's inputs are decoded too; session 5: a drone's 40 steps at the
+#: budget replayed in 52 ms), so with restoring and the inspector (~5-10 ms) a seek stays
+#: under 100 ms whatever the script costs per step (the issue's seek goal; the machine's load
+#: adds to both). The step
+#: bound decides for cheap firmware; SAR drones reach the budget first on busy stretches
+#: (after ~40-85 steps at ~0.35 ms of VM time a step). A replay re-executes one robot at a
+#: time, without the live swarm's batched compiled step: measured in session 5, ~0.2 ms a
+#: step for a Kilobot and up to ~0.4 ms for a drone, two to four times its live VM time, so
+#: the step bound matters for seeks too. It was 100 until session 5: a Kilobot's keyframe
+#: (~0.2-0.4 ms) every 100 steps was a fifth of the recorder's time once the compiled swarm
+#: step made its simulation ~2 ms a step. 200 made the worst SAR seek 84-101 ms (drones that
+#: stay under the budget for 150-200 steps replay them in ~60 ms); 150: worst ~55-65 ms
+#: for both worlds (benchmarks/record_bench.py).
+#: A keyframe of an M300 drone costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes
+#: are the recorder's largest cost, ~0.15 ms per SAR step (benchmarks/record_bench.py).
+#: Until session 5 the budget was 25 ms of control steps alone, the receiving not counted:
+#: about the same keyframe rate.
 KEYFRAME_BUDGET_SECONDS = 0.030
 #: Robots are not timed one by one (an engine steps them in one batch, and a wrapper that
 #: timed each would keep them off its compiled path): the engine's VM time of each step
@@ -74,10 +83,11 @@ KEYFRAME_BUDGET_SECONDS = 0.030
 #: The share is floored at 5 %, so a thread starved for a while (a share that low means
 #: ~20x more wall than CPU time) still keyframes.
 MIN_CPU_SHARE = 0.05
-#: The budget is looked at every 4th step (reading every robot's instruction counter and the
-#: arithmetic are ~0.05 ms, a tenth of the recorder's per-step time): a keyframe comes at
-#: most 3 steps late, ~1 ms of one drone's VM time against a 30 ms budget.
-KEYFRAME_CHECK_EVERY = 4
+#: The budget is looked at every 8th step (reading every robot's instruction counter and the
+#: arithmetic are ~0.05 ms; every 4th step until session 5, ~7 % of the recorder's time on
+#: a Kilobot swarm): a keyframe comes at most 7 steps late, ~2.5 ms of one drone's VM time
+#: against a 30 ms budget.
+KEYFRAME_CHECK_EVERY = 8
 #: ...unless keyframing that robot costs more than 1/12 of that (a robot with a huge heap):
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
@@ -85,7 +95,8 @@ KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 250 steps (25 s of Kilobot time, ~2.5 s of a 25-drone SAR
 #: swarm): each flush costs ~18 `send_columns` calls of Rerun's Python-side conversion and
 #: our own preparation of the columns (~15 ms in all for 100 SAR steps, ~25 ms for 250), so
-#: fewer, larger chunks (100 steps cost 0.15 ms per step, 250 0.10)...
+#: fewer, larger chunks (100 steps cost 0.15 ms per step, 250 0.10; 500 no less than 250,
+#: measured on 25 Kilobots in session 5: ~0.1 ms a step either way)...
 FLUSH_EVERY = 250
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
@@ -102,6 +113,11 @@ BATCHER_FLUSH_BYTES = 8 * 1024 * 1024
 #: done every step; building the overlays alone is still ~50 us a step, so a world that can
 #: count its found targets directly, `World.targets_found`, is asked that instead).
 OVERLAY_EVERY = 10
+#: Overlays that did not change when looked at are looked at half as often the next time, down
+#: to every 80 steps (8 s of Kilobot time); any change brings back `OVERLAY_EVERY`, and the
+#: last step is always looked at when the recording closes. A Kilobot's light field never
+#: changes, and building its raster every 10 steps was ~0.02 ms a step, ~7 % of the recorder.
+OVERLAY_EVERY_MAX = 80
 #: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
 #: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
 LINK_ARROWS_EVERY = 5
@@ -119,6 +135,8 @@ _NO_HEAP = (0, 0, 0, 0, 0, 0)
 #: The first five of those, read from a heap in one C call.
 _HEAP_FIGURES = operator.attrgetter("size", "rtobj", "ltseg", "peak_used", "gc_runs")
 _STEPS_DONE = operator.attrgetter("steps_done")
+#: A step's host calls when there were none (`CallLog.ordered` of an empty log).
+_NO_CALLS: tuple[list[int], bytes] = ([], b"")
 _INSTRUCTIONS = operator.attrgetter("instructions_executed")
 #: What the per-step pass reads of a robot slot without a firmware loop (a passive body).
 _NO_ROBOT = SimpleNamespace(steps_done=0, vm=SimpleNamespace(
@@ -339,6 +357,8 @@ class MissionRecorder:
         self._capture = recordable.capture
         #: per robot index: its firmware loop, or a stand-in with zero figures (no VM)
         self._robots: list[Any] = [_NO_ROBOT] * n
+        self._vms: list[Any] = [_NO_ROBOT.vm] * n  # ... its VM, and that VM's heap
+        self._heaps: list[Any] = [_NO_ROBOT.vm.heap] * n
         self._recorded = np.zeros(n, dtype=bool)  # has a firmware loop we record
         self._recorded_now = self._recorded.copy()
         self._all_recorded = False
@@ -402,7 +422,12 @@ class MissionRecorder:
         self._overlay_fingerprint: Any = None
         self._targets_found = 0
         self._watch_in_program: dict[int, bool] = {}
+        self._label_programs: list[Any] = []  # each robot's program when labels were last read
+        self._globals_watched = True  # some robot's program can have a watched global
         self._has_targets = False  # targets still to find: poll every step (found events)
+        self._overlay_every = OVERLAY_EVERY // 2  # doubled at the first look
+        self._overlays_due = self.start_step + OVERLAY_EVERY  # the next look at the overlays
+        self._last_step = self.start_step  # the last step recorded
         self.closed = False
         self.steps_recorded = 0
         self.seconds_spent = 0.0
@@ -494,6 +519,8 @@ class MissionRecorder:
     def _attach(self, index: int, robot: Any) -> None:
         """Record robot `index`'s firmware loop `robot` from now on."""
         self._robots[index] = robot
+        self._vms[index] = robot.vm  # a Robot's VM and its heap live as long as the robot
+        self._heaps[index] = robot.vm.heap
         self._recorded[index] = True
         self._recorded_now = self._recorded.copy()  # what the steps from now on hold
         self._all_recorded = bool(self._recorded.all())
@@ -595,8 +622,7 @@ class MissionRecorder:
                     self._known_failures.add(i)
                     self._event(step, layout.EVENT_ERROR, i,
                                 f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
-        vms = [r.vm for r in robots]
-        heap = np.fromiter(chain.from_iterable([_HEAP_FIGURES(vm.heap) for vm in vms]),
+        heap = np.fromiter(chain.from_iterable(map(_HEAP_FIGURES, self._heaps)),
                            dtype=np.int64, count=n * 5)
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
@@ -608,10 +634,11 @@ class MissionRecorder:
                 stepped = (stepped | new_failures) & self._recorded
             self._steps_done = steps_done
             inputs = self._step_inputs(stepped)
-            due = self._keyframes_due(step, vms, failed)
+            due = self._keyframes_due(step, self._vms, failed)
         stats = sim.stats
         buffer = self._buffer
         self._steps.append(step)
+        self._last_step = step
         buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
         buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
         buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
@@ -629,7 +656,7 @@ class MissionRecorder:
             self._link_indexes(sim.links) if pairs is None else pairs)
         buffer.setdefault("inputs", []).append(inputs)
         self._keyframe(due, step)
-        if not first and (self._has_targets or (step - self.start_step) % OVERLAY_EVERY == 0):
+        if not first and (self._has_targets or step >= self._overlays_due):
             self._record_overlays(step)
 
     def _step_inputs(self, stepped: np.ndarray) -> tuple[Any, ...]:
@@ -638,8 +665,10 @@ class MissionRecorder:
         engine's deliveries (a new `PackedMessages` every step, never changed afterwards)
         or the hooked receives, and the host calls, already encoded by the capture."""
         calls, received = self._capture.take()
-        deliveries = self.sim.step_deliveries if self._packed else received
-        return (stepped, deliveries, calls.ordered(self._index_of))
+        # (an empty `received` is the capture's next step's too: not kept, see `take`)
+        deliveries = self.sim.step_deliveries if self._packed else (received or None)
+        return (stepped, deliveries,
+                calls.ordered(self._index_of) if calls.robots else _NO_CALLS)
 
     def _keyframes_due(self, step: int, vms: list[Any], failed: np.ndarray) -> list[int]:
         """The robots whose keyframe is due: `keyframe_every` steps since their last one, or
@@ -676,7 +705,15 @@ class MissionRecorder:
     def _labels(self, states: list[Any], step: int, first: bool) -> dict[str, np.ndarray]:
         """The watched labels of every robot as one text array per name (the last step's
         array again when nothing changed), and a `role` event per change."""
-        current = [self._labels_of(state) for state in states]
+        programs = [state.program for state in states]
+        if programs != self._label_programs:  # (re)loaded: which robots can have them?
+            self._label_programs = programs
+            self._globals_watched = any(
+                self._can_have_watched(p) for p in {id(p): p for p in programs}.values())
+        if self._globals_watched or not hasattr(states[0], "_labels"):
+            current = [state.labels for state in states]
+        else:  # no watched global in any program: the world's labels (read only)
+            current = [state._labels for state in states]
         labels = {}
         for name in self.sim.watch:
             texts = ["" if (value := c.get(name)) is None else str(value) for c in current]
@@ -712,24 +749,25 @@ class MissionRecorder:
         index_of = self._index_of
         return np.array([index_of[i] for i in ids.tolist()], dtype=np.int32).reshape(-1, 2)
 
-    def _labels_of(self, state: Any) -> dict[str, Any]:
-        """The robot's labels. Reading them makes the engine look each watched name up in the
-        VM's globals (0.6 ms for a 60 KB M300 heap); when the program's string table lacks
-        every watched name, no such global can exist and the world's own labels (`set_label`)
-        are all there is."""
-        program = state.program
+    def _can_have_watched(self, program: Any) -> bool:
+        """Whether robots running `program` can have a watched global. Reading the labels
+        makes the engine look each watched name up in the VM's globals (0.6 ms for a 60 KB
+        M300 heap); when the program's string table lacks every watched name, no such global
+        can exist and the world's own labels (`set_label`) are all there is."""
         key = id(program)
         can_have = self._watch_in_program.get(key)
         if can_have is None:
             strings = set(getattr(_bbo(program), "strings", []) or [])
             can_have = any(name in strings for name in self.sim.watch)
             self._watch_in_program[key] = can_have
-        if can_have or not hasattr(state, "_labels"):
-            return state.labels
-        return state._labels  # the world's labels, without the global look-ups (read only)
+        return can_have
 
-    def _record_overlays(self, step: int) -> None:
-        due = (step - self.start_step) % OVERLAY_EVERY == 0
+    def _record_overlays(self, step: int, due: bool | None = None) -> None:
+        if due is None:
+            due = step >= self._overlays_due
+        if due:  # unchanged since the last look: look half as often (see OVERLAY_EVERY_MAX)
+            self._overlay_every = min(2 * self._overlay_every, OVERLAY_EVERY_MAX)
+            self._overlays_due = step + self._overlay_every
         if not due:  # a poll for a found target: cheap when the world can count them itself
             count = getattr(self.sim.world, "targets_found", None)  # a world of the World ABC
             found = count() if count is not None else None
@@ -750,6 +788,8 @@ class MissionRecorder:
         if fingerprint == self._overlay_fingerprint:
             return
         self._overlay_fingerprint = fingerprint
+        self._overlay_every = OVERLAY_EVERY  # changing: look every OVERLAY_EVERY steps again
+        self._overlays_due = step + OVERLAY_EVERY
         text = json.dumps(_jsonable(overlays))
         if text == self._last_overlays:
             return
@@ -763,6 +803,9 @@ class MissionRecorder:
     # ---- columns --------------------------------------------------------------------------------
     def _flush(self) -> None:
         if not self._steps:
+            if self._keyframe_rows or self._event_rows or self._overlay_rows:
+                self._send_rare_rows()  # e.g. the last step's overlays, looked at by close()
+                self.rec.flush()
             return
         rr = self.rr
         import pyarrow as pa
@@ -928,6 +971,8 @@ class MissionRecorder:
         """Send what is buffered, write the file's footer, stop capturing."""
         if self.closed:
             return
+        if self._last_step > self.start_step:  # the last step's overlays, whatever the interval
+            self._record_overlays(self._last_step, due=True)
         self._flush()
         self.closed = True
         self.recordable.listener = None

@@ -37,6 +37,7 @@ class ReplaySession:
         self.recording = recording
         self.rebuilder = rebuilder or RobotRebuilder(recording)
         self._lock = threading.Lock()  # one rebuild at a time (the cache is not thread-safe)
+        self._warmed: set[int] = set()  # robots `warm_up` has done
         self._event_steps = {
             kind: sorted({e.step for e in recording.events if e.kind == kind})
             for kind, _ in JUMP_KINDS
@@ -88,24 +89,53 @@ class ReplaySession:
             f"heap used {self.recording.heap['used'][row][index]} B as recorded")
         return view
 
-    def warm_up(self, stop: threading.Event | None = None) -> None:
-        """Boot every robot's rebuild robot ahead of its first click, one robot at a time under
-        the lock, so a user's seek waits for at most one boot (call from a background thread
-        when the replay opens)."""
-        for index in range(int(self.recording.meta["robots"])):
+    def warm_up(self, stop: threading.Event | None = None, count: int | None = None) -> None:
+        """Get every robot's rebuild ready ahead of its first click (call from a background
+        thread when the replay opens), one robot at a time under the lock, so a user's seek
+        waits for at most one robot's share of this (`count`: only the first `count` robots
+        with a VM not warmed yet; the replay app warms one before it serves the page, which
+        pays the process's one-off costs, ~0.4-0.6 s, measured as a fresh process's first
+        seek; the rest in the background):
+
+        * boot its rebuild robot (the script's top level and `init`: ~70 ms for an M300 SAR
+          drone), so a seek only restores and re-executes;
+        * rebuild it once over its first keyframe's span. A replay receives and steps each
+          robot on its own, through compiled VM functions the live swarm's batched step does
+          not use; the first call of each in the process loads it from numba's cache (30-100
+          ms each, measured: the worst first seeks of session 5, 111-153 ms, were these).
+          Different robots' inputs take different ones, so every robot is re-executed once.
+        """
+        recording = self.recording
+        for index in range(int(recording.meta["robots"])):
             if stop is not None and stop.is_set():
                 return
-            if not self.has_vm(index):
+            if not self.has_vm(index) or index in self._warmed:
                 continue
+            if count is not None:
+                if count <= 0:
+                    return
+                count -= 1
             with self._lock:
+                self._warmed.add(index)
                 try:
                     self.rebuilder.prepare(index, self.first_step)
+                    self.rebuilder.robot_at(index, self._first_span_end(index))
                 except Exception:  # noqa: BLE001 - a damaged keyframe shows when clicked
                     continue
+        if count is not None:
+            return
         # The recording and the booted robots now live as long as the replay: move them out
         # of the garbage collector's full passes, which otherwise walk them all (~100 ms for
         # a 25-drone recording, measured as the worst seeks) whenever one runs mid-seek.
         gc.freeze()
+
+    def _first_span_end(self, index: int) -> int:
+        """The last step rebuilt from robot `index`'s first keyframe: the step before its
+        second keyframe, or the recording's last step."""
+        frames = self.recording.keyframes.get(index) or []
+        if len(frames) > 1:
+            return max(frames[0].step, frames[1].step - 1)
+        return self.last_step
 
     def has_vm(self, index: int) -> bool:
         return self.rebuilder.has_vm(index)

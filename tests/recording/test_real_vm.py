@@ -9,6 +9,7 @@ its `snapshot()`, its heap bytes, ROP, LSP, stack and pc. Skipped only while the
 
 from __future__ import annotations
 
+import gc
 import importlib.util
 import random
 import zlib
@@ -228,3 +229,35 @@ def test_a_reload_whose_boot_fails_is_keyframed_failed(tmp_path: Path) -> None:
         for step in (5, 7, 12):
             assert Robot.comparable(rebuilder.robot_at(index, step).snapshot()) == \
                 live[step][index], (index, step)
+
+
+def test_a_warmed_up_replay_rebuilds_every_robot_exactly(recorded: dict) -> None:
+    """The replay's warm-up (every robot booted and re-executed over its first keyframe span,
+    before any click) leaves each rebuild robot where the next seek starts from: seeks before,
+    inside and after that span still give the live VM byte for byte."""
+    from bbzide.ui.replay_session import ReplaySession
+
+    recording, live = recorded["recording"], recorded["live"]
+    session = ReplaySession(recording)
+    session.warm_up()
+    gc.unfreeze()  # warm_up moves what lives now out of the collector's passes: undo it here
+    rebuilder = session.rebuilder
+    for index in range(ROBOTS):
+        frames = recording.keyframes[index]
+        # each robot booted, and cached at the step before its second keyframe
+        assert rebuilder._cache[index][0] == frames[1].step - 1
+        for step in (frames[0].step, frames[1].step - 1, frames[1].step + 3, STEPS):
+            rebuilt = vm_state(rebuilder.robot_at(index, step))
+            assert rebuilt[:6] == live[step]["states"][index][:6], (index, step)
+
+
+def test_warm_up_of_one_robot_then_the_rest(recorded: dict) -> None:
+    """What the replay app does: one robot before it serves the page, the rest afterwards."""
+    from bbzide.ui.replay_session import ReplaySession
+
+    session = ReplaySession(recorded["recording"])
+    session.warm_up(count=1)
+    assert {index for index, _ in session.rebuilder._booted} == {0}
+    session.warm_up()
+    gc.unfreeze()
+    assert {index for index, _ in session.rebuilder._booted} == set(range(ROBOTS))

@@ -275,3 +275,35 @@ def test_a_format_2_recording_still_opens_and_rebuilds(tmp_path: Path,
     recording = read_recording(path)
     assert recording.meta["version"] == 2
     assert RobotRebuilder(recording, build=ToyRobot).robot_at(2, 8).snapshot() == live[8]
+
+
+def test_overlays_looked_at_less_often_while_unchanged_and_at_the_last_step(
+        tmp_path: Path) -> None:
+    """Unchanged overlays are looked at after 10, 20, 40, then 80 steps; a change is recorded
+    at the next look (and brings back every 10 steps), and closing looks at the last step."""
+    from bbzide.recording.recorder import OVERLAY_EVERY, OVERLAY_EVERY_MAX
+
+    sim, recordable = toy_swarm()
+    looks: list[int] = []
+
+    def overlays() -> dict:
+        looks.append(sim.step_count)
+        level = 0 if sim.step_count < 200 else 1 if sim.step_count < 333 else 2
+        return {"light": {"bounds": [0, 0, 1, 1], "values": [[level]]}}
+
+    sim.world.overlays = overlays  # type: ignore[method-assign]
+    path = tmp_path / "overlays.rrd"
+    with MissionRecorder(path, sim, recordable) as recorder:
+        for _ in range(337):
+            sim.step()
+            recorder.record_step()
+    recording = read_recording(path)
+    gaps = np.diff(looks[:6]).tolist()
+    assert looks[0] == OVERLAY_EVERY and gaps == [10, 20, 40, 80, 80]
+    changes = [(step, o["light"]["values"][0][0]) for step, o in recording.overlays]
+    assert changes[0] == (OVERLAY_EVERY, 0)
+    # changed at step 200: seen at the next look, at most OVERLAY_EVERY_MAX steps late
+    assert changes[1][1] == 1 and 200 <= changes[1][0] < 200 + OVERLAY_EVERY_MAX
+    assert looks[looks.index(changes[1][0]) + 1] == changes[1][0] + OVERLAY_EVERY
+    assert changes[-1] == (337, 2)  # changed at step 333, between looks: the last step's
+    assert recording.overlays_at(recording.last_step)["light"]["values"] == [[2]]
