@@ -128,8 +128,11 @@ def run_ide(args: argparse.Namespace) -> int:
             f"unknown world {world!r}; choose one of: {', '.join(backend.world_names())}"
         )
     robots = args.robots if args.robots is not None else backend.default_robots(world)
-    if robots < 1:
-        raise IdeError("--robots must be at least 1")
+    from bbzide.ui.controls import MAX_ROBOTS
+
+    if not 1 <= robots <= MAX_ROBOTS:
+        raise IdeError(f"--robots must be 1..{MAX_ROBOTS} in the IDE, got {robots} "
+                       "(larger swarms: bbzide run --world)")
     script = resolve_script(args.script, backend.example_path(world))
     settings = RunSettings(
         world=world, robots=robots, seed=args.seed, steps_per_second=max(0.0, args.speed)
