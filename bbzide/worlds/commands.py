@@ -104,6 +104,7 @@ def run_world(args: argparse.Namespace) -> int:
     if int(args.seed or 0) < 0:  # numpy's seed sequences take non-negative integers only
         raise WorldConfigError(f"--seed must be >= 0, got {args.seed}")
     robots = args.robots if args.robots is not None else spec.default_robots
+    engine_options = vm_options_for_world(args)
     program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
                                                                     or []))
     radio: dict[str, Any] = {}
@@ -115,12 +116,35 @@ def run_world(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     sim = Simulation(spec.name, program, robots=robots, seed=int(args.seed or 0),
                      world_options=parse_world_options(args.world_options), radio=radio,
-                     asynchronous=bool(args.asynchronous))
+                     asynchronous=bool(args.asynchronous), **engine_options)
     booted = time.perf_counter()
     sim.run(steps)
     finished = time.perf_counter()
     print(summary(sim, steps, booted - started, finished - booted))
     return 0
+
+
+#: The VM room's single-robot options that mean nothing in a world (its host functions, ids and
+#: radio replace them): refused rather than silently ignored.
+SINGLE_ROBOT_ONLY = (("dump", "--dump"), ("inject", "--inject"), ("reg", "--reg"),
+                     ("robot", "--robot"))
+
+
+def vm_options_for_world(args: argparse.Namespace) -> dict[str, Any]:
+    """`--budget` and `--loop` for every robot of the world; single-robot options refused."""
+    for dest, option in SINGLE_ROBOT_ONLY:
+        if getattr(args, dest, None):
+            raise WorldConfigError(f"{option} is for one robot (without --world)")
+    options: dict[str, Any] = {}
+    budget = getattr(args, "budget", None)
+    if budget is not None:
+        if budget < 1:  # 0 (no limit) would let one looping robot stop the whole swarm
+            raise WorldConfigError(f"--budget must be >= 1 in a world, got {budget}")
+        options["instruction_budget"] = budget
+    loop = getattr(args, "loop", None)
+    if loop is not None:
+        options["loop"] = loop
+    return options
 
 
 def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> str:
