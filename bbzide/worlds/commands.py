@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bbzide.compiler.string_table import BITTYBUZZ_BASE_STRINGS
 from bbzide.diagnostics import UserError
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import WORLDS, world_spec
@@ -86,12 +87,36 @@ def load_script(path: Path, host_names: tuple[str, ...], include: list[str]) -> 
 
     if not path.exists():
         raise UserError(f"no such script: {path}")
-    if path.suffix == ".bbo":
-        return compiler.load_program(path)
     strings = compiler.bittybuzz_string_table(list(host_names))
+    if path.suffix == ".bbo":
+        program = compiler.load_program(path)
+        check_string_table(path, program.strings, tuple(host_names))
+        return program
     include_path = (*include, str(path.parent))
     return compiler.compile_file(str(path), include_path=include_path,
                                  string_table=strings).to_bbo()
+
+
+def check_string_table(path: Path, found: list[str], host_names: tuple[str, ...]) -> None:
+    """Refuse a `.bbo` whose `.bo` shows it was compiled without BittyBuzz's base strings.
+
+    The VM's built-ins (`neighbors`, `broadcast`, `stigmergy`, ...) use the fixed ids 0..45 of the
+    base strings, so such a `.bbo` runs but its swarm calls go nowhere (the gradient example sent
+    no message at all). Host functions are bound by name through the `.bo`'s strings, so any
+    host list is fine. Without a `.bo` beside the `.bbo` nothing can be checked.
+    """
+    base = list(BITTYBUZZ_BASE_STRINGS)
+    if not found or found[: len(base)] == base:
+        return
+    at = next((i for i, (a, b) in enumerate(zip(found, base, strict=False)) if a != b),
+              len(found))
+    seen = repr(found[at]) if at < len(found) else "missing"
+    platform = next((spec.profile for spec in WORLDS.values() if spec.host_names == host_names),
+                    "P")
+    raise WorldConfigError(
+        f"{path} was compiled without BittyBuzz's string table (string {at} is {seen}, "
+        f"BittyBuzz's is {base[at]!r}), so its neighbors/stigmergy calls would go nowhere: "
+        f"compile it with --platform {platform}, or run the .bzz")
 
 
 def run_world(args: argparse.Namespace) -> int:

@@ -119,3 +119,21 @@ def test_single_robot_options_are_refused_with_a_world(extra, words, capsys):
     assert main(["run", str(GRADIENT), "--world", "kilobot", "--steps", "1", *extra]) == 1
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+def test_a_bbo_compiled_for_another_string_table_is_refused(tmp_path, capsys):
+    # Strings are ids in a .bbo: one compiled without the world's table calls the wrong host
+    # functions (the gradient sent no message at all). The .bo beside it tells which table.
+    script = tmp_path / "g.bzz"
+    script.write_text(GRADIENT.read_text())
+    run = ["run", str(tmp_path / "g.bbo"), "--world", "kilobot", "--robots", "3", "--steps", "5"]
+    assert main(["compile", str(script), "--bbo", str(tmp_path / "g.bbo")]) == 0
+    capsys.readouterr()
+    assert main(run) == 1
+    err = capsys.readouterr().err
+    assert "string table" in err and "--platform kilobot" in err
+    assert main(["compile", str(script), "--platform", "kilobot", "--bbo",
+                 str(tmp_path / "g.bbo")]) == 0
+    capsys.readouterr()
+    assert main(run) == 0
+    assert "messages: 0 sent" not in capsys.readouterr().out
