@@ -31,6 +31,10 @@ if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
 DEFAULT_PORT = 8080
 
 
+#: Files the compiler writes: the IDE never opens them as the text it saves.
+BYTECODE_SUFFIXES = (".bo", ".bbo", ".bdb")
+
+
 class IdeError(UserError):
     """Bad `bbzide ide` arguments (missing script, unknown world, bad robot count)."""
 
@@ -128,8 +132,11 @@ def run_ide(args: argparse.Namespace) -> int:
             f"unknown world {world!r}; choose one of: {', '.join(backend.world_names())}"
         )
     robots = args.robots if args.robots is not None else backend.default_robots(world)
-    if robots < 1:
-        raise IdeError("--robots must be at least 1")
+    from bbzide.ui.controls import MAX_ROBOTS
+
+    if not 1 <= robots <= MAX_ROBOTS:
+        raise IdeError(f"--robots must be 1..{MAX_ROBOTS} in the IDE, got {robots} "
+                       "(larger swarms: bbzide run --world)")
     script = resolve_script(args.script, backend.example_path(world))
     settings = RunSettings(
         world=world, robots=robots, seed=args.seed, steps_per_second=max(0.0, args.speed)
@@ -175,6 +182,11 @@ def resolve_script(script: Path | None, example: Path | None) -> Path:
             raise IdeError(f"{script} is a folder, not a Buzz script")
         if not script.is_file():
             raise IdeError(f"no such Buzz script: {script}")
+        if script.suffix == ".rrd":
+            raise IdeError(f"{script} is a recording: open it with bbzide replay {script}")
+        if script.suffix in BYTECODE_SUFFIXES:  # the editor would save its edits over it
+            raise IdeError(f"{script} is bytecode, not Buzz source: open the .bzz it was "
+                           "compiled from")
         _check_utf8(script)
         if not os.access(script, os.W_OK):
             raise IdeError(f"{script} is read-only: the IDE saves your edits to it")

@@ -19,6 +19,9 @@ from bbzide.ui.scene import SwarmScene
 MAX_STEPS_PER_SECOND = 500
 #: A step that has run this long is called out in the status line (a loop in the script?).
 SLOW_STEP_SECONDS = 1.0
+#: The largest swarm the robot-count field offers: the scene update is measured for 1,000 robots
+#: with every overlay (~1 ms, README "Status"); `bbzide ide --robots` is held to it too.
+MAX_ROBOTS = 1000
 
 
 class RunControls:
@@ -28,7 +31,7 @@ class RunControls:
         controller: RunController,
         scene: SwarmScene,
         world_names: list[str],
-        max_robots: int = 1000,
+        max_robots: int = MAX_ROBOTS,
     ) -> None:
         self.controller = controller
         self.scene = scene

@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from typing import Any
 
+from bbzide.diagnostics import UserError
 from bbzide.ui.world_backend import SimulationHandle, SwarmFrame, WorldBackend
 
 #: The scene needs no more than a screen's worth of updates; 30 Hz is smooth and cheap (~1 ms).
@@ -164,6 +165,10 @@ class RunController:
                 return
             try:
                 self._apply(command, argument)
+            except UserError as error:  # bad settings (a swarm that does not fit): as written
+                self.status.error = error.message
+                self._running = False
+                self.status.running = False
             except Exception as error:  # noqa: BLE001 - a world failure is shown, not fatal
                 self.status.error = f"{type(error).__name__}: {error}"
                 self._running = False

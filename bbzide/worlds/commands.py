@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bbzide.compiler.string_table import BITTYBUZZ_BASE_STRINGS
 from bbzide.diagnostics import UserError
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import WORLDS, world_spec
@@ -86,12 +87,36 @@ def load_script(path: Path, host_names: tuple[str, ...], include: list[str]) -> 
 
     if not path.exists():
         raise UserError(f"no such script: {path}")
-    if path.suffix == ".bbo":
-        return compiler.load_program(path)
     strings = compiler.bittybuzz_string_table(list(host_names))
+    if path.suffix == ".bbo":
+        program = compiler.load_program(path)
+        check_string_table(path, program.strings, tuple(host_names))
+        return program
     include_path = (*include, str(path.parent))
     return compiler.compile_file(str(path), include_path=include_path,
                                  string_table=strings).to_bbo()
+
+
+def check_string_table(path: Path, found: list[str], host_names: tuple[str, ...]) -> None:
+    """Refuse a `.bbo` whose `.bo` shows it was compiled without BittyBuzz's base strings.
+
+    The VM's built-ins (`neighbors`, `broadcast`, `stigmergy`, ...) use the fixed ids 0..45 of the
+    base strings, so such a `.bbo` runs but its swarm calls go nowhere (the gradient example sent
+    no message at all). Host functions are bound by name through the `.bo`'s strings, so any
+    host list is fine. Without a `.bo` beside the `.bbo` nothing can be checked.
+    """
+    base = list(BITTYBUZZ_BASE_STRINGS)
+    if not found or found[: len(base)] == base:
+        return
+    at = next((i for i, (a, b) in enumerate(zip(found, base, strict=False)) if a != b),
+              len(found))
+    seen = repr(found[at]) if at < len(found) else "missing"
+    platform = next((spec.profile for spec in WORLDS.values() if spec.host_names == host_names),
+                    "P")
+    raise WorldConfigError(
+        f"{path} was compiled without BittyBuzz's string table (string {at} is {seen}, "
+        f"BittyBuzz's is {base[at]!r}), so its neighbors/stigmergy calls would go nowhere: "
+        f"compile it with --platform {platform}, or run the .bzz")
 
 
 def run_world(args: argparse.Namespace) -> int:
@@ -104,6 +129,7 @@ def run_world(args: argparse.Namespace) -> int:
     if int(args.seed or 0) < 0:  # numpy's seed sequences take non-negative integers only
         raise WorldConfigError(f"--seed must be >= 0, got {args.seed}")
     robots = args.robots if args.robots is not None else spec.default_robots
+    engine_options = vm_options_for_world(args)
     program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
                                                                     or []))
     radio: dict[str, Any] = {}
@@ -115,12 +141,35 @@ def run_world(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     sim = Simulation(spec.name, program, robots=robots, seed=int(args.seed or 0),
                      world_options=parse_world_options(args.world_options), radio=radio,
-                     asynchronous=bool(args.asynchronous))
+                     asynchronous=bool(args.asynchronous), **engine_options)
     booted = time.perf_counter()
     sim.run(steps)
     finished = time.perf_counter()
     print(summary(sim, steps, booted - started, finished - booted))
     return 0
+
+
+#: The VM room's single-robot options that mean nothing in a world (its host functions, ids and
+#: radio replace them): refused rather than silently ignored.
+SINGLE_ROBOT_ONLY = (("dump", "--dump"), ("inject", "--inject"), ("reg", "--reg"),
+                     ("robot", "--robot"))
+
+
+def vm_options_for_world(args: argparse.Namespace) -> dict[str, Any]:
+    """`--budget` and `--loop` for every robot of the world; single-robot options refused."""
+    for dest, option in SINGLE_ROBOT_ONLY:
+        if getattr(args, dest, None):
+            raise WorldConfigError(f"{option} is for one robot (without --world)")
+    options: dict[str, Any] = {}
+    budget = getattr(args, "budget", None)
+    if budget is not None:
+        if budget < 1:  # 0 (no limit) would let one looping robot stop the whole swarm
+            raise WorldConfigError(f"--budget must be >= 1 in a world, got {budget}")
+        options["instruction_budget"] = budget
+    loop = getattr(args, "loop", None)
+    if loop is not None:
+        options["loop"] = loop
+    return options
 
 
 def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> str:

@@ -67,6 +67,7 @@ def test_a_folder_is_named_as_a_folder(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("command, extra, words", [
     ("ide", ["--seed", "-1"], "--seed must be >= 0"),
+    ("ide", ["--robots", "5000"], "--robots must be 1..1000"),
     ("ide", ["--port", "70000"], "--port must be 0..65535"),
     ("ide", ["--host", "999.1.1.1"], "cannot listen on 999.1.1.1"),
     ("replay", ["--port", "-2"], "--port must be 0..65535"),
@@ -87,3 +88,15 @@ def test_bad_server_arguments_fail_before_any_server_starts(command, extra, word
     assert main([command, str(target), "--no-browser", *extra]) == 1
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("name, words", [
+    ("g.bbo", "bytecode, not Buzz source"), ("g.bo", "bytecode, not Buzz source"),
+    ("g.bdb", "bytecode, not Buzz source"), ("m.rrd", "bbzide replay"),
+])
+def test_bytecode_and_recordings_are_not_opened_as_source(name, words, tmp_path: Path) -> None:
+    path = tmp_path / name
+    path.write_bytes(b"\x00\x01abc")       # valid UTF-8: the editor would have taken it
+    with pytest.raises(IdeError, match=words):
+        resolve_script(path, None)
+    assert path.read_bytes() == b"\x00\x01abc"

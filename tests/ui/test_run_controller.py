@@ -107,3 +107,27 @@ def test_a_new_world_waits_for_the_program_compiled_for_it() -> None:
         wait_until(lambda: controller.status.step > 0, 5, message="lab runs")
     finally:
         controller.stop()
+
+
+def test_a_world_that_refuses_the_settings_shows_the_users_message() -> None:
+    from doubles import FakeBackend as Base
+
+    from bbzide.diagnostics import UserError
+
+    class Refusing(Base):
+        def create(self, world, program, robots, seed):  # noqa: ANN001, ANN202
+            if robots > 100:
+                raise UserError(f"{robots} robots do not fit in the {world} world")
+            return super().create(world, program, robots, seed)
+
+    backend = Refusing()
+    controller = RunController(backend, RunSettings("fake-table", 5, 3, 0.0)).start()
+    try:
+        controller.load_program(FakeProgram("step", b"x"))
+        wait_until(lambda: controller.last_frame is not None, 5, message="first frame")
+        controller.update_settings(robots=900)
+        wait_until(lambda: controller.status.error is not None, 5, message="refused")
+        assert controller.status.error == "900 robots do not fit in the fake-table world"
+        assert controller.last_frame.count == 5          # the old world stays
+    finally:
+        controller.stop()

@@ -84,3 +84,56 @@ def test_an_error_in_a_script_with_non_utf8_bytes_still_shows_its_line(tmp_path,
     assert main(["run", str(script), "--world", "kilobot", "--robots", "1", "--steps", "2"]) == 0
     out = capsys.readouterr().out
     assert "MATH at" in out and "latin1.bzz:5:0" in out   # bzzparse's position: the `}`
+
+
+LOOP_1000 = ("function init() {}\nfunction step() {\n  var i = 0\n"
+             "  while (i < 1000) { i = i + 1 }\n}\n")
+
+
+def test_budget_and_loop_apply_to_every_robot_of_a_world(tmp_path, capsys):
+    script = tmp_path / "busy.bzz"
+    script.write_text(LOOP_1000)
+    base = ["run", str(script), "--world", "kilobot", "--robots", "2", "--steps", "3"]
+    assert main(base) == 0
+    assert "errors: none" in capsys.readouterr().out
+    assert main([*base, "--budget", "500"]) == 0        # ~6 instructions per iteration
+    assert "BUDGET at" in capsys.readouterr().out
+    returns = tmp_path / "returns.bzz"
+    returns.write_text("function init() {}\nfunction step() {\n  return 1\n}\n")
+    long = ["run", str(returns), "--world", "kilobot", "--robots", "1", "--steps", "300"]
+    assert main(long) == 0
+    assert "errors: none" in capsys.readouterr().out
+    assert main([*long, "--loop", "robot"]) == 0     # the firmware keeps step's return value
+    assert "STACK" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--dump"], "--dump is for one robot"),
+    (["--inject", "x.txt"], "--inject is for one robot"),
+    (["--reg", "log=print"], "--reg is for one robot"),
+    (["--robot", "3"], "--robot is for one robot"),
+    (["--budget", "-1"], "--budget must be >= 1"),
+    (["--budget", "0"], "--budget must be >= 1"),
+])
+def test_single_robot_options_are_refused_with_a_world(extra, words, capsys):
+    assert main(["run", str(GRADIENT), "--world", "kilobot", "--steps", "1", *extra]) == 1
+    err = capsys.readouterr().err
+    assert words in err and "Traceback" not in err
+
+
+def test_a_bbo_compiled_for_another_string_table_is_refused(tmp_path, capsys):
+    # Strings are ids in a .bbo: one compiled without the world's table calls the wrong host
+    # functions (the gradient sent no message at all). The .bo beside it tells which table.
+    script = tmp_path / "g.bzz"
+    script.write_text(GRADIENT.read_text())
+    run = ["run", str(tmp_path / "g.bbo"), "--world", "kilobot", "--robots", "3", "--steps", "5"]
+    assert main(["compile", str(script), "--bbo", str(tmp_path / "g.bbo")]) == 0
+    capsys.readouterr()
+    assert main(run) == 1
+    err = capsys.readouterr().err
+    assert "string table" in err and "--platform kilobot" in err
+    assert main(["compile", str(script), "--platform", "kilobot", "--bbo",
+                 str(tmp_path / "g.bbo")]) == 0
+    capsys.readouterr()
+    assert main(run) == 0
+    assert "messages: 0 sent" not in capsys.readouterr().out
