@@ -20,12 +20,13 @@ from bbzide.compiler.assembler import assemble
 from bbzide.compiler.bo2bbo import bo_to_bbo
 from bbzide.compiler.bytecode import read_bbo, read_bdb, read_bo
 from bbzide.compiler.program import BittyBuzzProgram, CompiledProgram
-from bbzide.compiler.string_table import bittybuzz_string_table
+from bbzide.compiler.string_table import base_strings_mismatch, bittybuzz_string_table
 from bbzide.diagnostics import BytecodeError, SourceLocation, UserError
 
 __all__ = [
     "BittyBuzzProgram",
     "CompiledProgram",
+    "base_strings_mismatch",
     "bittybuzz_string_table",
     "compile_file",
     "compile_source",

@@ -105,3 +105,23 @@ def format_bst(strings: Sequence[str]) -> bytes:
 
 def write_bst(path: str | Path, strings: Sequence[str]) -> None:
     Path(path).write_bytes(format_bst(strings))
+
+
+def base_strings_mismatch(strings: Sequence[str]) -> str | None:
+    """Why a compiled program's string table (its `.bo` strings) is not a BittyBuzz one, or
+    None when it starts with the base strings (or is unknown: empty).
+
+    The VM's built-ins (`neighbors`, `broadcast`, `stigmergy`, ...) use the fixed ids 0..45 of
+    the base strings, so a `.bbo` made from a `.bo` compiled without them runs, but its swarm
+    calls go nowhere (the gradient example sent no message at all). Host functions are bound
+    by name, so any host list after the base strings is fine.
+    """
+    base = list(BITTYBUZZ_BASE_STRINGS)
+    found = list(strings)
+    if not found or found[: len(base)] == base:
+        return None
+    at = next((i for i, (a, b) in enumerate(zip(found, base, strict=False)) if a != b),
+              len(found))
+    seen = repr(found[at]) if at < len(found) else "missing"
+    return (f"it was compiled without BittyBuzz's string table (string {at} is {seen}, "
+            f"BittyBuzz's is {base[at]!r}), so its neighbors/stigmergy calls would go nowhere")

@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from bbzide.compiler.opcodes import Op
 from bbzide.diagnostics import UserError
@@ -27,8 +27,14 @@ from bbzide.vm.harness_options import Registration, group_registrations
 from bbzide.vm.profiles import PROFILES
 from bbzide.vm.robot import DEFAULT_BUDGET
 
+if TYPE_CHECKING:
+    from bbzide.vm.injections import Injection
+
 #: control steps when --steps is not given
 DEFAULT_STEPS = 10
+#: the largest robot id: BittyBuzz keeps a robot id in 16 bits (`bbzrobot_id_t`, the u16
+#: sender id of every message)
+MAX_ROBOT_ID = 0xFFFF
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -79,29 +85,42 @@ def host_names(registrations: list[Registration]) -> list[str]:
 
 def load(script: Path, registrations: list[Registration], include: list[str]):  # noqa: ANN201
     """A BittyBuzzProgram from a ``.bzz`` (compiled) or a ``.bbo`` (+ ``.bo``/``.bdb``)."""
-    from bbzide.compiler import bittybuzz_string_table, compile_file, load_program
+    from bbzide.compiler import (
+        base_strings_mismatch,
+        bittybuzz_string_table,
+        compile_file,
+        load_program,
+    )
 
     if not script.exists():
         raise UserError(f"{script}: no such file")
     if script.suffix == ".bbo":
         bo, bdb = script.with_suffix(".bo"), script.with_suffix(".bdb")
-        return load_program(script, bo=bo if bo.exists() else None,
-                            bdb=bdb if bdb.exists() else None)
+        program = load_program(script, bo=bo if bo.exists() else None,
+                               bdb=bdb if bdb.exists() else None)
+        why = base_strings_mismatch(program.strings)
+        if why is not None:
+            raise UserError(f"{script}: {why}: compile it with --platform, or run the .bzz")
+        return program
     table = bittybuzz_string_table(host_names(registrations))
     return compile_file(script, include_path=include, string_table=table).to_bbo()
 
 
 def run_single_robot(args: argparse.Namespace) -> int:
     from bbzide.vm.harness import run_harness
-    from bbzide.vm.injections import parse_injection_file
 
     script = Path(args.script)
-    registrations = group_registrations(args.reg or ["log=print"])
-    program = load(script, registrations, list(getattr(args, "include", []) or []))
-    injections = parse_injection_file(args.inject) if args.inject else []
     steps = DEFAULT_STEPS if args.steps is None else int(args.steps)
     if steps < 0:
         raise UserError("--steps must be ≥ 0")
+    if args.budget is not None and args.budget < 0:
+        raise UserError(f"--budget must be ≥ 0 (0 = no limit), got {args.budget}")
+    if not 0 <= args.robot <= MAX_ROBOT_ID:
+        raise UserError(f"--robot must be a robot id in 0..{MAX_ROBOT_ID} (BittyBuzz ids are "
+                        f"16-bit), got {args.robot}")
+    registrations = group_registrations(args.reg or ["log=print"])
+    program = load(script, registrations, list(getattr(args, "include", []) or []))
+    injections = _injections(Path(args.inject)) if args.inject else []
     run = run_harness(program, PROFILES[args.platform], robot_id=args.robot, steps=steps,
                       seed=int(args.seed or 0), loop=args.loop, registrations=registrations,
                       injections=injections, bbo_name=script.with_suffix(".bbo").name,
@@ -121,6 +140,20 @@ def run_single_robot(args: argparse.Namespace) -> int:
                         f"{failure.message}", failure.location,
                         hint=_call_hint(run.robot, failure))
     return 0
+
+
+def _injections(path: Path) -> list[Injection]:
+    """The injection file's messages, or a UserError naming what is wrong with the file."""
+    from bbzide.vm.injections import parse_injection_file
+
+    if path.is_dir():
+        raise UserError(f"--inject {path} is a folder, not an injection file")
+    try:
+        return parse_injection_file(path)
+    except FileNotFoundError:
+        raise UserError(f"--inject {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"--inject {path}: cannot read it ({exc})") from None
 
 
 def _call_hint(robot: Any, failure: Any) -> str | None:

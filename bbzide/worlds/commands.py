@@ -19,7 +19,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bbzide.compiler.string_table import BITTYBUZZ_BASE_STRINGS
 from bbzide.diagnostics import UserError
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import WORLDS, world_spec
@@ -98,25 +97,17 @@ def load_script(path: Path, host_names: tuple[str, ...], include: list[str]) -> 
 
 
 def check_string_table(path: Path, found: list[str], host_names: tuple[str, ...]) -> None:
-    """Refuse a `.bbo` whose `.bo` shows it was compiled without BittyBuzz's base strings.
+    """Refuse a `.bbo` whose `.bo` shows it was compiled without BittyBuzz's base strings
+    (`compiler.base_strings_mismatch`); without a `.bo` beside it nothing can be checked."""
+    from bbzide.compiler import base_strings_mismatch
 
-    The VM's built-ins (`neighbors`, `broadcast`, `stigmergy`, ...) use the fixed ids 0..45 of the
-    base strings, so such a `.bbo` runs but its swarm calls go nowhere (the gradient example sent
-    no message at all). Host functions are bound by name through the `.bo`'s strings, so any
-    host list is fine. Without a `.bo` beside the `.bbo` nothing can be checked.
-    """
-    base = list(BITTYBUZZ_BASE_STRINGS)
-    if not found or found[: len(base)] == base:
+    why = base_strings_mismatch(found)
+    if why is None:
         return
-    at = next((i for i, (a, b) in enumerate(zip(found, base, strict=False)) if a != b),
-              len(found))
-    seen = repr(found[at]) if at < len(found) else "missing"
     platform = next((spec.profile for spec in WORLDS.values() if spec.host_names == host_names),
                     "P")
-    raise WorldConfigError(
-        f"{path} was compiled without BittyBuzz's string table (string {at} is {seen}, "
-        f"BittyBuzz's is {base[at]!r}), so its neighbors/stigmergy calls would go nowhere: "
-        f"compile it with --platform {platform}, or run the .bzz")
+    raise WorldConfigError(f"{path}: {why}: compile it with --platform {platform}, or run the "
+                           ".bzz")
 
 
 def run_world(args: argparse.Namespace) -> int:

@@ -76,3 +76,28 @@ def test_run_stops_an_infinite_loop(tmp_path: Path, capsys) -> None:  # noqa: AN
     script.write_text("function step() {\n  while(1) { x = 1 }\n}\n")
     assert main(["run", str(script), "--steps", "1", "--budget", "3000"]) == 1
     assert "BUDGET" in capsys.readouterr().err
+
+
+def test_run_refuses_bad_numbers_and_a_missing_injection_file(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    script = tmp_path / "ok.bzz"
+    script.write_text("function step() {\n  x = 1\n}\n")
+    for extra, expected in ((["--budget", "-1"], "--budget must be"),
+                            (["--robot", "70000"], "--robot must be a robot id in 0..65535"),
+                            (["--robot", "-1"], "--robot must be"),
+                            (["--inject", str(tmp_path / "missing.txt")], "no such file"),
+                            (["--inject", str(tmp_path)], "is a folder")):
+        assert main(["run", str(script), "--steps", "1", *extra]) == 1, extra
+        err = capsys.readouterr().err
+        assert expected in err and "Traceback" not in err and "internal error" not in err
+
+
+def test_run_refuses_a_bbo_compiled_without_the_bittybuzz_strings(tmp_path: Path, capsys) -> None:  # noqa: ANN001
+    """Its swarm calls would go nowhere (built-ins use the base strings' fixed ids)."""
+    script = tmp_path / "g.bzz"
+    script.write_text("function step() {\n  neighbors.broadcast(\"g\", 1)\n}\n")
+    assert main(["compile", str(script), "--bbo", str(tmp_path / "g.bbo")]) == 0
+    assert main(["run", str(tmp_path / "g.bbo"), "--steps", "1"]) == 1
+    assert "compiled without BittyBuzz's string table" in capsys.readouterr().err
+    assert main(["compile", str(script), "--bbo", str(tmp_path / "k.bbo"), "--platform",
+                 "kilobot", "-o", str(tmp_path / "k.bo")]) == 0
+    assert main(["run", str(tmp_path / "k.bbo"), "--steps", "1"]) == 0
