@@ -3,9 +3,10 @@
 The recording room sits above the worlds room, so the worlds' `run` command knows nothing of
 recording: `bbzide/cli.py` adds these options to the shared `run` parser and, when `--record`
 is given, hands the run here. We build the same swarm `bbzide.worlds.commands.run_world` would
-(same script loading, world options and radio overrides, reusing its helpers) but through a
-`Recordable` robot factory, record every step, and print the worlds' summary plus the
-recording's figures (file size, share of the run time spent recording).
+(same script loading, seed check, world options, radio overrides, `--budget`/`--loop`,
+`--asynchronous`, reusing its helpers) but through a `Recordable` robot factory, record every
+step, and print the worlds' summary plus the recording's figures (file size, share of the run
+time spent recording).
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ def run_recorded(args: argparse.Namespace) -> int:
     steps = int(args.steps if args.steps is not None else world_commands.DEFAULT_STEPS)
     if steps < 0:
         raise WorldConfigError(f"--steps must be >= 0, got {steps}")
+    seed = world_commands.seed_of(args)
+    vm_options = world_commands.vm_options_for_world(args)  # --budget, --loop; refuses --dump...
     robots = args.robots if args.robots is not None else spec.default_robots
     script = Path(args.script)
     program = world_commands.load_script(script, spec.host_names,
@@ -54,10 +57,14 @@ def run_recorded(args: argparse.Namespace) -> int:
     source = script.read_text(encoding="utf-8", errors="replace") if script.suffix == ".bzz" \
         else None
     started = time.perf_counter()
-    recordable = Recordable()
-    sim = Simulation(spec.name, program, robots=robots, seed=int(args.seed or 0),
+    # The factory builds the robots, so it (not the engine) takes --budget and --loop; the
+    # recorder writes them into the recording's metadata for the replay's rebuilt robots.
+    recordable = Recordable(loop=vm_options.get("loop", "pop"),
+                            instruction_budget=vm_options.get("instruction_budget"))
+    sim = Simulation(spec.name, program, robots=robots, seed=seed,
                      world_options=world_commands.parse_world_options(args.world_options),
-                     radio=radio, robot_factory=recordable.factory)
+                     radio=radio, robot_factory=recordable.factory,
+                     asynchronous=bool(getattr(args, "asynchronous", False)))
     booted = time.perf_counter()
     recorder = MissionRecorder(path, sim, recordable, force=bool(args.force),
                                keyframe_every=int(args.keyframe_every),

@@ -12,11 +12,14 @@ Checks, each a `RecordingError` that says what is wrong:
 * another `layout.FORMAT_VERSION` (older or newer); rows that do not decode; steps missing
   in the middle.
 
-A file whose writer was killed ends without Rerun's footer and maybe in the middle of a message.
+A file whose writer was killed ends without Rerun's footer, maybe in the middle of a message.
 `rrd_frames` walks Rerun's framing (12-byte file header; then messages of a u64 kind and a u64
-length, both little-endian, kind 0 = end of stream), and a torn last message is cut off
-(the complete prefix goes to a temporary file that Rerun then reads). Entities are flushed one
-after the other, so the recording ends at the last step that *every* per-step entity reached.
+length, both little-endian; kind 0 = end of stream, whose payload is the footer's index, then a
+32-byte footer). Unless that end message and footer are whole, the file is read as truncated:
+only its whole data messages go to a temporary file that Rerun then reads (so a cut anywhere,
+even inside the end message, opens). Entities are flushed one after the other, so the
+recording ends at the last step that *every* per-step entity reached; a cut before the first
+flush (no mission metadata) is refused as holding no complete data.
 """
 
 from __future__ import annotations
@@ -42,6 +45,10 @@ FILE_HEADER_BYTES = 12
 #: Each message: u64 kind, u64 payload length (little-endian), then the payload.
 MESSAGE_HEADER = struct.Struct("<QQ")
 END_OF_STREAM = 0
+#: After the end-of-stream message: u64 start and u64 length of the index, a u32 checksum,
+#: "RRF2FOOT" and a u32 footer version (rerun 0.41's `StreamFooter`).
+FOOTER_BYTES = 32
+FOOTER_MAGIC = b"RRF2FOOT"
 
 #: Per-step columns every recording has; a step counts only once all of them reached it.
 _PER_STEP = (
@@ -57,15 +64,22 @@ _PER_STEP = (
 
 
 def rrd_frames(data: bytes) -> tuple[int, bool]:
-    """(bytes of complete messages incl. the header, whether the stream ended cleanly)."""
+    """(bytes of complete data messages incl. the header, whether the stream ended cleanly).
+
+    Rerun's end-of-stream message carries the footer's index in its payload and is followed by
+    the 32-byte footer; the stream ended cleanly only if both are whole. A writer killed while
+    writing them left every data message whole, so the data ends where that message starts.
+    """
     end = FILE_HEADER_BYTES
     while end + MESSAGE_HEADER.size <= len(data):
         kind, length = MESSAGE_HEADER.unpack_from(data, end)
+        after = end + MESSAGE_HEADER.size + length
         if kind == END_OF_STREAM:
-            return end, True
-        if end + MESSAGE_HEADER.size + length > len(data):
+            footer = data[after:]
+            return end, len(footer) == FOOTER_BYTES and footer[-12:-4] == FOOTER_MAGIC
+        if after > len(data):
             break
-        end += MESSAGE_HEADER.size + length
+        end = after
     return end, False
 
 
@@ -148,16 +162,18 @@ def read_recording(path: Path | str) -> Recording:
     complete, ended = rrd_frames(data)
     if complete <= FILE_HEADER_BYTES:
         raise RecordingError(f"{path} holds no complete data (cut off before its first flush)")
-    torn = complete < len(data) and not ended
-    if torn:
+    if ended:
+        columns = _read_columns(path, path)
+    else:  # Rerun reads only whole messages: hand it the complete prefix
         with tempfile.NamedTemporaryFile(suffix=".rrd", delete=False) as prefix:
             prefix.write(data[:complete])
         try:
             columns = _read_columns(Path(prefix.name), path)
         finally:
             os.unlink(prefix.name)
-    else:
-        columns = _read_columns(path, path)
+        if f"{layout.MISSION}:meta" not in columns[1]:  # the first flush did not survive
+            raise RecordingError(f"{path} holds no complete data (cut off before its first "
+                                 "flush, or not a bbzide recording)")
     recording = _assemble(path, columns)
     recording.truncated = not ended
     return recording
@@ -193,6 +209,8 @@ def _read_columns(readable: Path, shown: Path) -> tuple[Columns, dict[str, Any]]
                         continue
                     columns[(entity, name)].append((steps, batch.column(name)))
     except (RuntimeError, ValueError, OSError) as error:
+        if "No recording store" in str(error):  # only Rerun's store-info messages were whole
+            return columns, static
         raise RecordingError(f"{shown} is a corrupt recording: {error}") from None
     return columns, static
 

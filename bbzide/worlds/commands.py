@@ -117,8 +117,7 @@ def run_world(args: argparse.Namespace) -> int:
     steps = int(args.steps if args.steps is not None else DEFAULT_STEPS)
     if steps < 0:
         raise WorldConfigError(f"--steps must be >= 0, got {steps}")
-    if int(args.seed or 0) < 0:  # numpy's seed sequences take non-negative integers only
-        raise WorldConfigError(f"--seed must be >= 0, got {args.seed}")
+    seed = seed_of(args)
     robots = args.robots if args.robots is not None else spec.default_robots
     engine_options = vm_options_for_world(args)
     program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
@@ -130,7 +129,7 @@ def run_world(args: argparse.Namespace) -> int:
         radio["loss_probability"] = args.loss
         radio["loss_by_rate"] = ()
     started = time.perf_counter()
-    sim = Simulation(spec.name, program, robots=robots, seed=int(args.seed or 0),
+    sim = Simulation(spec.name, program, robots=robots, seed=seed,
                      world_options=parse_world_options(args.world_options), radio=radio,
                      asynchronous=bool(args.asynchronous), **engine_options)
     booted = time.perf_counter()
@@ -144,6 +143,14 @@ def run_world(args: argparse.Namespace) -> int:
 #: radio replace them): refused rather than silently ignored.
 SINGLE_ROBOT_ONLY = (("dump", "--dump"), ("inject", "--inject"), ("reg", "--reg"),
                      ("robot", "--robot"))
+
+
+def seed_of(args: argparse.Namespace) -> int:
+    """The run's `--seed` (0 when not given), refused when negative."""
+    seed = int(getattr(args, "seed", None) or 0)
+    if seed < 0:  # numpy's seed sequences take non-negative integers only
+        raise WorldConfigError(f"--seed must be >= 0, got {seed}")
+    return seed
 
 
 def vm_options_for_world(args: argparse.Namespace) -> dict[str, Any]:

@@ -44,3 +44,45 @@ def test_recorded_run_replays(tmp_path: Path, capsys: pytest.CaptureFixture) -> 
     recording = read_recording(path)
     assert (recording.first_step, recording.last_step, recording.robot_count) == (0, 30, 9)
     assert recording.programs[0]["source"] == Path(EXAMPLE).read_text()
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--seed", "-1"], "--seed must be >= 0"),       # was numpy's ValueError (internal error)
+    (["--budget", "0"], "--budget must be >= 1"),
+    (["--dump"], "--dump is for one robot"),
+])
+def test_recorded_run_refuses_what_run_world_refuses(extra: list[str], words: str, tmp_path: Path,
+                                                     capsys: pytest.CaptureFixture) -> None:
+    path = tmp_path / "s.rrd"
+    code = main(["run", EXAMPLE, "--world", "kilobot", "--robots", "3", "--steps", "2",
+                 "--record", str(path), *extra])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert words in err and "internal error" not in err
+    assert not path.exists()
+
+
+LOOP_1000 = ("function init() {}\nfunction step() {\n  var i = 0\n"
+             "  while (i < 1000) { i = i + 1 }\n}\n")
+RETURNS = "function init() {}\nfunction step() {\n  return 1\n}\n"
+
+
+@pytest.mark.skipif(not HAS_ROBOT, reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
+def test_recorded_run_applies_budget_and_loop(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture) -> None:
+    """As `run --world` does: every robot gets --budget and --loop, and the recording keeps
+    them (its rebuilt robots must run under the same ones)."""
+    busy = tmp_path / "busy.bzz"
+    busy.write_text(LOOP_1000)
+    path = tmp_path / "busy.rrd"
+    assert main(["run", str(busy), "--world", "kilobot", "--robots", "2", "--steps", "3",
+                 "--budget", "500", "--record", str(path)]) == 0
+    assert "BUDGET at" in capsys.readouterr().out
+    assert read_recording(path).meta["instruction_budget"] == 500
+    returns = tmp_path / "returns.bzz"
+    returns.write_text(RETURNS)
+    path = tmp_path / "returns.rrd"
+    assert main(["run", str(returns), "--world", "kilobot", "--robots", "1", "--steps", "300",
+                 "--loop", "robot", "--record", str(path)]) == 0
+    assert "STACK" in capsys.readouterr().out  # the firmware keeps step's return value
+    assert read_recording(path).meta["loop"] == "robot"
