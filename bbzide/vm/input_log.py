@@ -199,12 +199,7 @@ class CallLog:
         if data[count_at] == 0xFF:
             raise ValueError("a host call with more than 255 effects cannot be recorded")
         data[count_at] += 1
-        if type(value) is int:  # the usual answer: no call, no isinstance chain
-            data += b"RI"
-            data += _I64.pack(value)
-        else:
-            data += b"R"
-            _encode_value(value, data)
+        _encode_ret(value, data)
 
     def ordered(self, index_of: Mapping[int, int]) -> tuple[list[int], bytes]:
         """(robot index of each call, the calls' bytes) with robots in index order, each
@@ -487,6 +482,17 @@ class InputLogError(ValueError):
     """Bytes that are not an input log (a corrupt recording)."""
 
 
+def _encode_ret(value: Any, out: bytearray) -> None:
+    """A ``ret`` effect: ``R`` and the value; an int (the usual answer) without the type
+    dispatch of `_encode_value` (the same bytes)."""
+    if type(value) is int:
+        out += b"RI"
+        out += _I64.pack(value)
+    else:
+        out += b"R"
+        _encode_value(value, out)
+
+
 def _encode_value(value: Any, out: bytearray) -> None:
     kind = type(value)  # exact types first: a host call returns ints, floats and small tables
     if kind is int:
@@ -680,13 +686,7 @@ def _encode_calls(calls: Iterable[HostCallRecord], out: bytearray) -> None:
         for effect in call.effects:
             kind = effect[0]
             if kind == "ret":
-                value = effect[1]
-                if type(value) is int:  # the usual answer: no call, no isinstance chain
-                    out += b"RI"
-                    out += _I64.pack(value)
-                else:
-                    out += b"R"
-                    _encode_value(value, out)
+                _encode_ret(effect[1], out)
             elif kind == "expect":
                 out += _EXPECT[effect[1] & 0xFF]
             else:
