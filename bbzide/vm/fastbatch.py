@@ -51,9 +51,22 @@ from bbzide.vm.fastinbox import (
     process_broadcasts,
 )
 from bbzide.vm.fastloop import R_SP
-from bbzide.vm.fastreceive import _inmsg_append, _neighbors_add, _to_u8
+from bbzide.vm.fastreceive import NB_MARK, _inmsg_append, _neighbors_add, _to_u8
 from bbzide.vm.fastring import ring_size
 from bbzide.vm.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
+from bbzide.vm.heap import TABLE
+from bbzide.vm.message_layout import (
+    BC_TOPIC,
+    BC_VALUE,
+    BROADCAST,
+    PAYLOAD_SIZE,
+    RID,
+    VS_DATA,
+    VS_KEY,
+    VS_LAMPORT,
+    VSTIG_PUT,
+    VSTIG_QUERY,
+)
 from bbzide.vm.packed_queues import (
     CLEAR_COUNTER,
     CLEAR_PERIOD,
@@ -92,14 +105,8 @@ IO_STATUS, IO_COUNT, IO_COLLECTED, IO_INNER, IO_ROWS = range(5)
 IO_SLOTS = 5
 
 _STR_STEP = 5
-_BROADCAST, _VSTIG_PUT, _VSTIG_QUERY = 0, 1, 2
-_TABLE = 4
+#: ``neighbors.MARK``: the refreshed-since-the-last-data-GC bit of a ring entry
 _MARK = 0x01
-#: a payload as the VM reads it (messages.PAYLOAD_SIZE)
-_PAYLOAD = 9
-#: record offsets (messages.py)
-_RID, _BC_TOPIC, _BC_VALUE, _VS_LAMPORT, _VS_KEY, _VS_DATA = 1, 3, 5, 3, 4, 6
-_NB_MARK = 4
 
 
 @_compile
@@ -110,9 +117,9 @@ def _receive(inq: Any, ring: Any, ctl: Any, payloads: Any, lengths: Any, distanc
     size = ctl[RECORD]
     mark = ctl[CLEAR_COUNTER] < ctl[MARK_TIME]
     for k in range(first, last):
-        n = min(lengths[k], _PAYLOAD)
+        n = min(lengths[k], PAYLOAD_SIZE)
         row = payloads[k]
-        if n >= 3 and row[0] == _BROADCAST:
+        if n >= 3 and row[0] == BROADCAST:
             rid = _i(row[1]) | (_i(row[2]) << 8)
             _neighbors_add(ring, ctl, rid, _to_u8(distances[k]), _to_u8(azimuths[k]),
                            _to_u8(elevations[k]), mark)
@@ -129,7 +136,7 @@ def _data_gc(ring: Any, ctl: Any) -> None:
     i = 0
     while i < ring_size(start, ctl[NB_END], slots):
         k = ((i + start) & 0xFF) % slots
-        if not ring[k, _NB_MARK] & _MARK:
+        if not ring[k, NB_MARK] & _MARK:
             pos = i
             while pos > 0:
                 a = ((((pos - 1) & 0xFF) + start) & 0xFF) % slots
@@ -141,7 +148,7 @@ def _data_gc(ring: Any, ctl: Any) -> None:
                 pos = (pos + 1) & 0xFF
             unmarked += 1
         else:
-            ring[k, _NB_MARK] &= 0xFF ^ _MARK
+            ring[k, NB_MARK] &= 0xFF ^ _MARK
         i = (i + 1) & 0xFF
     for _ in range(unmarked):
         if start != ctl[NB_END]:
@@ -162,27 +169,27 @@ def _drain(outq: Any, ctl: Any, index: int, out_payloads: Any, out_lengths: Any,
     while start != end:
         o = start * size
         out = out_payloads[row]
-        for j in range(_PAYLOAD):
+        for j in range(PAYLOAD_SIZE):
             out[j] = 0
         t = _i(outq[o])
         out[0] = t
-        out[1] = outq[o + _RID]
-        out[2] = outq[o + _RID + 1]
+        out[1] = outq[o + RID]
+        out[2] = outq[o + RID + 1]
         n = 3
-        if t == _BROADCAST:
-            if _i(outq[o + _BC_VALUE]) & 7 != _TABLE:
-                out[3] = outq[o + _BC_TOPIC]
-                out[4] = outq[o + _BC_TOPIC + 1]
+        if t == BROADCAST:
+            if _i(outq[o + BC_VALUE]) & 7 != TABLE:
+                out[3] = outq[o + BC_TOPIC]
+                out[4] = outq[o + BC_TOPIC + 1]
                 for j in range(3):
-                    out[5 + j] = outq[o + _BC_VALUE + j]
+                    out[5 + j] = outq[o + BC_VALUE + j]
                 n = 8
-        elif t == _VSTIG_PUT or t == _VSTIG_QUERY:
-            if _i(outq[o + _VS_DATA]) & 7 != _TABLE:
-                out[3] = outq[o + _VS_KEY]
-                out[4] = outq[o + _VS_KEY + 1]
+        elif t == VSTIG_PUT or t == VSTIG_QUERY:
+            if _i(outq[o + VS_DATA]) & 7 != TABLE:
+                out[3] = outq[o + VS_KEY]
+                out[4] = outq[o + VS_KEY + 1]
                 for j in range(3):
-                    out[5 + j] = outq[o + _VS_DATA + j]
-                out[8] = outq[o + _VS_LAMPORT]
+                    out[5 + j] = outq[o + VS_DATA + j]
+                out[8] = outq[o + VS_LAMPORT]
                 n = 9
         out_lengths[row] = n
         out_robots[row] = index

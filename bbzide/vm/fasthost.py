@@ -56,6 +56,8 @@ from bbzide.vm.fastloop import (
 )
 from bbzide.vm.fastring import ring_size, sort_ring_by_type
 from bbzide.vm.fasttables import darray_get, darray_size
+from bbzide.vm.heap import INT
+from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 from bbzide.vm.packed_queues import CTL_SLOTS, LATCH_ARGS, OUT_END, OUT_SLOTS, OUT_START, ROBOT
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
@@ -66,10 +68,6 @@ H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
 HOST_COLUMNS = 5
 HOST_BROADCAST, HOST_LATCH = 1, 2
 
-_INT = 1
-_BROADCAST = 0
-#: record offsets (messages.py): type, rid, broadcast topic and value
-_TYPE, _RID, _BC_TOPIC, _BC_VALUE = 0, 1, 3, 5
 
 
 def no_hosts() -> np.ndarray:
@@ -100,13 +98,13 @@ def out_append_broadcast(d: Any, outq: Any, ctl: Any, size: int, topic: int, val
         ctl[OUT_END] = ((end + 1) & 0xFF) % slots
     o = m * size
     rid = ctl[ROBOT] & 0xFFFF
-    outq[o + _TYPE] = _BROADCAST
-    outq[o + _RID] = rid & 0xFF
-    outq[o + _RID + 1] = rid >> 8
-    outq[o + _BC_TOPIC] = d[topic * s + 1]
-    outq[o + _BC_TOPIC + 1] = d[topic * s + 2]
+    outq[o + TYPE] = BROADCAST
+    outq[o + RID] = rid & 0xFF
+    outq[o + RID + 1] = rid >> 8
+    outq[o + BC_TOPIC] = d[topic * s + 1]
+    outq[o + BC_TOPIC + 1] = d[topic * s + 2]
     for j in range(s):
-        outq[o + _BC_VALUE + j] = d[value * s + j]
+        outq[o + BC_VALUE + j] = d[value * s + j]
     sort_ring_by_type(outq, ctl[OUT_START], ctl[OUT_END], slots, size, outq[:0])
 
 
@@ -147,7 +145,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, s: int, elems: int
         o = darray_get(d, lsyms, i, s, elems)
         if o < 0 or o >= nobj:
             return False
-        if kind == HOST_LATCH and _i(d[o * s]) & 7 != _INT:
+        if kind == HOST_LATCH and _i(d[o * s]) & 7 != INT:
             return False  # TYPE (or a string id the world would read as an int): Python
     sp = regs[R_SP]
     bp = regs[R_BP]

@@ -58,6 +58,8 @@ from bbzide.vm.fastloop import (
     _obj_alloc,
 )
 from bbzide.vm.fasttables import table_lookup
+from bbzide.vm.heap import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
+from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID
 
 # Slots of the ``inq`` array (in: the queue's values; out: the updated ones).
 Q_START, Q_END, Q_SLOTS, Q_RECORD = 0, 1, 2, 3   # ring start/end, ring slots, record bytes
@@ -71,13 +73,6 @@ DONE = 0            # the queue is empty or msg_in_proc_max messages were taken
 PYTHON_MESSAGE = 1  # message Q_COUNT's collection is done; Python extracts and processes it
 IN_CALL = 2         # a listener call is under way: fastloop.run returned inq[Q_INNER]
 
-_BROADCAST = 0
-_STRING, _INT, _USERDATA = 3, 1, 6
-_TYPE_MASK = 0x07
-_VALID = 0x08
-_PERMANENT = 0x10
-#: record offsets (messages.py): topic u16 at 3, the value object from 5, rid u16 at 1
-_RID, _TOPIC, _VALUE = 1, 3, 5
 #: pushes of one call: nil, listener, topic, value, sender id, then the argument count
 _PUSHES = 6
 #: objects one call allocates before its callc: topic string, value, sender id, count
@@ -94,7 +89,7 @@ def _room_for_objects(d: Any, regs: Any, s: int, reserved: int, wanted: int) -> 
     free = (regs[R_LTSEG] - rtobj) // s
     i = reserved
     while free < wanted and i < rtobj // s:
-        if not _i(d[i * s]) & _VALID:
+        if not _i(d[i * s]) & VALID:
             free += 1
         i += 1
     return free >= wanted
@@ -134,7 +129,7 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         # ---- anything but the happy path: Python takes the message from here
         head = ((start & 0xFF) % slots) * n
         sp = regs[R_SP]
-        if _i(records[head]) != _BROADCAST or sp + _PUSHES >= regs[R_STACK_SIZE] \
+        if _i(records[head]) != BROADCAST or sp + _PUSHES >= regs[R_STACK_SIZE] \
                 or not _room_for_objects(d, regs, s, reserved, _OBJECTS):
             return PYTHON_MESSAGE
         # ---- inmsg_extract: the head into the scratch record, pop
@@ -143,8 +138,8 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         inq[Q_START] = ((start + 1) & 0xFF) % slots
         inq[Q_EXTRACTED] += 1
         # ---- process_broadcast: topic string (kept above the top), listener lookup
-        sid = _i(records[scratch + _TOPIC]) | (_i(records[scratch + _TOPIC + 1]) << 8)
-        topic = _obj_alloc(d, regs, s, reserved, _STRING, sid)
+        sid = _i(records[scratch + BC_TOPIC]) | (_i(records[scratch + BC_TOPIC + 1]) << 8)
+        topic = _obj_alloc(d, regs, s, reserved, STRING, sid)
         d[topic * s + 1] = sid & 0xFF
         d[topic * s + 2] = sid >> 8
         stack[sp + 1] = topic
@@ -154,21 +149,21 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         stack[sp + 1] = regs[R_NIL]  # self
         stack[sp + 2] = listener
         stack[sp + 3] = topic
-        value = _obj_alloc(d, regs, s, reserved, _USERDATA, 0)  # bbzvm_pushu(0)
+        value = _obj_alloc(d, regs, s, reserved, USERDATA, 0)  # bbzvm_pushu(0)
         o = value * s
         for j in range(1, s):
             d[o + j] = 0
         stack[sp + 4] = value
-        d[o] = (_i(d[o]) & (0xFF ^ _TYPE_MASK ^ _PERMANENT)) | \
-            (_i(records[scratch + _VALUE]) & _TYPE_MASK)
+        d[o] = (_i(d[o]) & (0xFF ^ TYPE_MASK ^ PERMANENT)) | \
+            (_i(records[scratch + BC_VALUE]) & TYPE_MASK)
         for j in range(1, s):
-            d[o + j] = records[scratch + _VALUE + j]
-        sender = _obj_alloc(d, regs, s, reserved, _INT, 0)
-        d[sender * s + 1] = records[scratch + _RID]
-        d[sender * s + 2] = records[scratch + _RID + 1]
+            d[o + j] = records[scratch + BC_VALUE + j]
+        sender = _obj_alloc(d, regs, s, reserved, INT, 0)
+        d[sender * s + 1] = records[scratch + RID]
+        d[sender * s + 2] = records[scratch + RID + 1]
         stack[sp + 5] = sender
         # ---- closure_call(3): push the count, the kernel's callc, run to the return
-        argc = _obj_alloc(d, regs, s, reserved, _INT, 0)
+        argc = _obj_alloc(d, regs, s, reserved, INT, 0)
         d[argc * s + 1] = _LISTENER_ARGS
         d[argc * s + 2] = 0
         stack[sp + 6] = argc
@@ -211,7 +206,7 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     if sp + _CALL_PUSHES >= regs[R_STACK_SIZE] \
             or not _room_for_objects(d, regs, s, reserved, _CALL_OBJECTS):
         return PYTHON_MESSAGE
-    name = _obj_alloc(d, regs, s, reserved, _STRING, sid)
+    name = _obj_alloc(d, regs, s, reserved, STRING, sid)
     d[name * s + 1] = sid & 0xFF
     d[name * s + 2] = sid >> 8
     stack[sp + 1] = name  # push + pop: the slot above the top keeps it
@@ -220,7 +215,7 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         return NOT_DEFINED
     stack[sp + 1] = regs[R_NIL]
     stack[sp + 2] = closure
-    argc = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    argc = _obj_alloc(d, regs, s, reserved, INT, 0)
     d[argc * s + 1] = 0
     d[argc * s + 2] = 0
     stack[sp + 3] = argc

@@ -29,7 +29,21 @@ import numpy as np
 
 from bbzide.vm.fastgc import COMPILED, _compile, _i
 from bbzide.vm.fastring import ring_size, sort_ring_by_type
-from bbzide.vm.messages import PAYLOAD_RING_CAPACITY, PAYLOAD_SIZE
+from bbzide.vm.heap import VALID
+from bbzide.vm.message_layout import (
+    BC_TOPIC,
+    BC_VALUE,
+    BROADCAST,
+    PAYLOAD_RING_CAPACITY,
+    PAYLOAD_SIZE,
+    RID,
+    TYPE,
+    VS_DATA,
+    VS_KEY,
+    VS_LAMPORT,
+    VSTIG_PUT,
+    VSTIG_QUERY,
+)
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
@@ -43,16 +57,10 @@ NB_ROBOT, NB_DISTANCE, NB_AZIMUTH, NB_ELEVATION, NB_MARK = range(5)
 RING_COLUMNS = 5
 NB_FIELDS = 5
 
-_BROADCAST, _VSTIG_PUT, _VSTIG_QUERY = 0, 1, 2
-#: record offsets (messages.py): type, rid, broadcast topic/value, vstig lamport/key/data
-_TYPE, _RID, _BC_TOPIC, _BC_VALUE = 0, 1, 3, 5
-_VS_LAMPORT, _VS_KEY, _VS_DATA = 3, 4, 6
 #: bytes compared to find a queued duplicate: type, rid, topic (offsets 0 ... 4)
 _BROADCAST_KEY = 5
 #: ``neighbors.MARK``: the refreshed-since-the-last-data-GC bit
 _MARK = 0x01
-#: the object metadata's valid bit (heap.VALID), forced on in a decoded object
-_VALID = 0x08
 #: the most a u8 situated value can be (``robot._to_u8``)
 _U8_MAX = 255
 
@@ -76,7 +84,7 @@ def _read_object(records: Any, m: int, at: int, payload: Any, p: int, n: int) ->
     if n >= 8:
         records[m + at + 1] = payload[p + 6]
         records[m + at + 2] = payload[p + 7]
-    records[m + at] = _i(records[m + at]) | _VALID
+    records[m + at] = _i(records[m + at]) | VALID
 
 
 @_compile
@@ -85,41 +93,41 @@ def _inmsg_append(records: Any, rings: Any, size: int, payload: Any, p: int, n: 
     """``messages.inmsg_append`` of ``payload[p:p + n]`` (n already cut to the ring's)."""
     slots = rings[IN_SLOTS]
     m = slots * size  # the scratch record (records[capacity])
-    records[m + _TYPE] = 0
+    records[m + TYPE] = 0
     if n < 1:
         return
     t = _i(payload[p])
-    records[m + _TYPE] = t
+    records[m + TYPE] = t
     if n < 3:
         return
-    records[m + _RID] = payload[p + 1]
-    records[m + _RID + 1] = payload[p + 2]
-    if t == _BROADCAST:
+    records[m + RID] = payload[p + 1]
+    records[m + RID + 1] = payload[p + 2]
+    if t == BROADCAST:
         if n < 5:
             return
-        records[m + _BC_TOPIC] = payload[p + 3]
-        records[m + _BC_TOPIC + 1] = payload[p + 4]
+        records[m + BC_TOPIC] = payload[p + 3]
+        records[m + BC_TOPIC + 1] = payload[p + 4]
         if n < 6:
             return
-        _read_object(records, m, _BC_VALUE, payload, p, n)
+        _read_object(records, m, BC_VALUE, payload, p, n)
         if n < 8:
             return
-    elif t == _VSTIG_PUT or t == _VSTIG_QUERY:
+    elif t == VSTIG_PUT or t == VSTIG_QUERY:
         if n < 5:
             return
-        records[m + _VS_KEY] = payload[p + 3]
-        records[m + _VS_KEY + 1] = payload[p + 4]
+        records[m + VS_KEY] = payload[p + 3]
+        records[m + VS_KEY + 1] = payload[p + 4]
         if n < 6:
             return
-        _read_object(records, m, _VS_DATA, payload, p, n)
+        _read_object(records, m, VS_DATA, payload, p, n)
         if n < 9:
             return
-        records[m + _VS_LAMPORT] = payload[p + 8]
+        records[m + VS_LAMPORT] = payload[p + 8]
     else:
         return
     start = rings[IN_START]
     end = rings[IN_END]
-    if t == _BROADCAST:
+    if t == BROADCAST:
         for i in range(ring_size(start, end, slots)):
             k = (((i + start) & 0xFF) % slots) * size
             same = True
@@ -194,7 +202,7 @@ def receive_all(records: Any, ring: Any, rings: Any, size: int, payloads: Any,
     p = 0
     for i in range(count):
         n = min(_i(lengths[i]), PAYLOAD_RING_CAPACITY - 1)
-        if n >= 3 and payloads[p] == _BROADCAST:
+        if n >= 3 and payloads[p] == BROADCAST:
             rid = _i(payloads[p + 1]) | (_i(payloads[p + 2]) << 8)
             _neighbors_add(ring, rings, rid, _to_u8(situated[i]),
                            _to_u8(situated[count + i]), _to_u8(situated[2 * count + i]),

@@ -27,6 +27,21 @@ import numpy as np
 
 from bbzide.vm import fasthost, fastinbox, fastloop
 from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
+from bbzide.vm.message_layout import (  # noqa: F401 - the wire format's names, re-exported
+    BC_TOPIC,
+    BC_VALUE,
+    BROADCAST,
+    PAYLOAD_RING_CAPACITY,
+    PAYLOAD_SIZE,
+    RID,
+    SWARM,
+    TYPE,
+    VS_DATA,
+    VS_KEY,
+    VS_LAMPORT,
+    VSTIG_PUT,
+    VSTIG_QUERY,
+)
 from bbzide.vm.tables import table_get
 
 if TYPE_CHECKING:
@@ -37,22 +52,11 @@ R = TypeVar("R")
 #: the compiled in-queue loop is used when numba compiles it (else Python alone)
 _INBOX_KERNEL = fastloop.COMPILED
 
-BROADCAST, VSTIG_PUT, VSTIG_QUERY, SWARM = 0, 1, 2, 3
-
-#: bytes of a wire payload: Kilobot ``message_t.data[9]`` (spec §F.4)
-PAYLOAD_SIZE = 9
-#: capacity of the payload ring buffer a payload is serialised into (11 slots, one unused:
-#: ``bbzkilobot.c``), so a serialised payload can never exceed 10 bytes
-PAYLOAD_RING_CAPACITY = 11
-
-# Field offsets inside a record (packed union, see the module comment).
-_TYPE, _RID, _BC_TOPIC, _BC_VALUE = 0, 1, 3, 5
-_VS_LAMPORT, _VS_KEY, _VS_DATA = 3, 4, 6
 
 
 def record_size(obj_size: int) -> int:
     """``sizeof(bbzmsg_t)``: the vstig member is the largest (6 bytes + one object)."""
-    return _VS_DATA + obj_size
+    return VS_DATA + obj_size
 
 
 class RingBuffer(Generic[R]):
@@ -127,7 +131,7 @@ class RingBuffer(Generic[R]):
         where = self.indices()
         records = self.records
         queued = [records[k] for k in where]
-        types = [r[_TYPE] for r in queued]  # type: ignore[index]
+        types = [r[TYPE] for r in queued]  # type: ignore[index]
         if types == sorted(types):
             return
         order = sorted(range(len(queued)), key=types.__getitem__)
@@ -177,46 +181,46 @@ def _set_u16(rec: bytearray, off: int, value: int) -> None:
 
 
 def rec_type(rec: bytearray) -> int:
-    return rec[_TYPE]
+    return rec[TYPE]
 
 
 def rec_rid(rec: bytearray) -> int:
-    return _u16(rec, _RID)
+    return _u16(rec, RID)
 
 
 def rec_topic(rec: bytearray) -> int:
-    return _u16(rec, _BC_TOPIC)
+    return _u16(rec, BC_TOPIC)
 
 
 def rec_key(rec: bytearray) -> int:
-    return _u16(rec, _VS_KEY)
+    return _u16(rec, VS_KEY)
 
 
 def rec_lamport(rec: bytearray) -> int:
-    return rec[_VS_LAMPORT]
+    return rec[VS_LAMPORT]
 
 
 def rec_value(rec: bytearray, obj_size: int) -> bytes:
     """The object copy (S bytes) a broadcast or vstig record carries."""
-    off = _BC_VALUE if rec[_TYPE] == BROADCAST else _VS_DATA
+    off = BC_VALUE if rec[TYPE] == BROADCAST else VS_DATA
     return bytes(rec[off:off + obj_size])
 
 
 # ---- serialisation (bbzoutmsg_queue_first) ---------------------------------------------
 def serialize(rec: bytearray, obj_size: int) -> bytes:
     """The payload the firmware sends for a record (a table value stops after the rid)."""
-    t = rec[_TYPE]
-    out = bytearray([t, rec[_RID], rec[_RID + 1]])
+    t = rec[TYPE]
+    out = bytearray([t, rec[RID], rec[RID + 1]])
     if t == BROADCAST:
-        value = rec[_BC_VALUE:_BC_VALUE + obj_size]
+        value = rec[BC_VALUE:BC_VALUE + obj_size]
         if value[0] & 7 == 4:  # bbztype_istable: only type, rid are sent
             return bytes(out)
-        out += rec[_BC_TOPIC:_BC_TOPIC + 2] + value[:3]
+        out += rec[BC_TOPIC:BC_TOPIC + 2] + value[:3]
     elif t in (VSTIG_PUT, VSTIG_QUERY):
-        data = rec[_VS_DATA:_VS_DATA + obj_size]
+        data = rec[VS_DATA:VS_DATA + obj_size]
         if data[0] & 7 == 4:
             return bytes(out)
-        out += rec[_VS_KEY:_VS_KEY + 2] + data[:3] + bytes([rec[_VS_LAMPORT]])
+        out += rec[VS_KEY:VS_KEY + 2] + data[:3] + bytes([rec[VS_LAMPORT]])
     return bytes(out)
 
 
@@ -242,41 +246,41 @@ def inmsg_append(queues: MessageQueues, payload: bytes) -> bool:
     payload = payload[:PAYLOAD_RING_CAPACITY - 1]
     m = q.records[q.capacity]
     n = len(payload)
-    m[_TYPE] = 0
+    m[TYPE] = 0
     if n < 1:
         return False
-    m[_TYPE] = payload[0]
+    m[TYPE] = payload[0]
     if n < 3:
         return False
-    m[_RID:_RID + 2] = payload[1:3]
+    m[RID:RID + 2] = payload[1:3]
     t = payload[0]
     if t == BROADCAST:
         if n < 5:
             return False
-        m[_BC_TOPIC:_BC_TOPIC + 2] = payload[3:5]
+        m[BC_TOPIC:BC_TOPIC + 2] = payload[3:5]
         if n < 6:
             return False
-        _read_object(m, _BC_VALUE, payload)
+        _read_object(m, BC_VALUE, payload)
         if n < 8:
             return False
     elif t in (VSTIG_PUT, VSTIG_QUERY):
         if n < 5:
             return False
-        m[_VS_KEY:_VS_KEY + 2] = payload[3:5]
+        m[VS_KEY:VS_KEY + 2] = payload[3:5]
         if n < 6:
             return False
-        _read_object(m, _VS_DATA, payload)
+        _read_object(m, VS_DATA, payload)
         if n < 9:
             return False
-        m[_VS_LAMPORT] = payload[8]
+        m[VS_LAMPORT] = payload[8]
     else:
         return False
     if t == BROADCAST:
         records = q.records
-        key = m[_TYPE:_BC_TOPIC + 2]  # type, rid, topic: contiguous (_TYPE = 0 ... 4)
+        key = m[TYPE:BC_TOPIC + 2]  # type, rid, topic: contiguous (TYPE = 0 ... 4)
         for k in q.indices():
             rec = records[k]
-            if rec[_TYPE:_BC_TOPIC + 2] == key:
+            if rec[TYPE:BC_TOPIC + 2] == key:
                 rec[:] = m
                 return True
     if q.full():
@@ -311,21 +315,21 @@ def _out_template(queues: MessageQueues) -> bytearray:
 def outmsg_append_broadcast(queues: MessageQueues, rid: int, topic: int,
                             value_obj: bytes) -> None:
     m = _out_template(queues)
-    m[_TYPE] = BROADCAST
-    _set_u16(m, _RID, rid)
-    _set_u16(m, _BC_TOPIC, topic)
-    m[_BC_VALUE:_BC_VALUE + len(value_obj)] = value_obj
+    m[TYPE] = BROADCAST
+    _set_u16(m, RID, rid)
+    _set_u16(m, BC_TOPIC, topic)
+    m[BC_VALUE:BC_VALUE + len(value_obj)] = value_obj
     queues.outbox.sort_by_type()
 
 
 def outmsg_append_vstig(queues: MessageQueues, typ: int, rid: int, key: int,
                         value_obj: bytes, lamport: int) -> None:
     m = _out_template(queues)
-    m[_TYPE] = typ
-    _set_u16(m, _RID, rid)
-    m[_VS_LAMPORT] = lamport & 0xFF
-    _set_u16(m, _VS_KEY, key)
-    m[_VS_DATA:_VS_DATA + len(value_obj)] = value_obj
+    m[TYPE] = typ
+    _set_u16(m, RID, rid)
+    m[VS_LAMPORT] = lamport & 0xFF
+    _set_u16(m, VS_KEY, key)
+    m[VS_DATA:VS_DATA + len(value_obj)] = value_obj
     queues.outbox.sort_by_type()
 
 
@@ -362,7 +366,7 @@ def process_broadcast(vm: VM, rec: bytearray) -> bool:
     if sp + 5 >= vm.stack_size:
         return _process_broadcast_checked(vm, rec)
     stack = vm.stack
-    topic = vm.new_string_obj(rec[_BC_TOPIC] | (rec[_BC_TOPIC + 1] << 8))
+    topic = vm.new_string_obj(rec[BC_TOPIC] | (rec[BC_TOPIC + 1] << 8))
     stack[sp + 1] = topic  # push_string + pop: the slot above the top keeps it
     listener = table_get(h, vm.neighbors.listeners, topic)
     if listener is None:
@@ -382,9 +386,9 @@ def process_broadcast(vm: VM, rec: bytearray) -> bool:
     stack[sp + 4] = x
     o = x * s
     d = h.data
-    d[o] = (d[o] & ~TYPE_MASK & ~PERMANENT & 0xFF) | (rec[_BC_VALUE] & TYPE_MASK)
-    d[o + 1:o + s] = rec[_BC_VALUE + 1:_BC_VALUE + s]
-    stack[sp + 5] = vm.new_int(rec[_RID] | (rec[_RID + 1] << 8))
+    d[o] = (d[o] & ~TYPE_MASK & ~PERMANENT & 0xFF) | (rec[BC_VALUE] & TYPE_MASK)
+    d[o + 1:o + s] = rec[BC_VALUE + 1:BC_VALUE + s]
+    stack[sp + 5] = vm.new_int(rec[RID] | (rec[RID + 1] << 8))
     vm.stackptr = sp + 5
     vm.closure_call(3)
     vm.pop()
@@ -468,7 +472,7 @@ def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> No
         if vm.state == State.ERROR:
             return
         rec = inmsg_extract(q)
-        t = rec[_TYPE]
+        t = rec[TYPE]
         if t == BROADCAST:
             collected = process_broadcast(vm, rec)
         elif t in (VSTIG_PUT, VSTIG_QUERY):
