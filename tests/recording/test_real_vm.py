@@ -261,3 +261,30 @@ def test_warm_up_of_one_robot_then_the_rest(recorded: dict) -> None:
     session.warm_up()
     gc.unfreeze()
     assert {index for index, _ in session.rebuilder._booted} == set(range(ROBOTS))
+
+
+def test_a_recording_of_pickled_snapshots_still_rebuilds_exactly(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Recordings of formats 2 and 3 hold pickled keyframes (the layout before the flat one,
+    vm/snapshot_layout.py): recorded that way, robots still rebuild to the live state."""
+    spec = WORLDS["kilobot"]
+    program = load_script(REPO / "examples/kilobot/gradient.bzz", spec.host_names, [])
+    recordable = Recordable()
+    sim = Simulation("kilobot", program, robots=4, seed=7, robot_factory=recordable.factory)
+    path = tmp_path / "old.rrd"
+    live = {}
+    with monkeypatch.context() as patch:
+        patch.setattr(Robot, "snapshot", Robot.pickled_snapshot)
+        with MissionRecorder(path, sim, recordable, keyframe_every=10) as recorder:
+            for _ in range(25):
+                sim.step()
+                recorder.record_step()
+                live[sim.step_count] = [Robot.comparable(s.robot.snapshot())
+                                        for s in sim.robots]
+    recording = read_recording(path)
+    rebuilder = RobotRebuilder(recording)
+    assert rebuilder.snapshot(1, recording.keyframes[1][-1]).startswith(b"\x80")
+    for index, step in ((0, 3), (1, 12), (2, 20), (3, 25)):
+        rebuilt = rebuilder.robot_at(index, step)
+        assert rebuilt.snapshot().startswith(b"BZR")  # written flat again once restored
+        assert Robot.comparable(rebuilt.snapshot()) == live[step][index], (index, step)
