@@ -378,17 +378,11 @@ class Robot:
     # ---- state ---------------------------------------------------------------------------
     def snapshot(self) -> bytes:
         """The whole robot state (VM heap and records, loop bookkeeping) as bytes: the flat
-        layout of `snapshot_layout` when the VM's snapshot is flat, else pickled."""
-        vm_snapshot = self.vm.snapshot()
-        failure = self.failure
-        flat = snapshot_layout.robot_bytes(
-            vm_snapshot, None if failure is None else
-            (failure.reason, failure.pc, failure.location, failure.message),
-            self.steps_done, self.booted) if type(failure) in (RobotFailure, type(None)) \
-            else None
+        layout of `snapshot_layout` for a state of the usual shape, else pickled."""
+        flat = snapshot_layout.robot_bytes(self)
         if flat is not None:
             return flat
-        return pickle.dumps((vm_snapshot, failure, self.steps_done, self.booted))
+        return pickle.dumps((self.vm.snapshot(), self.failure, self.steps_done, self.booted))
 
     def pickled_snapshot(self) -> bytes:
         """The robot state in the pickled layout only (recordings of formats 2 and 3)."""

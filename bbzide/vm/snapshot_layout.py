@@ -46,9 +46,11 @@ from bbzide.diagnostics import SourceLocation
 from bbzide.vm.messages import MessageQueues, RingBuffer, record_size
 from bbzide.vm.neighbors import NeighborEntry, NeighborsState
 from bbzide.vm.swarm import SwarmState
+from bbzide.vm.vm import Error, State
 from bbzide.vm.vstig import VstigEntry, VstigStore
 
 if TYPE_CHECKING:
+    from bbzide.vm.robot import Robot
     from bbzide.vm.vm import VM
 
 #: first bytes of a flat VM / robot snapshot (a pickle starts with 0x80, protocol 2+)
@@ -109,7 +111,9 @@ def _only_ints(values: Any) -> bool:
 def _rows(records: list[Any], cls: type, get: Callable[[Any], Any], width: int) -> Any:
     """The records' fields as one int64 array, or None when any record is not exactly a
     `cls` holding `width` int fields (then the snapshot is pickled)."""
-    if set(map(type, records)) - {cls}:
+    if not records:
+        return _NO_ROWS
+    if set(map(type, records)) != {cls}:
         return None
     if len(gc.get_referents(*records)) != (width + 1) * len(records):
         return None
@@ -117,31 +121,35 @@ def _rows(records: list[Any], cls: type, get: Callable[[Any], Any], width: int) 
     if not _only_ints(flat):
         return None
     try:
-        return array("q", flat)
+        return _le(array("q", flat))
     except OverflowError:
         return None
 
 
-def vm_bytes(vm: VM) -> bytes | None:
-    """The VM's state in this layout, or None when it has another shape (see the module)."""
-    from bbzide.vm.vm import Error, State
+_NO_ROWS = array("q")
+#: the classes of (swarm, vstig, neighbors, queues, inbox, outbox, ring, state, error,
+#: bytecode, stack, stigmergy entries, ring records, inbox records, outbox records)
+_SHAPE = (SwarmState, VstigStore, NeighborsState, MessageQueues, RingBuffer, RingBuffer,
+          RingBuffer, State, Error, bytes, array, list, list, list, list)
 
+
+def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
+    """The VM's state in this layout as bytes-like parts to join, and their total length;
+    None when it has another shape (see the module). Written for speed: a keyframe is one
+    call, on the simulation's thread, with the caches cold from the step before."""
     swarm, vstig = vm.swarm, vm.vstig
     queues, neighbors = vm._queues, vm._neighbors
     inbox, outbox, ring = queues.inbox, queues.outbox, neighbors.ring
-    heap, stack, bcode = vm.heap, vm.stack, vm.bcode
-    if (type(swarm) is not SwarmState or type(vstig) is not VstigStore
-            or type(neighbors) is not NeighborsState or type(queues) is not MessageQueues
-            or type(inbox) is not RingBuffer or type(outbox) is not RingBuffer
-            or type(ring) is not RingBuffer or type(vm.state) is not State
-            or type(vm.error) is not Error or type(bcode) is not bytes
-            or type(stack) is not array or stack.typecode != "H"
-            or type(vstig.entries) is not list or type(ring.records) is not list
-            or type(inbox.records) is not list or type(outbox.records) is not list
+    heap, stack, bcode, entries = vm.heap, vm.stack, vm.bcode, vstig.entries
+    if ((type(swarm), type(vstig), type(neighbors), type(queues), type(inbox), type(outbox),
+         type(ring), type(vm.state), type(vm.error), type(bcode), type(stack), type(entries),
+         type(ring.records), type(inbox.records), type(outbox.records)) != _SHAPE
+            or stack.typecode != "H"
             or len(gc.get_referents(swarm, vstig, neighbors, queues, inbox, outbox, ring))
             != _CONTAINER_REFERENTS):
         return None
     record = record_size(queues.obj_size)
+    in_count, out_count = len(inbox.records), len(outbox.records)
     packed = vm._packed if vm._packed_live else None
     if packed is not None:
         # the arrays hold the truth: read them as `PackedQueues.unpack` would write them back
@@ -161,39 +169,53 @@ def vm_bytes(vm: VM) -> bytes | None:
         ring_rows = None
     if ring_rows is None:
         ring_rows = _rows(ring.records, NeighborEntry, _ring_row, len(_RING_FIELDS))
-        if ring_rows is None:
-            return None
-        ring_rows = _le(ring_rows)
-    entries = _rows(vstig.entries, VstigEntry, _vstig_row, len(_VSTIG_FIELDS))
-    if entries is None:
+    rows = _rows(entries, VstigEntry, _vstig_row, len(_VSTIG_FIELDS))
+    if ring_rows is None or rows is None:
         return None
     events = vm.error_events
-    if any(type(e) is not tuple or len(e) != 2 or type(e[0]) is not str
-           or type(e[1]) is not int for e in events):
-        return None
+    tail: list[bytes] = []
+    if events:
+        if type(events) is not list:
+            return None
+        for event in events:
+            if type(event) is not tuple or len(event) != 2 or type(event[0]) is not str:
+                return None
+            name, pc = event
+            try:
+                encoded = name.encode()
+                tail += (_EVENT.pack(pc, len(encoded)), encoded)
+            except (struct.error, UnicodeEncodeError):
+                return None
+    ring_count = len(ring.records)
     values = (
         len(heap.data), heap.rtobj, heap.ltseg, heap.peak_used, heap.gc_runs,
         len(stack), vm.stackptr, vm.blockptr, vm.pc, int(vm.state), int(vm.error), vm.lsyms,
         vm.gsyms, vm.nil, vm.dflt_actrec, vm.flist, vm.robot, vm.instructions_executed,
         swarm.hpos, swarm.swarmstack, swarm.my_swarmlist,
-        vstig.hpos, len(vstig.entries),
+        vstig.hpos, len(entries),
         neighbors.hpos, neighbors.listeners, clear_counter, neighbors.count,
-        ring.capacity, ring_start, ring_end, len(ring.records),
+        ring.capacity, ring_start, ring_end, ring_count,
         queues.in_capacity, queues.out_capacity, queues.obj_size, record,
-        inbox.capacity, in_start, in_end, len(inbox.records),
-        outbox.capacity, out_start, out_end, len(outbox.records),
+        inbox.capacity, in_start, in_end, in_count,
+        outbox.capacity, out_start, out_end, out_count,
         len(bcode), len(events),
     )
-    if not _only_ints(values):
+    if not _only_ints(values) or (tail and not _only_ints([e[1] for e in events])):
         return None
     try:
         head = _VM_HEAD.pack(VM_MAGIC, *values)
-        tail = [b"".join((_EVENT.pack(pc, len(name.encode())), name.encode()))
-                for name, pc in events]
-    except (struct.error, UnicodeEncodeError):
+    except struct.error:
         return None
-    return b"".join((head, heap.data, _le(stack), inq, outq, ring_rows, bcode,
-                     _le(entries), *tail))
+    length = (_VM_HEAD.size + values[0] + 2 * values[5] + record * (in_count + out_count)
+              + 8 * (len(_RING_FIELDS) * ring_count + len(_VSTIG_FIELDS) * len(entries))
+              + len(bcode) + sum(map(len, tail)))
+    return [head, heap.data, _le(stack), inq, outq, ring_rows, bcode, rows, *tail], length
+
+
+def vm_bytes(vm: VM) -> bytes | None:
+    """The VM's state in this layout, or None when it has another shape (see the module)."""
+    found = vm_parts(vm)
+    return None if found is None else b"".join(found[0])
 
 
 class _Reader:
@@ -286,33 +308,38 @@ def _decode_vm(data: bytes, at: int, end: int) -> tuple[Any, ...]:
 Failure = tuple[str, int, SourceLocation | None, str]
 
 
-def robot_bytes(vm_snapshot: bytes, failure: Failure | None, steps_done: int,
-                booted: bool) -> bytes | None:
-    """A robot's snapshot in this layout around its VM's flat snapshot, or None when the
-    VM's is a pickle or the bookkeeping has another shape (then the robot's is pickled)."""
-    if not vm_snapshot.startswith(VM_MAGIC) or type(steps_done) is not int \
-            or type(booted) is not bool:
+def robot_bytes(robot: Robot) -> bytes | None:
+    """A robot's snapshot in this layout (its VM's flat snapshot inside), or None when the
+    VM's state or the robot's bookkeeping has another shape (then the robot's is pickled)."""
+    from bbzide.vm.robot import RobotFailure
+
+    steps_done, booted, failure = robot.steps_done, robot.booted, robot.failure
+    if type(steps_done) is not int or type(booted) is not bool:
         return None
+    found = vm_parts(robot.vm)
+    if found is None:
+        return None
+    parts, length = found
     try:
-        head = _ROBOT_HEAD.pack(ROBOT_MAGIC, steps_done, booted, failure is not None,
-                                len(vm_snapshot))
-        if failure is None:
-            return head + vm_snapshot
-        reason, pc, location, message = failure
-        if type(location) not in (SourceLocation, type(None)) or not _only_ints(
-                (pc, *((location.line, location.col) if location else ()))):
-            return None
-        parts = [head, vm_snapshot, _FAILURE_HEAD.pack(
-            pc, location is not None, location.line if location else 0,
-            location.col if location else 0)]
-        for text in (reason, message, location.file if location else ""):
-            if type(text) is not str:
+        head = _ROBOT_HEAD.pack(ROBOT_MAGIC, steps_done, booted, failure is not None, length)
+        if failure is not None:
+            location = failure.location
+            if type(failure) is not RobotFailure \
+                    or type(location) not in (SourceLocation, type(None)) \
+                    or not _only_ints((failure.pc, *((location.line, location.col)
+                                                     if location else ()))):
                 return None
-            encoded = text.encode()
-            parts += (_LENGTH.pack(len(encoded)), encoded)
+            parts.append(_FAILURE_HEAD.pack(failure.pc, location is not None,
+                                            location.line if location else 0,
+                                            location.col if location else 0))
+            for text in (failure.reason, failure.message, location.file if location else ""):
+                if type(text) is not str:
+                    return None
+                encoded = text.encode()
+                parts += (_LENGTH.pack(len(encoded)), encoded)
     except (struct.error, UnicodeEncodeError):
         return None
-    return b"".join(parts)
+    return b"".join((head, *parts))
 
 
 def decode_robot(data: bytes) -> tuple[tuple[Any, ...], Failure | None, int, bool]:
