@@ -38,8 +38,8 @@ import struct
 import sys
 from array import array
 from collections.abc import Callable
-from itertools import chain
-from operator import attrgetter
+from itertools import starmap
+from operator import attrgetter, countOf
 from typing import TYPE_CHECKING, Any
 
 from bbzide.diagnostics import SourceLocation
@@ -84,6 +84,8 @@ _RING_FIELDS = ("robot", "distance", "azimuth", "elevation", "mark")
 _VSTIG_FIELDS = ("key", "value", "timestamp", "robot")
 _ring_row = attrgetter(*_RING_FIELDS)
 _vstig_row = attrgetter(*_VSTIG_FIELDS)
+_RING_ROW = struct.Struct(f"<{len(_RING_FIELDS)}q")
+_VSTIG_ROW = struct.Struct(f"<{len(_VSTIG_FIELDS)}q")
 #: `gc.get_referents` of the seven container records (swarm, vstig, neighbors, queues, three
 #: rings) when each holds exactly its attributes as inline values: one per attribute plus its
 #: class each (see snapshot_pickle._exactly; a made `__dict__` or an extra attribute differs)
@@ -105,28 +107,39 @@ def _le(buffer: Any) -> Any:
 
 
 def _only_ints(values: Any) -> bool:
-    return not set(map(type, values)) - {int}
+    """Whether every value is exactly an int (a bool or an int enum would come back as one)."""
+    return countOf(map(type, values), int) == len(values)
 
 
-def _rows(records: list[Any], cls: type, get: Callable[[Any], Any], width: int) -> Any:
-    """The records' fields as one int64 array, or None when any record is not exactly a
-    `cls` holding `width` int fields (then the snapshot is pickled)."""
+def _rows(records: list[Any], cls: type, get: Callable[[Any], Any], row: struct.Struct,
+          width: int) -> bytes | None:
+    """The records' `width` fields as int64 rows, or None when any record is not exactly a
+    `cls` holding those fields as ints (then the snapshot is pickled).
+
+    The checks, cheapest first: every record's class is `cls`; then `gc.get_referents` of all
+    records at once: each record's inline values followed by its class (a made `__dict__`
+    shows as one dict instead). `width + 1` objects a record, with the class at every
+    `width + 1`-th place, means every record holds exactly `width` attributes (a record with
+    fewer or more would shift the classes off those places); `width` ints a record means they
+    are all ints and there is no dict. Like `snapshot_pickle._exactly`, this counts attributes
+    and reads them by name, so a record that lost a field that has a class default (`mark`)
+    and gained another attribute would pass: nothing does that to the VM's records.
+    """
     if not records:
-        return _NO_ROWS
+        return b""
+    count = len(records)
     if set(map(type, records)) != {cls}:
         return None
-    if len(gc.get_referents(*records)) != (width + 1) * len(records):
-        return None
-    flat = list(chain.from_iterable(map(get, records)))
-    if not _only_ints(flat):
+    held = gc.get_referents(*records)
+    if len(held) != (width + 1) * count or countOf(held[width::width + 1], cls) != count \
+            or countOf(map(type, held), int) != width * count:
         return None
     try:
-        return _le(array("q", flat))
-    except OverflowError:
+        return b"".join(starmap(row.pack, map(get, records)))
+    except (AttributeError, struct.error):
         return None
 
 
-_NO_ROWS = array("q")
 #: the classes of (swarm, vstig, neighbors, queues, inbox, outbox, ring, state, error,
 #: bytecode, stack, stigmergy entries, ring records, inbox records, outbox records)
 _SHAPE = (SwarmState, VstigStore, NeighborsState, MessageQueues, RingBuffer, RingBuffer,
@@ -168,8 +181,8 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
         inq, outq = b"".join(inbox.records), b"".join(outbox.records)
         ring_rows = None
     if ring_rows is None:
-        ring_rows = _rows(ring.records, NeighborEntry, _ring_row, len(_RING_FIELDS))
-    rows = _rows(entries, VstigEntry, _vstig_row, len(_VSTIG_FIELDS))
+        ring_rows = _rows(ring.records, NeighborEntry, _ring_row, _RING_ROW, len(_RING_FIELDS))
+    rows = _rows(entries, VstigEntry, _vstig_row, _VSTIG_ROW, len(_VSTIG_FIELDS))
     if ring_rows is None or rows is None:
         return None
     events = vm.error_events

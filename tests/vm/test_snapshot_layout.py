@@ -119,6 +119,18 @@ def test_a_state_of_another_shape_is_pickled_and_restores() -> None:
     robot = swarm(KILOBOT, 1)[0]
     robot.vm.swarm.extra = 1  # type: ignore[attr-defined] - an attribute beyond the fields
     assert robot.snapshot().startswith(b"\x80")
+    robot = swarm(KILOBOT, 1)[0]
+    robot.vm.neighbors.ring.records[3].mark = True  # a bool: would come back as an int
+    assert robot.snapshot().startswith(b"\x80")
+    robot = swarm(KILOBOT, 1)[0]
+    entries = robot.vm.neighbors.ring.records
+    del entries[1].mark  # one field fewer here, one attribute more there: the counts add up
+    entries[2].extra = 0  # type: ignore[attr-defined]
+    snapshot = robot.snapshot()
+    assert snapshot.startswith(b"\x80")
+    other = swarm(KILOBOT, 1)[0]
+    other.restore(snapshot)
+    assert other.vm.neighbors.ring.records[2].extra == 0  # type: ignore[attr-defined]
 
 
 def test_damaged_or_crafted_flat_snapshots_are_refused() -> None:
