@@ -2,11 +2,12 @@
 
 Design: a keyframe is one robot's `snapshot()` bytes. Between two keyframes of a robot little
 of it changes: an M300 SAR drone's snapshot is ~70 KB, of which the heap is 60 KB at a fixed
-offset (the heap comes first in the pickle), and a few KB of it are live objects. So most
-keyframes are stored as a *block delta* against the robot's previous keyframe: the snapshot cut
-into `BLOCK`-byte blocks, and only the blocks that differ are kept, with their numbers.
+offset (right after the snapshot's fixed header, vm/snapshot_layout.py), and a few KB of it are
+live objects. So most keyframes are stored as a *block delta* against the robot's previous
+keyframe: the snapshot cut into `BLOCK`-byte blocks, and only the blocks that differ are kept,
+with their numbers.
 
-Finding them is a few numpy operations over the bytes (tens of microseconds), and only the
+Finding them is a few numpy operations over the bytes in place (tens of microseconds), and only the
 changed blocks are compressed (compression.py). The former XOR delta ran zlib over all 70 KB
 of the mostly-zero XOR (and the reader inflated 70 KB per link of a chain).
 A chain is bounded by the recorder (a full keyframe every `FULL_KEYFRAME_EVERY`), and
@@ -29,9 +30,10 @@ from bbzide.recording.compression import KEYFRAME_LEVEL, CompressionError, Compr
 
 #: 64-byte blocks: an M300 table segment is 2 + 6 x 9 = 56 bytes, so one changed value dirties
 #: one or two blocks. Measured on SAR keyframes 25 steps apart, 32- to 256-byte blocks all keep
-#: 10.4-11.4 KB of 70 (most of it the records pickled after the heap, which shift when they
-#: grow), so the size hardly decides; 64 = 8 words lets `encode_delta` read each block's 8
-#: word comparisons as one u64 (the code relies on it).
+#: 10.4-11.4 KB of 70 (most of it the records then pickled after the heap, which shifted when
+#: they grew; a flat snapshot keeps all but its last sections at fixed offsets), so the size
+#: hardly decides; 64 = 8 words lets `encode_delta` read each block's 8 word comparisons as
+#: one u64 (the code relies on it).
 BLOCK = 64
 #: A full keyframe every 16 of a robot; the others are deltas, so decoding one applies at most
 #: 15 deltas (a numpy scatter each) to one inflated snapshot.

@@ -20,7 +20,9 @@ FORMAT = "bbzide-mission"
 #: packed messages, XOR deltas, zlib). 3 (session 5): a latched host function's happy-path
 #: calls (a Kilobot's `led`: see `input_log.SwarmCapture.tap`) are not in the input log, the
 #: meta says which functions are latched (`latched`); version 2 files read as before.
-FORMAT_VERSION = 3
+#: 4 (session 6): keyframes hold flat snapshots (vm/snapshot_layout.py), which an older bbzide
+#: would try to unpickle; versions 2 and 3 (pickled keyframes) still read and rebuild.
+FORMAT_VERSION = 4
 OLDEST_READABLE = 2
 APPLICATION_ID = "bbzide"
 

@@ -218,7 +218,7 @@ class RobotRebuilder:
     def _restore(self, index: int, keyframe: Keyframe) -> tuple[Any, ReplayHostFunctions]:
         """Robot `index` at `keyframe`. One booted Robot per (robot, program) is kept and
         restored again for every seek: booting runs the script's top level and `init` (tens
-        of ms for the SAR script), restoring only unpickles."""
+        of ms for the SAR script), restoring only decodes the snapshot."""
         from bbzide.vm.profiles import PROFILES
 
         meta = self.recording.meta
