@@ -167,7 +167,7 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
     if packed is not None:
         # the arrays hold the truth: read them as `PackedQueues.unpack` would write them back
         (in_start, in_end, _, ring_start, ring_end, _, out_start, out_end, _,
-         clear_counter) = packed.ctl[:10].tolist()
+         clear_counter) = packed.ctl.tolist()[:10]
         inq, outq = packed.inq, packed.outq
         if packed.record != record:
             return None
@@ -324,8 +324,6 @@ Failure = tuple[str, int, SourceLocation | None, str]
 def robot_bytes(robot: Robot) -> bytes | None:
     """A robot's snapshot in this layout (its VM's flat snapshot inside), or None when the
     VM's state or the robot's bookkeeping has another shape (then the robot's is pickled)."""
-    from bbzide.vm.robot import RobotFailure
-
     steps_done, booted, failure = robot.steps_done, robot.booted, robot.failure
     if type(steps_done) is not int or type(booted) is not bool:
         return None
@@ -336,6 +334,8 @@ def robot_bytes(robot: Robot) -> bytes | None:
     try:
         head = _ROBOT_HEAD.pack(ROBOT_MAGIC, steps_done, booted, failure is not None, length)
         if failure is not None:
+            from bbzide.vm.robot import RobotFailure
+
             location = failure.location
             if type(failure) is not RobotFailure \
                     or type(location) not in (SourceLocation, type(None)) \
