@@ -29,6 +29,10 @@ checks every length against the bytes, and reports any mismatch as a `SnapshotEr
 
 `decode_vm` gives the state as the tuple the pickled layout holds (the same records,
 freshly built), so `VM.restore` and `Robot.comparable` treat both layouts alike.
+
+Measured (25 robots, right after a simulation step, i.e. with cold caches, as the recorder
+calls it): a Kilobot's `Robot.snapshot()` ~30-45 us (pickled: ~100-160), an M300 SAR drone's
+~200 us (pickled: ~290 and more); restoring an M300 keyframe ~0.11 ms (pickled: ~0.31).
 """
 
 from __future__ import annotations
@@ -101,9 +105,11 @@ def _le(buffer: Any) -> Any:
     """`buffer` (an array or numpy array of ints) as little-endian bytes-like."""
     if _LITTLE:
         return buffer
-    swapped = array(buffer.typecode, buffer) if isinstance(buffer, array) else buffer.copy()
-    swapped.byteswap()
-    return swapped
+    if isinstance(buffer, array):
+        swapped = array(buffer.typecode, buffer)
+        swapped.byteswap()  # in place
+        return swapped
+    return buffer.byteswap()  # numpy: a swapped copy
 
 
 def _only_ints(values: Any) -> bool:
@@ -169,7 +175,7 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
         (in_start, in_end, _, ring_start, ring_end, _, out_start, out_end, _,
          clear_counter) = packed.ctl.tolist()[:10]
         inq, outq = packed.inq, packed.outq
-        if packed.record != record:
+        if packed.record != record or (packed.xtreme and len(packed.ring) != len(ring.records)):
             return None
         ring_rows = _le(packed.ring) if packed.xtreme else None
     else:

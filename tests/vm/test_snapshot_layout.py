@@ -95,6 +95,20 @@ def test_packed_and_python_forms_of_one_state_give_the_same_bytes() -> None:
     assert [r.snapshot() for r in other] == [r.snapshot() for r in robots]
 
 
+def test_packed_queues_without_a_packed_ring_give_the_same_bytes() -> None:
+    """A non-XTREME VM (Crazyflie) whose queues the arrays hold: its ring stays Python's."""
+    robots = swarm(CRAZYFLIE, 3)
+    run(robots, 4)
+    for robot in robots:
+        vm = robot.vm
+        python_form = robot.snapshot()
+        vm.packed()  # the arrays hold the truth now
+        assert vm._packed_live and not vm._packed.xtreme  # type: ignore[union-attr]
+        assert robot.snapshot() == python_form
+        vm._packed.inq[3] ^= 0xFF  # type: ignore[union-attr] - and the arrays are what is read
+        assert robot.snapshot() != python_form
+
+
 def test_old_pickled_snapshots_still_restore() -> None:
     """Recordings of formats 2 and 3 hold pickled snapshots: they restore to the same state."""
     robots = swarm(KILOBOT, 4)
