@@ -413,8 +413,9 @@ class Robot:
         exists.) A flat snapshot that does not decode is a `SnapshotError`."""
         if not self.booted:
             self.boot()
-        vm_state, self.failure, self.steps_done, self.booted = self.decode_snapshot(snapshot)
+        vm_state, failure, steps_done, booted = self.decode_snapshot(snapshot)
         self.vm.restore_state(vm_state)
+        self.failure, self.steps_done, self.booted = failure, steps_done, booted
 
     @property
     def error(self) -> Error:

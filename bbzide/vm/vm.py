@@ -521,14 +521,16 @@ class VM:
         self.restore_state(self.decode_snapshot(snapshot))
 
     def restore_state(self, snap: tuple[Any, ...]) -> None:
-        """Take over a decoded snapshot's state (`decode_snapshot`; its records are fresh)."""
+        """Take over a decoded snapshot's state (`decode_snapshot`; its records are fresh).
+        A state of another profile's heap or stack size is a `SnapshotError`, VM untouched."""
         from bbzide.vm.snapshot_layout import SnapshotError
 
-        (hs, stack, self.stackptr, self.blockptr, self.pc, self.state, self.error,
-         self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
-         events, self.instructions_executed, recs, bcode) = snap
+        hs, stack = snap[0], snap[1]
         if len(hs[0]) != self.heap.size or len(stack) != len(self.stack):
             raise SnapshotError("the snapshot's heap or stack size is not this profile's")
+        (_, _, self.stackptr, self.blockptr, self.pc, self.state, self.error,
+         self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
+         events, self.instructions_executed, recs, bcode) = snap
         self.heap.restore(hs)
         self.stack[:] = array("H", stack)
         self.error_events = list(events)

@@ -171,10 +171,12 @@ def test_damaged_or_crafted_flat_snapshots_are_refused() -> None:
     head = snapshot_layout._ROBOT_HEAD.pack(snapshot_layout.ROBOT_MAGIC, 1, 1, 0, len(inner))
     with pytest.raises(SnapshotError):
         fresh.restore(head + inner)
-    # a heap of another profile's size is not taken over
+    # a heap of another profile's size is not taken over, and the robot is left as it was
     other = swarm(CRAZYFLIE, 1)[0]
+    before = fresh.snapshot()
     with pytest.raises(SnapshotError):
         fresh.restore(other.snapshot())
+    assert fresh.snapshot() == before
 
 
 def test_the_comparable_form_ignores_the_layout_but_not_the_state() -> None:
