@@ -206,9 +206,14 @@ def test_crafted_keyframe_is_refused_not_unpickled() -> None:
             return (os.system, ("echo crafted",))
 
     check_snapshot(VM(PROFILES["kilobot"], 3).snapshot(), "a real VM snapshot")  # accepted
+    vm = VM(PROFILES["kilobot"], 3)
+    check_snapshot(vm.pickled_snapshot(), "a pickled VM snapshot")  # formats 2 and 3
     for crafted in (pickle.dumps(Payload()), pickle.dumps((1, [pickle.dumps(Payload())]))):
         with pytest.raises(RecordingError, match="not a VM snapshot"):
             check_snapshot(crafted, "keyframe")
+    flat = vm.snapshot()  # the flat layout: damaged bytes are refused before any restore
+    with pytest.raises(RecordingError, match="damaged"):
+        check_snapshot(flat[:-3], "keyframe")
 
 
 def test_a_recording_of_another_format_version_is_refused(tmp_path: Path,
