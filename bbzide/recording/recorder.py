@@ -870,9 +870,10 @@ class MissionRecorder:
                                                         gc_runs), strict=True):
             send(f"{layout.HEAP}/{figure}", indexes=indexes, columns=rr.Scalars.columns(
                 scalars=values.reshape(-1).astype(np.float64)).partition(per_robot))
-        send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
-            inputs=pa.array(self._encoded_inputs(b["inputs"]), type=pa.binary())
-        ).partition([1] * rows))
+        encoded = self._encoded_inputs(b["inputs"])
+        blobs = pa.array(encoded, type=pa.binary())
+        input_column = rr.AnyValues.columns(inputs=blobs).partition([1] * rows)
+        send(layout.INPUTS, indexes=indexes, columns=input_column)
         self._send_rare_rows()
         self._steps = []
         self._buffer = {}
@@ -880,9 +881,15 @@ class MissionRecorder:
         self._last_flush = time.monotonic()
 
     def _encoded_inputs(self, buffered: list[tuple[Any, ...] | None]) -> list[bytes]:
-        """The buffered steps' inputs as compressed `input_log` bytes (b"" for the first)."""
+        """The buffered steps' inputs as `input_log` bytes (b"" for the first), laid out (and
+        for formats before 4, zstd-compressed) as `layout.FORMAT_VERSION` says: the older ones
+        are written only by tests, to check that they still read."""
         kept = [parts for parts in buffered if parts is not None]
-        encoded = iter(encode_steps(*zip(*kept, strict=True)) if kept else [])
+        encoded = iter(encode_steps(*zip(*kept, strict=True),
+                                    layout=layout.input_layout(layout.FORMAT_VERSION))
+                       if kept else [])
+        if not layout.inputs_compressed(layout.FORMAT_VERSION):
+            return [b"" if parts is None else next(encoded) for parts in buffered]
         compress = self._inputs_compressor.compress
         return [b"" if parts is None else compress(next(encoded)) for parts in buffered]
 
