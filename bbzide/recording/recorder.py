@@ -47,7 +47,7 @@ from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
 from bbzide.vm.host import LatchedHostFunction
-from bbzide.vm.input_log import SwarmCapture, encode_steps
+from bbzide.vm.input_log import SwarmCapture, encode_steps, encode_steps_joined
 from bbzide.vm.vm import State
 
 #: A robot is keyframed at least every 150 steps (15 s of Kilobot time)...
@@ -118,9 +118,11 @@ OVERLAY_EVERY = 10
 #: last step is always looked at when the recording closes. A Kilobot's light field never
 #: changes, and building its raster every 10 steps was ~0.02 ms a step, ~7 % of the recorder.
 OVERLAY_EVERY_MAX = 80
-#: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
-#: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
-LINK_ARROWS_EVERY = 5
+#: The Rerun viewer's arrows (radio links, headings) are logged every 5th step only (half a
+#: second of Kilobot time): at ~24 B per link per array the link arrows were a fifth of a dense
+#: Kilobot recording, and the heading arrows of every step were ~150 KB a flush for Rerun's
+#: writer thread to compress; `pairs` and `heading` keep every step's links and headings.
+VIEWER_ARROWS_EVERY = 5
 
 #: The label of `Robot.boot`'s last phase (`on_phase`): the boot has ended.
 BOOT_DONE_PHASE = "init"
@@ -130,10 +132,13 @@ BOOT_DONE_PHASE = "init"
 MAX_ID_TABLE = 1 << 16
 
 
-#: Heap figures of a robot without a VM (a passive body): size, ROP, LSP, peak, GC runs, has VM.
-_NO_HEAP = (0, 0, 0, 0, 0, 0)
-#: The first five of those, read from a heap in one C call.
-_HEAP_FIGURES = operator.attrgetter("size", "rtobj", "ltseg", "peak_used", "gc_runs")
+#: The heap figures read every step, from each heap in one C call: ROP, LSP, peak, GC runs
+#: (its size never changes: read when the recorder attaches the robot, `_attach`).
+_HEAP_FIGURES = operator.attrgetter("rtobj", "ltseg", "peak_used", "gc_runs")
+_HEAP_FIGURE_COUNT = 4
+#: A flush window's arrays start this many steps long and double when a slow swarm's window
+#: (`FLUSH_SECONDS`) or a larger `flush_every` needs more.
+WINDOW_ROWS = 256
 _STEPS_DONE = operator.attrgetter("steps_done")
 #: A step's host calls when there were none (`CallLog.ordered` of an empty log).
 _NO_CALLS: tuple[list[int], bytes] = ([], b"")
@@ -318,6 +323,34 @@ def _target_points(overlays: dict[str, Any]) -> np.ndarray | None:
     return np.array(points, dtype=np.float32)
 
 
+class _Window:
+    """What a recorder buffers until its next flush: per-robot figures in arrays of `rows`
+    steps (row k: the k-th buffered step), the rest in lists, one item per step."""
+
+    def __init__(self, n: int, rows: int) -> None:
+        self.rows = rows
+        self.positions = np.empty((rows, n, 3), dtype=np.float32)
+        self.headings = np.empty((rows, n), dtype=np.float32)
+        self.leds = np.empty((rows, n, 3), dtype=np.float32)
+        self.failed = np.empty((rows, n), dtype=bool)
+        self.heap = np.empty((rows, n, _HEAP_FIGURE_COUNT), dtype=np.int64)
+        self.has_vm: list[np.ndarray] = []  # per step: has a recorded VM, per robot
+        self.heap_sizes: list[np.ndarray] = []  # ... and its heap's size
+        self.labels: list[dict[str, np.ndarray]] = []
+        self.traffic: list[tuple[np.ndarray, ...]] = []
+        self.links: list[np.ndarray] = []
+        self.inputs: list[tuple[Any, ...] | None] = []
+
+    def grow(self) -> None:
+        """Twice as many rows (the rows written so far kept)."""
+        for name in ("positions", "headings", "leds", "failed", "heap"):
+            old = getattr(self, name)
+            new = np.empty((2 * self.rows, *old.shape[1:]), dtype=old.dtype)
+            new[:self.rows] = old
+            setattr(self, name, new)
+        self.rows *= 2
+
+
 class MissionRecorder:
     """Records `sim` into `path` from its current step; call `record_step()` after each step."""
 
@@ -361,6 +394,7 @@ class MissionRecorder:
         self._heaps: list[Any] = [_NO_ROBOT.vm.heap] * n
         self._recorded = np.zeros(n, dtype=bool)  # has a firmware loop we record
         self._recorded_now = self._recorded.copy()
+        self._heap_sizes = np.zeros(n, dtype=np.int64)  # of each robot's heap (0: no VM)
         self._all_recorded = False
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         # Per robot, as arrays (the per-step pass is a few numpy operations, not 25 loops):
@@ -378,6 +412,7 @@ class MissionRecorder:
         self._steps_done = np.zeros(n, dtype=np.int64)
         self._instructions = np.zeros(n, dtype=np.int64)
         self._failed = np.zeros(n, dtype=bool)
+        self._any_failed = False  # self._failed.any()
         self._vm_seconds = float(sim.timings.get("vm", 0.0))
         self._check_at = 0  # the next step at which `_keyframes_due` looks
         #: messages come from `sim.step_deliveries` (else from receive hooks on the robots)
@@ -412,7 +447,7 @@ class MissionRecorder:
         self.start_step = int(sim.step_count)
         self._programs: dict[int, int] = {}
         self._program_objects: list[Any] = []
-        self._buffer: dict[str, list[Any]] = {}
+        self._window = _Window(n, min(flush_every, WINDOW_ROWS))
         self._steps: list[int] = []
         self._last_flush = time.monotonic()
         self._last_texts: dict[str, list[str]] = {}  # each watched label, per robot
@@ -523,6 +558,8 @@ class MissionRecorder:
         self._heaps[index] = robot.vm.heap
         self._recorded[index] = True
         self._recorded_now = self._recorded.copy()  # what the steps from now on hold
+        self._heap_sizes = self._heap_sizes.copy()  # (the buffered steps keep the old one)
+        self._heap_sizes[index] = robot.vm.heap.size
         self._all_recorded = bool(self._recorded.all())
         if not self._packed:
             self._capture.hook_receive(robot, index)
@@ -611,19 +648,23 @@ class MissionRecorder:
         # step: the common case (no failure, every robot recorded) makes as few as it can, and
         # what can wait (stacking, the heap's `has VM` column) waits for the flush.
         failures = [s.failure for s in states]
-        if failures.count(None) == n and not self._failed.any():
+        if failures.count(None) == n and not self._any_failed:
             failed = new_failures = self._failed  # none, as before (never written to)
         else:
             failed = np.fromiter((f is not None for f in failures), dtype=bool, count=n)
             new_failures = failed & ~self._failed
             self._failed = failed
+            self._any_failed = bool(failed.any())
             for i in np.flatnonzero(new_failures).tolist():
                 if i not in self._known_failures:
                     self._known_failures.add(i)
                     self._event(step, layout.EVENT_ERROR, i,
                                 f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
-        heap = np.fromiter(chain.from_iterable(map(_HEAP_FIGURES, self._heaps)),
-                           dtype=np.int64, count=n * 5)
+        window = self._window
+        row = len(self._steps)
+        if row == window.rows:
+            window.grow()
+        window.heap[row] = list(map(_HEAP_FIGURES, self._heaps))
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
         due: list[int] = []
@@ -636,25 +677,23 @@ class MissionRecorder:
             inputs = self._step_inputs(stepped)
             due = self._keyframes_due(step, self._vms, failed)
         stats = sim.stats
-        buffer = self._buffer
         self._steps.append(step)
         self._last_step = step
-        buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
-        buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
-        buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
-        # Kept as numpy arrays, which the garbage collector does not track: lists kept alive
-        # until the flush made it run (full passes of ~100 ms) several times more often.
-        buffer.setdefault("failed", []).append(failed)
-        buffer.setdefault("heap", []).append(heap)
-        buffer.setdefault("has_vm", []).append(self._recorded_now)
-        buffer.setdefault("labels", []).append(labels)
+        # Written into the flush window's arrays (one copy each, stacked already), which the
+        # garbage collector does not track: lists kept alive until the flush made it run
+        # (full passes of ~100 ms) several times more often.
+        window.positions[row] = sim.positions
+        window.headings[row] = sim.headings
+        window.leds[row] = sim.leds
+        window.failed[row] = failed
+        window.has_vm.append(self._recorded_now)  # (the same array until a robot is attached)
+        window.heap_sizes.append(self._heap_sizes)
+        window.labels.append(labels)
         # the engine's counters: new arrays every step, stacked at the flush
-        buffer.setdefault("traffic", []).append(
-            (stats.sent, stats.received, stats.dropped, stats.bytes_sent))
+        window.traffic.append((stats.sent, stats.received, stats.dropped, stats.bytes_sent))
         pairs = getattr(sim, "link_indexes", None)  # (sender, receiver) indexes, if given
-        buffer.setdefault("links", []).append(
-            self._link_indexes(sim.links) if pairs is None else pairs)
-        buffer.setdefault("inputs", []).append(inputs)
+        window.links.append(self._link_indexes(sim.links) if pairs is None else pairs)
+        window.inputs.append(inputs)
         self._keyframe(due, step)
         if not first and (self._has_targets or step >= self._overlays_due):
             self._record_overlays(step)
@@ -816,45 +855,56 @@ class MissionRecorder:
         dt = float(self.sim.world.step_seconds)
         indexes = [rr.TimeColumn(layout.TIMELINE, sequence=steps),
                    rr.TimeColumn(layout.TIME_SECONDS, duration=steps * dt)]
-        b = self._buffer
+        b = self._window
+        self._window = _Window(n, min(self.flush_every, WINDOW_ROWS))  # (Rerun may keep b's)
         per_robot = [n] * rows
-        positions = np.stack(b["positions"]).reshape(-1, 3)
-        headings = np.stack(b["headings"]).reshape(-1)
-        colors = (np.clip(np.stack(b["leds"]).reshape(-1, 3), 0, 1) * 255).astype(np.uint8)
+        positions = b.positions[:rows].reshape(-1, 3)
+        headings = b.headings[:rows].reshape(-1)
+        colors = (np.clip(b.leds[:rows].reshape(-1, 3), 0, 1) * 255).astype(np.uint8)
         radius = float(self.sim.world.robot_radius)
-        watch = list(b["labels"][0])
+        watch = list(b.labels[0])
         send = self.rec.send_columns
-        send(layout.ROBOTS, indexes=indexes, columns=rr.Points3D.columns(
-            positions=positions, colors=colors).partition(per_robot))
-        self._send_viewer_labels(steps, b["labels"], radius)
+        self._send_viewer_labels(steps, b.labels, radius)
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
         extra = {"heading": pa.array(headings),
-                 "failed": pa.array(np.concatenate(b["failed"]))}
-        for name in watch:
+                 "failed": pa.array(b.failed[:rows].reshape(-1))}
+        for name in watch:  # (the label arrays are object arrays, often the same one)
             extra[f"label:{name}"] = pa.array(
-                [v for labels in b["labels"] for v in labels[name]], type=pa.string())
-        send(layout.ROBOTS, indexes=indexes,
-             columns=rr.AnyValues.columns(**extra).partition(per_robot))
-        reach = radius * 2.5
-        vectors = np.stack([np.cos(headings), np.sin(headings), np.zeros_like(headings)], 1)
-        send(layout.HEADINGS, indexes=indexes, columns=rr.Arrows3D.columns(
-            origins=positions, vectors=(vectors * reach).astype(np.float32)).partition(per_robot))
-        links = b["links"]
+                np.concatenate([labels[name] for labels in b.labels]), type=pa.string())
+        # The points and the other per-robot values in one chunk (one send each was twice
+        # Rerun's per-call work for the same rows)
+        send(layout.ROBOTS, indexes=indexes, columns=[
+            *rr.Points3D.columns(positions=positions, colors=colors).partition(per_robot),
+            *rr.AnyValues.columns(**extra).partition(per_robot)])
+        # The viewer's arrows, at every VIEWER_ARROWS_EVERY-th step
+        links = b.links
         link_counts = [len(x) for x in links]
-        sampled = [r for r in range(rows) if steps[r] % LINK_ARROWS_EVERY == 0 and link_counts[r]]
+        sampled = [r for r in range(rows) if steps[r] % VIEWER_ARROWS_EVERY == 0]
         if sampled:
-            ends = np.concatenate([b["positions"][r][links[r]] for r in sampled])
             at = steps[sampled]
-            send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
-                                        rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
-                 columns=rr.Arrows3D.columns(origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0])
-                 .partition([link_counts[r] for r in sampled]))
+            sampled_indexes = [rr.TimeColumn(layout.TIMELINE, sequence=at),
+                               rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+            angles = b.headings[sampled].reshape(-1)
+            reach = radius * 2.5
+            vectors = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], 1)
+            send(layout.HEADINGS, indexes=sampled_indexes, columns=rr.Arrows3D.columns(
+                origins=b.positions[sampled].reshape(-1, 3),
+                vectors=(vectors * reach).astype(np.float32)).partition([n] * len(sampled)))
+            linked = [r for r in sampled if link_counts[r]]
+            if linked:
+                ends = np.concatenate([b.positions[r][links[r]] for r in linked])
+                at = steps[linked]
+                send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
+                                            rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
+                     columns=rr.Arrows3D.columns(origins=ends[:, 0],
+                                                 vectors=ends[:, 1] - ends[:, 0])
+                     .partition([link_counts[r] for r in linked]))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
                       else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
             pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
-        traffic = np.array(b["traffic"])  # rows, (sent, received, dropped, bytes_sent), n
+        traffic = np.array(b.traffic)  # rows, (sent, received, dropped, bytes_sent), n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
             sent=pa.array(traffic[:, 0].reshape(-1).astype(np.int32)),
             received=pa.array(traffic[:, 1].reshape(-1).astype(np.int32)),
@@ -862,36 +912,51 @@ class MissionRecorder:
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        size, rop, lsp, peak, gc_runs = np.concatenate(b["heap"]).reshape(
-            rows, n, len(_NO_HEAP) - 1).transpose(2, 0, 1)  # each: rows, n
-        has_vm = np.array(b["has_vm"])
+        rop, lsp, peak, gc_runs = b.heap[:rows].transpose(2, 0, 1)  # each: rows, n
+        size = np.array(b.heap_sizes)
+        has_vm = np.array(b.has_vm)
         used = (rop + size - lsp) * has_vm
         for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,
                                                         gc_runs), strict=True):
             send(f"{layout.HEAP}/{figure}", indexes=indexes, columns=rr.Scalars.columns(
                 scalars=values.reshape(-1).astype(np.float64)).partition(per_robot))
-        encoded = self._encoded_inputs(b["inputs"])
-        blobs = pa.array(encoded, type=pa.binary())
-        input_column = rr.AnyValues.columns(inputs=blobs).partition([1] * rows)
-        send(layout.INPUTS, indexes=indexes, columns=input_column)
+        send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
+            inputs=self._encoded_inputs(b.inputs)).partition([1] * rows))
         self._send_rare_rows()
         self._steps = []
-        self._buffer = {}
         self.rec.flush()
         self._last_flush = time.monotonic()
 
-    def _encoded_inputs(self, buffered: list[tuple[Any, ...] | None]) -> list[bytes]:
-        """The buffered steps' inputs as `input_log` bytes (b"" for the first), laid out (and
-        for formats before 4, zstd-compressed) as `layout.FORMAT_VERSION` says: the older ones
-        are written only by tests, to check that they still read."""
+    def _encoded_inputs(self, buffered: list[tuple[Any, ...] | None]) -> Any:
+        """The buffered steps' inputs as an Arrow binary array of `input_log` bytes (b"" for
+        the first), laid out (and for formats before 4, zstd-compressed) as
+        `layout.FORMAT_VERSION` says: the older ones are written only by tests, to check that
+        they still read. Format 4's are one buffer with offsets, handed to Arrow as is."""
+        import pyarrow as pa
+
         kept = [parts for parts in buffered if parts is not None]
-        encoded = iter(encode_steps(*zip(*kept, strict=True),
-                                    layout=layout.input_layout(layout.FORMAT_VERSION))
-                       if kept else [])
-        if not layout.inputs_compressed(layout.FORMAT_VERSION):
-            return [b"" if parts is None else next(encoded) for parts in buffered]
-        compress = self._inputs_compressor.compress
-        return [b"" if parts is None else compress(next(encoded)) for parts in buffered]
+        version = layout.FORMAT_VERSION
+        if layout.inputs_compressed(version):
+            encoded = iter(encode_steps(*zip(*kept, strict=True),
+                                        layout=layout.input_layout(version)) if kept else [])
+            compress = self._inputs_compressor.compress
+            return pa.array([b"" if parts is None else compress(next(encoded))
+                             for parts in buffered], type=pa.binary())
+        data, ends = (encode_steps_joined(*zip(*kept, strict=True),
+                                          layout=layout.input_layout(version))
+                      if kept else (b"", []))
+        offsets = np.zeros(len(buffered) + 1, dtype=np.int32)
+        if len(kept) == len(buffered):
+            offsets[1:] = ends
+        else:  # the recording's first step has no inputs: it ends where the one before did
+            kept_ends = iter(ends)
+            end = 0
+            for row, parts in enumerate(buffered):
+                if parts is not None:
+                    end = next(kept_ends)
+                offsets[row + 1] = end
+        return pa.Array.from_buffers(pa.binary(), len(buffered),
+                                     [None, pa.py_buffer(offsets), pa.py_buffer(data)])
 
     def _send_viewer_labels(self, steps: np.ndarray, labels: list[dict[str, np.ndarray]],
                             radius: float) -> None:
