@@ -333,7 +333,8 @@ class _Window:
         self.headings = np.empty((rows, n), dtype=np.float32)
         self.leds = np.empty((rows, n, 3), dtype=np.float32)
         self.failed = np.empty((rows, n), dtype=bool)
-        self.heap = np.empty((rows, n, _HEAP_FIGURE_COUNT), dtype=np.int64)
+        #: per step and robot, its `_HEAP_FIGURES` (n tuples a step)
+        self.heap: list[tuple[int, ...]] = []
         self.has_vm: list[np.ndarray] = []  # per step: has a recorded VM, per robot
         self.heap_sizes: list[np.ndarray] = []  # ... and its heap's size
         self.labels: list[dict[str, np.ndarray]] = []
@@ -343,7 +344,7 @@ class _Window:
 
     def grow(self) -> None:
         """Twice as many rows (the rows written so far kept)."""
-        for name in ("positions", "headings", "leds", "failed", "heap"):
+        for name in ("positions", "headings", "leds", "failed"):
             old = getattr(self, name)
             new = np.empty((2 * self.rows, *old.shape[1:]), dtype=old.dtype)
             new[:self.rows] = old
@@ -405,11 +406,13 @@ class MissionRecorder:
         self._busy = np.zeros(n)
         self._cpu_then = np.zeros(n)
         self._wall_then = np.zeros(n)
-        self._clocks = (time.thread_time(), time.perf_counter())  # sampled once per step
+        # (thread CPU, wall) clocks: read when a keyframe is taken or a robot's budget is
+        # looked at, not every step (a `thread_time` call is a system call, ~3 us)
         # What the last step left (to see what the next one did): each robot's
         # `steps_done` (it ran a control step) and `vm.instructions_executed` (its share of
         # the swarm's VM time), whether it had failed, and the engine's VM seconds.
-        self._steps_done = np.zeros(n, dtype=np.int64)
+        self._steps_done = [0] * n
+        self._all_stepped = np.ones(n, dtype=bool)  # (never written to)
         self._instructions = np.zeros(n, dtype=np.int64)
         self._failed = np.zeros(n, dtype=bool)
         self._any_failed = False  # self._failed.any()
@@ -484,8 +487,7 @@ class MissionRecorder:
         gc.collect()
         # The CPU share of the first keyframes' budget is counted from here: the set-up above
         # is all CPU work and would make any waiting of the robots look like CPU time.
-        self._clocks = (time.thread_time(), time.perf_counter())
-        self._cpu_then[:], self._wall_then[:] = self._clocks
+        self._cpu_then[:], self._wall_then[:] = time.thread_time(), time.perf_counter()
         self._vm_seconds = float(sim.timings.get("vm", 0.0))
 
     # ---- static parts ---------------------------------------------------------------------------
@@ -587,12 +589,13 @@ class MissionRecorder:
         if not indexes:
             return
         snapshots, programs, bases = [], [], []
+        clocks = (time.thread_time(), time.perf_counter())
         for index in indexes:
             state = self.sim.robots[index]
             self._keyframed[index] = step
             robot = state.robot
             self._busy[index] = 0.0
-            self._cpu_then[index], self._wall_then[index] = self._clocks
+            self._cpu_then[index], self._wall_then[index] = clocks
             self._steps_done[index] = getattr(robot, "steps_done", 0)
             self._instructions[index] = getattr(robot.vm, "instructions_executed", 0)
             started = time.thread_time()
@@ -623,7 +626,6 @@ class MissionRecorder:
         if self.closed:
             return
         started = time.perf_counter()
-        self._clocks = (time.thread_time(), started)
         self._frame(int(self.sim.step_count))
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
@@ -664,13 +666,20 @@ class MissionRecorder:
         row = len(self._steps)
         if row == window.rows:
             window.grow()
-        window.heap[row] = list(map(_HEAP_FIGURES, self._heaps))
+        # Tuples of ints (which the garbage collector soon stops tracking) made into one
+        # array at the flush: converting 100 ints to numpy here, with the caches cold after
+        # the simulation step, took as long as reading them (~10 us)
+        window.heap.extend(map(_HEAP_FIGURES, self._heaps))
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
         due: list[int] = []
         if not first:
-            steps_done = np.fromiter(map(_STEPS_DONE, robots), dtype=np.int64, count=n)
-            stepped = steps_done != self._steps_done
+            steps_done = list(map(_STEPS_DONE, robots))
+            if all(map(operator.ne, steps_done, self._steps_done)):
+                stepped = self._all_stepped  # the usual case: every robot stepped
+            else:
+                stepped = np.fromiter(map(operator.ne, steps_done, self._steps_done),
+                                      dtype=bool, count=n)
             if new_failures is not failed or not self._all_recorded:
                 stepped = (stepped | new_failures) & self._recorded
             self._steps_done = steps_done
@@ -731,7 +740,7 @@ class MissionRecorder:
         due = self._due_step <= step
         over = self._busy >= self._budget  # wall >= CPU time: the CPU share only for these
         if over.any():
-            cpu, wall = self._clocks
+            cpu, wall = time.thread_time(), time.perf_counter()
             for i in np.flatnonzero(over).tolist():
                 span = wall - self._wall_then[i]
                 share = 1.0 if span <= 0 else min(1.0, max(
@@ -912,7 +921,9 @@ class MissionRecorder:
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        rop, lsp, peak, gc_runs = b.heap[:rows].transpose(2, 0, 1)  # each: rows, n
+        rop, lsp, peak, gc_runs = np.fromiter(
+            chain.from_iterable(b.heap), dtype=np.int64, count=rows * n * _HEAP_FIGURE_COUNT
+        ).reshape(rows, n, _HEAP_FIGURE_COUNT).transpose(2, 0, 1)  # each: rows, n
         size = np.array(b.heap_sizes)
         has_vm = np.array(b.has_vm)
         used = (rop + size - lsp) * has_vm
