@@ -901,14 +901,16 @@ class MissionRecorder:
                 origins=b.positions[sampled].reshape(-1, 3),
                 vectors=(vectors * reach).astype(np.float32)).partition([n] * len(sampled)))
             linked = [r for r in sampled if link_counts[r]]
-            if linked:
-                ends = np.concatenate([b.positions[r][links[r]] for r in linked])
+            if linked:  # both ends of every link of those steps, in one gather
+                counts = [link_counts[r] for r in linked]
+                ends = b.positions[np.repeat(linked, counts)[:, None],
+                                   np.concatenate([links[r] for r in linked])]
                 at = steps[linked]
                 send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
                                             rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
                      columns=rr.Arrows3D.columns(origins=ends[:, 0],
                                                  vectors=ends[:, 1] - ends[:, 0])
-                     .partition([link_counts[r] for r in linked]))
+                     .partition(counts))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
                       else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
