@@ -333,8 +333,8 @@ class _Window:
         self.headings = np.empty((rows, n), dtype=np.float32)
         self.leds = np.empty((rows, n, 3), dtype=np.float32)
         self.failed = np.empty((rows, n), dtype=bool)
-        #: per step and robot, its `_HEAP_FIGURES` (n tuples a step)
-        self.heap: list[tuple[int, ...]] = []
+        #: per step and robot, its `_HEAP_FIGURES` (n x 4 ints a step, flat)
+        self.heap: list[int] = []
         self.has_vm: list[np.ndarray] = []  # per step: has a recorded VM, per robot
         self.heap_sizes: list[np.ndarray] = []  # ... and its heap's size
         self.labels: list[dict[str, np.ndarray]] = []
@@ -666,10 +666,10 @@ class MissionRecorder:
         row = len(self._steps)
         if row == window.rows:
             window.grow()
-        # Tuples of ints (which the garbage collector soon stops tracking) made into one
-        # array at the flush: converting 100 ints to numpy here, with the caches cold after
-        # the simulation step, took as long as reading them (~10 us)
-        window.heap.extend(map(_HEAP_FIGURES, self._heaps))
+        # Plain ints in one list, made into one array at the flush: converting 100 ints to
+        # numpy here, with the caches cold after the simulation step, took as long as reading
+        # them (~10 us); kept as tuples, they made the garbage collector run every ~30 steps.
+        window.heap.extend(chain.from_iterable(map(_HEAP_FIGURES, self._heaps)))
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
         due: list[int] = []
@@ -923,9 +923,8 @@ class MissionRecorder:
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
              columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        rop, lsp, peak, gc_runs = np.fromiter(
-            chain.from_iterable(b.heap), dtype=np.int64, count=rows * n * _HEAP_FIGURE_COUNT
-        ).reshape(rows, n, _HEAP_FIGURE_COUNT).transpose(2, 0, 1)  # each: rows, n
+        rop, lsp, peak, gc_runs = np.array(b.heap, dtype=np.int64).reshape(
+            rows, n, _HEAP_FIGURE_COUNT).transpose(2, 0, 1)  # each: rows, n
         size = np.array(b.heap_sizes)
         has_vm = np.array(b.has_vm)
         used = (rop + size - lsp) * has_vm
