@@ -7,16 +7,20 @@ and only wraps the world host functions it passes them (`input_log.SwarmCapture.
 pass-through until a recorder switches capture on). So a swarm started in the IDE can be
 recorded from any step on, and `bbzide run --record` records from step 0.
 
-After each `Simulation.step()`, `record_step()` copies the step's figures into small numpy
-buffers (positions, LED colours, headings, failure flags, watched labels, message counters,
-heap figures of every robot, radio links) and keeps what the step's inputs are made of: the
-engine's deliveries (`Simulation.step_deliveries`, numpy columns), which robots ran a
-control step (`Robot.steps_done` moved), and the host calls the taps wrote as bytes. Every
-`flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the inputs of all buffered
-steps are encoded at once (`input_log.encode_steps`) and the buffers go to Rerun as a
-handful of `send_columns` calls (one chunk per entity and flush, not one `log` per robot per
-step: 50-100x cheaper, ui-stack-notes §4); the stream is flushed to disk, so a process
-killed mid-run leaves a file readable up to its last flush.
+After each `Simulation.step()`, `record_step()` writes the step's figures into the flush
+window (`_Window`): positions, LED colours, headings and failure flags as rows of arrays
+allocated once per window, the heap figures of every robot as plain ints, the watched labels,
+message counters and radio links as the engine's arrays; and it keeps what the step's inputs
+are made of: the engine's deliveries (`Simulation.step_deliveries`, numpy columns), which
+robots ran a control step (`Robot.steps_done` moved), and the host calls the taps wrote as
+bytes. Every `flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the inputs of all
+buffered steps are encoded at once (`input_log.encode_steps_joined`: one buffer, handed to
+Arrow with its offsets) and the window goes to Rerun as a handful of `send_columns` calls (one
+chunk per entity and flush, not one `log` per robot per step: 50-100x cheaper, ui-stack-notes
+§4); the stream is flushed to disk, so a process killed mid-run leaves a file readable up to
+its last flush. Rerun's writer thread compresses each chunk (LZ4), so the input blobs are not
+compressed here (format 4). The viewer-only arrows (headings, radio links) are sent for every
+`VIEWER_ARROWS_EVERY`-th step; every per-step value bbzide reads back is sent for every step.
 
 Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
 compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and

@@ -22,9 +22,11 @@ then `control_step` with host functions that repeat the recorded effects instead
 the world. Replaying a host function also checks that the script calls the same function it
 called when recorded, so a diverging replay is an error, never a silently wrong state.
 
-`encode_steps` (columns of whole steps) / `encode_step` (per-robot records, the reference) /
-`decode_step` turn the inputs of every robot for one step into bytes with a fixed
-little-endian layout (no pickle: a recording is a file a user may get from anywhere).
+`encode_steps_joined` / `encode_steps` (columns of whole steps, back to back or one bytes object
+per step) / `encode_step` (per-robot records, the reference) / `decode_step` turn the inputs of
+every robot for one step into bytes with a fixed little-endian layout (no pickle: a recording
+is a file a user may get from anywhere), in one of two layouts: `LAYOUT_COMPACT` (recording
+format 4 on) or `LAYOUT_FULL` (formats 2 and 3, still read).
 """
 
 from __future__ import annotations
