@@ -422,6 +422,7 @@ class MissionRecorder:
         self._any_failed = False  # self._failed.any()
         self._vm_seconds = float(sim.timings.get("vm", 0.0))
         self._check_at = 0  # the next step at which `_keyframes_due` looks
+        self._budget_check_at = 0  # ... and the next at which it looks at the VM budgets
         #: messages come from `sim.step_deliveries` (else from receive hooks on the robots)
         self._packed = hasattr(sim, "step_deliveries") and not getattr(sim, "asynchronous",
                                                                        False)
@@ -727,11 +728,18 @@ class MissionRecorder:
         `KEYFRAME_BUDGET_SECONDS` of VM CPU time. A robot's VM time is the engine's VM time
         of the step (`sim.timings["vm"]`, wall clock) shared out by the instructions each
         robot executed in it (robots are not timed one by one: an engine steps them in one
-        batch), scaled by this thread's CPU share since the robot's last keyframe. Checked
-        every `KEYFRAME_CHECK_EVERY` steps, and at the steps where the step bound falls."""
+        batch), scaled by this thread's CPU share since the robot's last keyframe. The budget
+        is looked at every `KEYFRAME_CHECK_EVERY` steps; at the steps where some robot's step
+        bound falls in between, only the step bounds are (robots keyframed at different steps
+        made those a third of the looks, each reading every robot's instruction counter)."""
         if step < self._check_at:
             return []
-        self._check_at = min(step + KEYFRAME_CHECK_EVERY, int(self._due_step.min()))
+        if step < self._budget_check_at:  # a step bound falls due: nothing else to look at
+            self._check_at = min(self._budget_check_at, int(self._due_step.min()))
+            due = self._due_step <= step
+            return np.flatnonzero(due & self._recorded & ~failed).tolist()
+        self._budget_check_at = step + KEYFRAME_CHECK_EVERY
+        self._check_at = min(self._budget_check_at, int(self._due_step.min()))
         instructions = np.fromiter(map(_INSTRUCTIONS, vms), dtype=np.int64, count=self.count)
         ran = np.maximum(instructions - self._instructions, 0)
         self._instructions = instructions
