@@ -22,11 +22,13 @@ FORMAT = "bbzide-mission"
 #: packed messages, XOR deltas, zlib). 3 (session 5): a latched host function's happy-path
 #: calls (a Kilobot's `led`: see `input_log.SwarmCapture.tap`) are not in the input log, the
 #: meta says which functions are latched (`latched`); version 2 files read as before. 4
-#: (session 6): the input log's compact layout (`input_log.LAYOUT_COMPACT`: no lengths column
-#: when a step's payloads are all as long, no bearing columns when they are all zero, as for
-#: Kilobots), and input blobs no longer zstd-compressed one by one (Rerun's writer compresses
-#: each flush's chunk with LZ4 anyway: a zstd call per step was ~13 us of the recorder's ~180,
-#: for a file ~6 % larger); versions 2 and 3 read with the full layout and zstd.
+#: (session 6): keyframes hold flat snapshots (vm/snapshot_layout.py), which an older bbzide
+#: would try to unpickle; the input log's compact layout (`input_log.LAYOUT_COMPACT`: no
+#: lengths column when a step's payloads are all as long, no bearing columns when they are all
+#: zero, as for Kilobots), and input blobs no longer zstd-compressed one by one (Rerun's writer
+#: compresses each flush's chunk with LZ4 anyway: a zstd call per step was ~13 us of the
+#: recorder's ~180, for a file ~6 % larger). Versions 2 and 3 (pickled keyframes, the full
+#: input layout, zstd) still read and rebuild.
 FORMAT_VERSION = 4
 OLDEST_READABLE = 2
 APPLICATION_ID = "bbzide"

@@ -34,6 +34,13 @@ from bbzide.vm.input_log import (
     decode_step,
     replay_step,
 )
+from bbzide.vm.snapshot_layout import (
+    ROBOT_MAGIC,
+    VM_MAGIC,
+    SnapshotError,
+    decode_robot,
+    decode_vm,
+)
 
 #: (program, profile, robot_id, host_functions) -> a firmware loop (default: bbzide's Robot).
 Builder = Callable[[Any, Any, int, Any], Any]
@@ -64,11 +71,22 @@ class _SnapshotUnpickler(pickle.Unpickler):
 
 
 def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
-    """Refuse a pickled snapshot that names anything but VM-room classes and plain containers.
+    """Refuse a pickled snapshot that names anything but VM-room classes and plain containers,
+    and a flat one (`snapshot_layout`) that does not decode.
 
     `Robot.restore` unpickles; a recording is a file from anywhere, and unpickling can run any
     code a crafted file names. This loads it with an allow-list first (nested pickles too).
     """
+    if depth == 0 and snapshot.startswith((ROBOT_MAGIC, VM_MAGIC)):
+        # the flat layout holds no pickle; decoding it checks every length
+        try:
+            if snapshot.startswith(ROBOT_MAGIC):
+                decode_robot(snapshot)
+            else:
+                decode_vm(snapshot)
+        except SnapshotError as error:
+            raise RecordingError(f"the {what} is damaged ({error})") from None
+        return
     if not snapshot.startswith(b"\x80") or depth > _NESTED_PICKLES:
         return
     try:
@@ -203,7 +221,7 @@ class RobotRebuilder:
     def _restore(self, index: int, keyframe: Keyframe) -> tuple[Any, ReplayHostFunctions]:
         """Robot `index` at `keyframe`. One booted Robot per (robot, program) is kept and
         restored again for every seek: booting runs the script's top level and `init` (tens
-        of ms for the SAR script), restoring only unpickles."""
+        of ms for the SAR script), restoring only decodes the snapshot."""
         from bbzide.vm.profiles import PROFILES
 
         meta = self.recording.meta
@@ -223,7 +241,11 @@ class RobotRebuilder:
             robot.boot()
             booted = self._booted[key] = (robot, host)
         robot, host = booted
-        robot.restore(self.snapshot(index, keyframe))
+        try:
+            robot.restore(self.snapshot(index, keyframe))
+        except SnapshotError as error:  # e.g. a heap of another profile's size
+            raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} does "
+                                 f"not fit its robot ({error})") from None
         _register_library(robot, profile)
         return robot, host
 

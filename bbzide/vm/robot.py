@@ -52,6 +52,7 @@ from bbzide.vm import (
     messages,
     neighbors,
     packed_queues,
+    snapshot_layout,
 )
 from bbzide.vm.host import HostCall, LatchedHostFunction
 from bbzide.vm.profiles import Profile
@@ -376,25 +377,44 @@ class Robot:
 
     # ---- state ---------------------------------------------------------------------------
     def snapshot(self) -> bytes:
-        """The whole robot state (VM heap and records, loop bookkeeping) as bytes."""
+        """The whole robot state (VM heap and records, loop bookkeeping) as bytes: the flat
+        layout of `snapshot_layout` for a state of the usual shape, else pickled."""
+        flat = snapshot_layout.robot_bytes(self)
+        if flat is not None:
+            return flat
         return pickle.dumps((self.vm.snapshot(), self.failure, self.steps_done, self.booted))
+
+    def pickled_snapshot(self) -> bytes:
+        """The robot state in the pickled layout only (recordings of formats 2 and 3)."""
+        return pickle.dumps((self.vm.pickled_snapshot(), self.failure, self.steps_done,
+                             self.booted))
+
+    @staticmethod
+    def decode_snapshot(snapshot: bytes) -> tuple[Any, RobotFailure | None, int, bool]:
+        """A `snapshot()` of either layout as (VM state tuple, failure, steps done, booted)."""
+        if snapshot.startswith(snapshot_layout.ROBOT_MAGIC):
+            vm_state, failure, steps_done, booted = snapshot_layout.decode_robot(snapshot)
+            return (vm_state, None if failure is None else RobotFailure(*failure),
+                    steps_done, booted)
+        vm_snapshot, failure, steps_done, booted = pickle.loads(snapshot)
+        return VM.decode_snapshot(vm_snapshot), failure, steps_done, booted
 
     @staticmethod
     def comparable(snapshot: bytes) -> bytes:
         """A `snapshot()` decoded and pickled again the plain way, for comparing two robots'
-        states: equal states give equal bytes here whatever encoding `snapshot_pickle`
-        chose for the live objects (an earlier version picked a list layout by
+        states: equal states give equal bytes here whatever layout or encoding the
+        snapshots used (an earlier pickled version picked a list layout by
         `sys.getrefcount`, so equal states could differ in snapshot bytes)."""
-        vm_state, *rest = pickle.loads(snapshot)
-        return pickle.dumps((pickle.loads(vm_state), *rest))
+        return pickle.dumps(Robot.decode_snapshot(snapshot))
 
     def restore(self, snapshot: bytes) -> None:
-        """Restore a snapshot of a robot with the same program, profile and host functions.
-        (A never-booted robot boots first so its host-function registry exists.)"""
+        """Restore a snapshot (either layout) of a robot with the same program, profile and
+        host functions. (A never-booted robot boots first so its host-function registry
+        exists.) A flat snapshot that does not decode is a `SnapshotError`."""
         if not self.booted:
             self.boot()
-        vm_state, self.failure, self.steps_done, self.booted = pickle.loads(snapshot)
-        self.vm.restore(vm_state)
+        vm_state, self.failure, self.steps_done, self.booted = self.decode_snapshot(snapshot)
+        self.vm.restore_state(vm_state)
 
     @property
     def error(self) -> Error:

@@ -25,6 +25,7 @@ import math
 from array import array
 from collections.abc import Callable
 from enum import IntEnum
+from typing import Any
 
 import numpy as np
 
@@ -483,9 +484,18 @@ class VM:
 
     # =================================================================== snapshots
     def snapshot(self) -> bytes:
-        """The whole VM state as bytes (heap copy + small records, pickled; pickling copies
-        the records, so no deepcopy first: it was 90 % of an M300 keyframe's cost). The records
-        go through `snapshot_pickle`, which leaves the live objects as fast as they were."""
+        """The whole VM state as bytes: the flat layout of `snapshot_layout` (written from the
+        live buffers and, when they hold the truth, the packed arrays: nothing is unpacked),
+        or, for a state outside that layout's shape, the pickled one (`pickled_snapshot`)."""
+        from bbzide.vm import snapshot_layout
+
+        flat = snapshot_layout.vm_bytes(self)
+        return flat if flat is not None else self.pickled_snapshot()
+
+    def pickled_snapshot(self) -> bytes:
+        """The state pickled (the only layout before the flat one; recordings of formats 2 and
+        3 hold it): heap copy + records, through `snapshot_pickle`, which leaves the live
+        objects as fast as they were. No deepcopy first: pickling copies the records."""
         from bbzide.vm import snapshot_pickle
 
         return snapshot_pickle.dumps((
@@ -496,17 +506,33 @@ class VM:
             self.bcode,
         ))
 
-    def restore(self, snapshot: bytes) -> None:
+    @staticmethod
+    def decode_snapshot(snapshot: bytes) -> tuple[Any, ...]:
+        """A `snapshot()` of either layout as the pickled layout's tuple of fresh records."""
         import pickle
 
-        snap = pickle.loads(snapshot)
+        from bbzide.vm import snapshot_layout
+
+        if snapshot.startswith(snapshot_layout.VM_MAGIC):
+            return snapshot_layout.decode_vm(snapshot)
+        return pickle.loads(snapshot)  # type: ignore[no-any-return]
+
+    def restore(self, snapshot: bytes) -> None:
+        self.restore_state(self.decode_snapshot(snapshot))
+
+    def restore_state(self, snap: tuple[Any, ...]) -> None:
+        """Take over a decoded snapshot's state (`decode_snapshot`; its records are fresh)."""
+        from bbzide.vm.snapshot_layout import SnapshotError
+
         (hs, stack, self.stackptr, self.blockptr, self.pc, self.state, self.error,
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
-         events, self.instructions_executed, recs, bcode) = snap  # type: ignore[misc]
+         events, self.instructions_executed, recs, bcode) = snap
+        if len(hs[0]) != self.heap.size or len(stack) != len(self.stack):
+            raise SnapshotError("the snapshot's heap or stack size is not this profile's")
         self.heap.restore(hs)
         self.stack[:] = array("H", stack)
         self.error_events = list(events)
-        self.swarm, self.vstig, self.neighbors, self.queues = recs  # fresh from pickle.loads
+        self.swarm, self.vstig, self.neighbors, self.queues = recs
         self.bcode = bcode
         self.bcode_size = len(bcode)
         arrays_changed()

@@ -47,3 +47,24 @@ def test_damaged_keyframe_bytes_are_refused() -> None:
                                             + bytes(64))
     with pytest.raises(keyframes.KeyframeError, match="outside"):
         keyframes.decode_delta(forged, base)
+
+
+def test_a_delta_holds_exactly_the_blocks_that_differ_once_zero_padded() -> None:
+    """`encode_delta` compares whole blocks in place and the rest as bytes: against a block by
+    block reading of the padded snapshots, it keeps the same blocks, whatever the lengths."""
+    rng = random.Random(5)
+    block = keyframes.BLOCK
+    for _ in range(200):
+        length = rng.choice([0, 1, block - 1, block, block + 1, 3 * block + 5, 700])
+        base = bytes(rng.randrange(2) for _ in range(max(0, length + rng.randrange(-90, 90))))
+        snapshot = changed_copy(base, length, rng.randrange(4), rng)
+        padded = -(-length // block) * block
+        new, old = snapshot.ljust(padded, b"\0"), base[:length].ljust(padded, b"\0")
+        expected = [k for k in range(padded // block)
+                    if new[k * block:(k + 1) * block] != old[k * block:(k + 1) * block]]
+        data = keyframes.decode_full(keyframes.encode_delta(snapshot, base))
+        count = keyframes._HEAD.unpack_from(data)[1]
+        numbers = [int.from_bytes(data[8 + 4 * i:12 + 4 * i], "little") for i in range(count)]
+        assert numbers == expected, (length, len(base))
+        blocks = data[8 + 4 * count:]
+        assert blocks == b"".join(new[k * block:(k + 1) * block] for k in expected)

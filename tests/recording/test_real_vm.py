@@ -72,8 +72,10 @@ def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
             "states": [vm_state(s.robot) for s in sim.robots],
         }
 
-    newest = layout.FORMAT_VERSION
+    newest, flat = layout.FORMAT_VERSION, Robot.snapshot
     layout.FORMAT_VERSION = version  # (module-scoped: no monkeypatch) what the recorder writes
+    if version < 4:  # and the keyframes as formats 2 and 3 held them: pickled
+        Robot.snapshot = Robot.pickled_snapshot  # type: ignore[method-assign]
     try:
         with MissionRecorder(path, sim, recordable, keyframe_every=10) as recorder:
             note()
@@ -82,7 +84,7 @@ def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
                 recorder.record_step()
                 note()
     finally:
-        layout.FORMAT_VERSION = newest
+        layout.FORMAT_VERSION, Robot.snapshot = newest, flat  # type: ignore[method-assign]
     assert not sim.failures, [str(s.failure) for s in sim.failures]
     return {"recording": read_recording(path), "live": live}
 
@@ -218,11 +220,14 @@ def test_kilobot_inputs_are_written_compact_and_older_formats_as_they_were(
         recorded: dict) -> None:
     """Format 4 writes a Kilobot step's messages without a lengths column (every payload is
     as long) and without bearing columns (a Kilobot senses no bearing), uncompressed (the
-    .rrd's own compression takes them); a format 3 recording holds zstd frames in the full
-    layout. Either decodes to the same kind of messages: 8-byte payloads, zero bearings."""
+    .rrd's own compression takes them), and flat keyframes; a format 3 recording holds zstd
+    frames in the full layout and pickled keyframes. Either decodes to the same kind of
+    messages: 8-byte payloads, zero bearings."""
     recording = recorded["recording"]
     blobs = [blob for blob in recording.inputs if blob]
     zstd_magic = b"\x28\xb5\x2f\xfd"
+    snapshot = RobotRebuilder(recording).snapshot(1, recording.keyframes[1][-1])
+    assert snapshot.startswith(b"BZR" if recording.meta["version"] >= 4 else b"\x80")
     if recording.meta["version"] >= 4:
         assert not any(blob.startswith(zstd_magic) for blob in blobs)
         assert {blob[2:4] for blob in blobs} <= {b"\x00\x08", b"\x00\x00"}  # flags, length
@@ -301,3 +306,30 @@ def test_warm_up_of_one_robot_then_the_rest(recorded: dict) -> None:
     session.warm_up()
     gc.unfreeze()
     assert {index for index, _ in session.rebuilder._booted} == set(range(ROBOTS))
+
+
+def test_a_recording_of_pickled_snapshots_still_rebuilds_exactly(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Recordings of formats 2 and 3 hold pickled keyframes (the layout before the flat one,
+    vm/snapshot_layout.py): recorded that way, robots still rebuild to the live state."""
+    spec = WORLDS["kilobot"]
+    program = load_script(REPO / "examples/kilobot/gradient.bzz", spec.host_names, [])
+    recordable = Recordable()
+    sim = Simulation("kilobot", program, robots=4, seed=7, robot_factory=recordable.factory)
+    path = tmp_path / "old.rrd"
+    live = {}
+    with monkeypatch.context() as patch:
+        patch.setattr(Robot, "snapshot", Robot.pickled_snapshot)
+        with MissionRecorder(path, sim, recordable, keyframe_every=10) as recorder:
+            for _ in range(25):
+                sim.step()
+                recorder.record_step()
+                live[sim.step_count] = [Robot.comparable(s.robot.snapshot())
+                                        for s in sim.robots]
+    recording = read_recording(path)
+    rebuilder = RobotRebuilder(recording)
+    assert rebuilder.snapshot(1, recording.keyframes[1][-1]).startswith(b"\x80")
+    for index, step in ((0, 3), (1, 12), (2, 20), (3, 25)):
+        rebuilt = rebuilder.robot_at(index, step)
+        assert rebuilt.snapshot().startswith(b"BZR")  # written flat again once restored
+        assert Robot.comparable(rebuilt.snapshot()) == live[step][index], (index, step)

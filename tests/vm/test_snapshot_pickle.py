@@ -1,5 +1,6 @@
-"""`VM.snapshot()` pickles the VM's records without turning their attributes into dicts (which
-would slow the live VM down for the rest of the run), and the bytes restore exactly."""
+"""`VM.pickled_snapshot()` (the pickled layout: states outside the flat layout's shape, old
+recordings) pickles the VM's records without turning their attributes into dicts (which would
+slow the live VM down for the rest of the run), and the bytes restore exactly."""
 
 from __future__ import annotations
 
@@ -42,13 +43,17 @@ def booted() -> Robot:
 def test_snapshots_leave_the_live_records_as_they_were_and_restore_exactly() -> None:
     robot = booted()
     assert not any(has_dict(r) for r in records(robot))
-    snapshot = robot.snapshot()
+    snapshot = robot.pickled_snapshot()
     assert not any(has_dict(r) for r in records(robot))  # no attribute dict was made
     other = booted()
     other.control_step()
     other.restore(snapshot)
-    assert other.snapshot() == snapshot
+    assert other.pickled_snapshot() == snapshot
     assert not any(has_dict(r) for r in records(other))
+    flat = robot.snapshot()  # the flat layout reads the records without making dicts either
+    assert not any(has_dict(r) for r in records(robot))
+    other.restore(flat)
+    assert other.snapshot() == flat and not any(has_dict(r) for r in records(other))
 
 
 def test_an_object_with_unknown_attributes_is_pickled_the_plain_way() -> None:
@@ -92,24 +97,27 @@ def test_lists_of_records_are_written_as_rows_unless_something_else_holds_them()
 def test_equal_states_give_equal_bytes_whoever_else_holds_their_objects() -> None:
     """The rows-or-list choice follows from the pickled value only: an outside reference to
     the neighbour ring's list or to one of its entries (e.g. a garbage cycle not yet
-    collected) does not change the bytes, and a restored robot snapshots to the same bytes."""
+    collected) does not change the bytes, and a restored robot snapshots to the same bytes.
+    (The pickled layout: what a state outside the flat layout's shape, and every recording
+    of formats 2 and 3, holds.)"""
     from bbzide.vm.neighbors import NeighborEntry
 
     robot = booted()
     ring = robot.vm.neighbors.ring
     if not ring.records:  # an XTREME ring may start empty: give it entries to flatten
         ring.records.extend(NeighborEntry(i, 10 + i, 20, 30) for i in range(3))
-    before = robot.snapshot()
+    before = robot.pickled_snapshot()
     assert b"_rebuild_rows" in before
     outside = [ring.records, ring.records[0], *robot.vm.vstig.entries]  # extra holders
-    assert robot.snapshot() == before
+    assert robot.pickled_snapshot() == before
     del outside
     other = booted()
     other.control_step()
     other.restore(before)
-    assert other.snapshot() == before
+    assert other.pickled_snapshot() == before
     kept = list(other.vm.neighbors.ring.records)  # noqa: F841 - holds every entry once more
-    assert other.snapshot() == before
+    assert other.pickled_snapshot() == before
+    assert not any(has_dict(r) for r in records(other))
 
 
 def test_rows_are_used_for_unshared_lists_whatever_order_the_sharing_comes_in() -> None:
