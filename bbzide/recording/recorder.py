@@ -144,6 +144,10 @@ _HEAP_FIGURE_COUNT = 4
 #: (`FLUSH_SECONDS`) or a larger `flush_every` needs more.
 WINDOW_ROWS = 256
 _STEPS_DONE = operator.attrgetter("steps_done")
+#: What the per-step pass reads of each `RobotState` (one C getter per robot and figure)
+_FAILURE = operator.attrgetter("failure")
+_PROGRAM = operator.attrgetter("program")
+_WORLD_LABELS = operator.attrgetter("_labels")
 #: A step's host calls when there were none (`CallLog.ordered` of an empty log).
 _NO_CALLS: tuple[list[int], bytes] = ([], b"")
 _INSTRUCTIONS = operator.attrgetter("instructions_executed")
@@ -654,7 +658,7 @@ class MissionRecorder:
         # Each numpy call costs several us here, with the caches cold after the simulation
         # step: the common case (no failure, every robot recorded) makes as few as it can, and
         # what can wait (stacking, the heap's `has VM` column) waits for the flush.
-        failures = [s.failure for s in states]
+        failures = list(map(_FAILURE, states))
         if failures.count(None) == n and not self._any_failed:
             failed = new_failures = self._failed  # none, as before (never written to)
         else:
@@ -765,7 +769,7 @@ class MissionRecorder:
     def _labels(self, states: list[Any], step: int, first: bool) -> dict[str, np.ndarray]:
         """The watched labels of every robot as one text array per name (the last step's
         array again when nothing changed), and a `role` event per change."""
-        programs = [state.program for state in states]
+        programs = list(map(_PROGRAM, states))
         if programs != self._label_programs:  # (re)loaded: which robots can have them?
             self._label_programs = programs
             self._globals_watched = any(
@@ -773,7 +777,7 @@ class MissionRecorder:
         if self._globals_watched or not hasattr(states[0], "_labels"):
             current = [state.labels for state in states]
         else:  # no watched global in any program: the world's labels (read only)
-            current = [state._labels for state in states]
+            current = list(map(_WORLD_LABELS, states))
         labels = {}
         for name in self.sim.watch:
             texts = ["" if (value := c.get(name)) is None else str(value) for c in current]
@@ -917,9 +921,11 @@ class MissionRecorder:
                 counts = [link_counts[r] for r in linked]
                 ends = b.positions[np.repeat(linked, counts)[:, None],
                                    np.concatenate([links[r] for r in linked])]
-                at = steps[linked]
-                send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
-                                            rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
+                if len(linked) < len(sampled):
+                    at = steps[linked]
+                    sampled_indexes = [rr.TimeColumn(layout.TIMELINE, sequence=at),
+                                       rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+                send(layout.LINKS, indexes=sampled_indexes,
                      columns=rr.Arrows3D.columns(origins=ends[:, 0],
                                                  vectors=ends[:, 1] - ends[:, 0])
                      .partition(counts))
