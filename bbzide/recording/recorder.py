@@ -469,7 +469,9 @@ class MissionRecorder:
         self._overlay_fingerprint: Any = None
         self._targets_found = 0
         self._watch_in_program: dict[int, bool] = {}
-        self._label_programs: list[Any] = []  # each robot's program when labels were last read
+        # A robot's program changes only with the robot (the engine boots a new one, which the
+        # recorder attaches): which programs can have watched globals is looked at again then
+        self._programs_changed = True
         self._globals_watched = True  # some robot's program can have a watched global
         self._has_targets = False  # targets still to find: poll every step (found events)
         self._overlay_every = OVERLAY_EVERY // 2  # doubled at the first look
@@ -569,6 +571,7 @@ class MissionRecorder:
         self._heaps[index] = robot.vm.heap
         self._recorded[index] = True
         self._recorded_now = self._recorded.copy()  # what the steps from now on hold
+        self._programs_changed = True
         self._heap_sizes = self._heap_sizes.copy()  # (the buffered steps keep the old one)
         self._heap_sizes[index] = robot.vm.heap.size
         self._all_recorded = bool(self._recorded.all())
@@ -769,9 +772,9 @@ class MissionRecorder:
     def _labels(self, states: list[Any], step: int, first: bool) -> dict[str, np.ndarray]:
         """The watched labels of every robot as one text array per name (the last step's
         array again when nothing changed), and a `role` event per change."""
-        programs = list(map(_PROGRAM, states))
-        if programs != self._label_programs:  # (re)loaded: which robots can have them?
-            self._label_programs = programs
+        if self._programs_changed:  # (re)loaded: which robots can have them?
+            self._programs_changed = False
+            programs = list(map(_PROGRAM, states))
             self._globals_watched = any(
                 self._can_have_watched(p) for p in {id(p): p for p in programs}.values())
         if self._globals_watched or not hasattr(states[0], "_labels"):
@@ -779,8 +782,10 @@ class MissionRecorder:
         else:  # no watched global in any program: the world's labels (read only)
             current = list(map(_WORLD_LABELS, states))
         labels = {}
+        unlabelled = not any(current)  # no robot has any label (a Kilobot world's usual case)
         for name in self.sim.watch:
-            texts = ["" if (value := c.get(name)) is None else str(value) for c in current]
+            texts = ([""] * len(current) if unlabelled else
+                     ["" if (value := c.get(name)) is None else str(value) for c in current])
             last = self._last_texts.get(name)
             if texts != last:
                 if last is not None and not first:

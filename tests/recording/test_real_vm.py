@@ -172,7 +172,9 @@ function step() { seen = seen + rand() }
 def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: Path) -> None:
     """The robots stay plain Robots; their `on_phase` hook tells the recorder when a reboot
     ends, so it keyframes the fresh state, and the host calls the boot makes are not
-    recorded as a step's inputs: robots rebuilt after the reload equal the live ones."""
+    recorded as a step's inputs: robots rebuilt after the reload equal the live ones. The
+    watched global `seen` exists only in the second program: its label is recorded from the
+    reload on (the recorder looks at which programs can have it whenever robots reboot)."""
     from bbzide import compiler
 
     spec = WORLDS["kilobot"]
@@ -183,10 +185,12 @@ def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: 
         str(script), string_table=compiler.bittybuzz_string_table(list(spec.host_names))
     ).to_bbo()
     recordable = Recordable()
-    sim = Simulation("kilobot", first, robots=5, seed=3, robot_factory=recordable.factory)
+    sim = Simulation("kilobot", first, robots=5, seed=3, robot_factory=recordable.factory,
+                     watch=("seen",))
     assert all(type(s.robot) is Robot for s in sim.robots)
     path = tmp_path / "reload.rrd"
     live = {}
+    seen = {}
     with MissionRecorder(path, sim, recordable, keyframe_every=50) as recorder:
         for _ in range(30):
             if sim.step_count == 12:
@@ -194,8 +198,11 @@ def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: 
             sim.step()
             recorder.record_step()
             live[sim.step_count] = [vm_state(s.robot) for s in sim.robots]
+            seen[sim.step_count] = [str(s.global_value("seen")) for s in sim.robots]
     assert not sim.failures
     recording = read_recording(path)
+    assert recording.labels["seen"][recording.row(10)].tolist() == [""] * 5
+    assert recording.labels["seen"][recording.row(30)].tolist() == seen[30] != ["None"] * 5
     assert [k.step for k in recording.keyframes[0]] == [0, 12]
     assert any(e.kind == "program" and e.step == 12 for e in recording.events)
     rebuilder = RobotRebuilder(recording)
