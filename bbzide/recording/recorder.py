@@ -14,12 +14,11 @@ message counters and radio links as the engine's arrays; and it keeps what the s
 are made of: the engine's deliveries (`Simulation.step_deliveries`, numpy columns), which
 robots ran a control step (`Robot.steps_done` moved), and the host calls the taps wrote as
 bytes. Every `flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the inputs of all
-buffered steps are encoded at once (`input_log.encode_steps_joined`: one buffer, handed to
-Arrow with its offsets) and the window goes to Rerun as a handful of `send_columns` calls (one
+buffered steps are encoded at once (`input_log.encode_steps_joined`: one buffer, compressed as
+one zstd frame, format 4) and the window goes to Rerun as a handful of `send_columns` calls (one
 chunk per entity and flush, not one `log` per robot per step: 50-100x cheaper, ui-stack-notes
 §4); the stream is flushed to disk, so a process killed mid-run leaves a file readable up to
-its last flush. Rerun's writer thread compresses each chunk (LZ4), so the input blobs are not
-compressed here (format 4). The viewer-only arrows (headings, radio links) are sent for every
+its last flush. The viewer-only arrows (headings, radio links) are sent for every
 `VIEWER_ARROWS_EVERY`-th step; every per-step value bbzide reads back is sent for every step.
 
 Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
@@ -954,43 +953,54 @@ class MissionRecorder:
                                                         gc_runs), strict=True):
             send(f"{layout.HEAP}/{figure}", indexes=indexes,
                  columns=self._scalars(values.reshape(-1).astype(np.float64), lengths))
-        send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
-            inputs=self._encoded_inputs(b.inputs)).partition([1] * rows))
+        self._send_inputs(steps, indexes, b.inputs)
         self._send_rare_rows()
         self._steps = []
         self.rec.flush()
         self._last_flush = time.monotonic()
 
-    def _encoded_inputs(self, buffered: list[tuple[Any, ...] | None]) -> Any:
-        """The buffered steps' inputs as an Arrow binary array of `input_log` bytes (b"" for
-        the first), laid out (and for formats before 4, zstd-compressed) as
-        `layout.FORMAT_VERSION` says: the older ones are written only by tests, to check that
-        they still read. Format 4's are one buffer with offsets, handed to Arrow as is."""
+    def _send_inputs(self, steps: np.ndarray, indexes: list[Any],
+                     buffered: list[tuple[Any, ...] | None]) -> None:
+        """The buffered steps' inputs as `input_log` bytes (b"" for the recording's first
+        step), laid out as `layout.FORMAT_VERSION` says. Format 4: the steps' bytes back to
+        back (`encode_steps_joined`), zstd-compressed as one frame and sent as one row at the
+        flush's first step, with the steps and where each one's bytes end (one zstd call per
+        step was ~13 us of a Kilobot step, a call's fixed cost; left uncompressed, the ~650 KB
+        a flush cost Rerun's writer thread ~14 us a step to compress, against ~5 us for zstd
+        here and ~4 for the writer). Formats 2-3 (written only by tests, to check that they
+        still read): one zstd frame per step, one row each."""
+        rr = self.rr
         import pyarrow as pa
 
         kept = [parts for parts in buffered if parts is not None]
         version = layout.FORMAT_VERSION
-        if layout.inputs_compressed(version):
+        compress = self._inputs_compressor.compress
+        if not layout.inputs_per_flush(version):
             encoded = iter(encode_steps(*zip(*kept, strict=True),
                                         layout=layout.input_layout(version)) if kept else [])
-            compress = self._inputs_compressor.compress
-            return pa.array([b"" if parts is None else compress(next(encoded))
-                             for parts in buffered], type=pa.binary())
+            blobs = pa.array([b"" if parts is None else compress(next(encoded))
+                              for parts in buffered], type=pa.binary())
+            self.rec.send_columns(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
+                inputs=blobs).partition([1] * len(buffered)))
+            return
         data, ends = (encode_steps_joined(*zip(*kept, strict=True),
                                           layout=layout.input_layout(version))
                       if kept else (b"", []))
-        offsets = np.zeros(len(buffered) + 1, dtype=np.int32)
-        if len(kept) == len(buffered):
-            offsets[1:] = ends
-        else:  # the recording's first step has no inputs: it ends where the one before did
+        if len(kept) < len(buffered):  # the recording's first step has no inputs
             kept_ends = iter(ends)
             end = 0
-            for row, parts in enumerate(buffered):
+            ends = []
+            for parts in buffered:
                 if parts is not None:
                     end = next(kept_ends)
-                offsets[row + 1] = end
-        return pa.Array.from_buffers(pa.binary(), len(buffered),
-                                     [None, pa.py_buffer(offsets), pa.py_buffer(data)])
+                ends.append(end)
+        self.rec.send_columns(layout.INPUTS, indexes=self._time_columns([int(steps[0])]),
+                              columns=[
+            *rr.AnyValues.columns(inputs=pa.array([compress(data)], type=pa.binary())
+                                  ).partition([1]),
+            *rr.AnyValues.columns(input_steps=pa.array(steps, type=pa.int64()),
+                                  input_ends=pa.array(ends, type=pa.int64())
+                                  ).partition([len(buffered)])])
 
     def _send_viewer_labels(self, steps: np.ndarray, labels: list[dict[str, np.ndarray]],
                             radius: float) -> None:
