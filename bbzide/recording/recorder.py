@@ -95,12 +95,13 @@ KEYFRAME_CHECK_EVERY = 8
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
 KEYFRAME_COST_FACTOR = 12
-#: Columns are sent and flushed every 250 steps (25 s of Kilobot time, ~2.5 s of a 25-drone SAR
-#: swarm): each flush costs ~18 `send_columns` calls of Rerun's Python-side conversion and
-#: our own preparation of the columns (~15 ms in all for 100 SAR steps, ~25 ms for 250), so
-#: fewer, larger chunks (100 steps cost 0.15 ms per step, 250 0.10; 500 no less than 250,
-#: measured on 25 Kilobots in session 5: ~0.1 ms a step either way)...
-FLUSH_EVERY = 250
+#: Columns are sent and flushed every 500 steps (50 s of Kilobot time, ~5 s of a 25-drone SAR
+#: swarm): each flush costs ~15 `send_columns` calls of Rerun's Python-side conversion and
+#: our own preparation of the columns, partly a fixed cost per flush, so fewer, larger chunks
+#: (session 5: 100 steps cost 0.15 ms per SAR step, 250 0.10; session 6, once the per-step
+#: costs had shrunk, 25 Kilobots: 500 steps 7.5-8.0 % of the simulation's CPU time against
+#: 8.0-8.3 % for 250, three runs each)...
+FLUSH_EVERY = 500
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
 #: swarm made that framing most of the file.)
@@ -139,9 +140,9 @@ MAX_ID_TABLE = 1 << 16
 #: (its size never changes: read when the recorder attaches the robot, `_attach`).
 _HEAP_FIGURES = operator.attrgetter("rtobj", "ltseg", "peak_used", "gc_runs")
 _HEAP_FIGURE_COUNT = 4
-#: A flush window's arrays start this many steps long and double when a slow swarm's window
-#: (`FLUSH_SECONDS`) or a larger `flush_every` needs more.
-WINDOW_ROWS = 256
+#: A flush window's arrays start this many steps long (`FLUSH_EVERY`) and double when a
+#: larger `flush_every` needs more.
+WINDOW_ROWS = 512
 _STEPS_DONE = operator.attrgetter("steps_done")
 #: What the per-step pass reads of each `RobotState` (one C getter per robot and figure)
 _FAILURE = operator.attrgetter("failure")
@@ -339,7 +340,7 @@ class _Window:
         self.positions = np.empty((rows, n, 3), dtype=np.float32)
         self.headings = np.empty((rows, n), dtype=np.float32)
         self.leds = np.empty((rows, n, 3), dtype=np.float32)
-        self.failed = np.empty((rows, n), dtype=bool)
+        self.failed = np.zeros((rows, n), dtype=bool)  # written only while some robot failed
         #: per step and robot, its `_HEAP_FIGURES` (n x 4 ints a step, flat)
         self.heap: list[int] = []
         self.has_vm: list[np.ndarray] = []  # per step: has a recorded VM, per robot
@@ -353,7 +354,7 @@ class _Window:
         """Twice as many rows (the rows written so far kept)."""
         for name in ("positions", "headings", "leds", "failed"):
             old = getattr(self, name)
-            new = np.empty((2 * self.rows, *old.shape[1:]), dtype=old.dtype)
+            new = np.zeros((2 * self.rows, *old.shape[1:]), dtype=old.dtype)
             new[:self.rows] = old
             setattr(self, name, new)
         self.rows *= 2
@@ -705,7 +706,8 @@ class MissionRecorder:
         window.positions[row] = sim.positions
         window.headings[row] = sim.headings
         window.leds[row] = sim.leds
-        window.failed[row] = failed
+        if self._any_failed:
+            window.failed[row] = failed
         window.has_vm.append(self._recorded_now)  # (the same array until a robot is attached)
         window.heap_sizes.append(self._heap_sizes)
         window.labels.append(labels)
