@@ -641,10 +641,10 @@ def encode_steps_joined(stepped: Sequence[np.ndarray],
     columns: list[tuple[bytes, ...]] = [()] * steps
     flag_bytes = [_step_head(0, 0) if layout == LAYOUT_COMPACT else b""] * steps
     packed = [k for k, d in enumerate(deliveries)
-              if isinstance(d, PackedMessages) and len(d)]
+              if isinstance(d, PackedMessages) and len(d.robots)]
     if packed:
         parts = [deliveries[k] for k in packed]
-        sizes = np.array([len(d) for d in parts], dtype=np.int64)
+        sizes = np.array([len(d.robots) for d in parts], dtype=np.int64)
         robots = np.concatenate([d.robots for d in parts])
         received += np.bincount(np.repeat(np.array(packed) * count, sizes) + robots,
                                 minlength=steps * count)
@@ -677,15 +677,13 @@ def encode_steps_joined(stepped: Sequence[np.ndarray],
     size = _HEAD.size
     pack = _U16.pack
     chunks: list[bytes] = []
-    ends = []
-    end = 0
+    last_chunk = []  # per step: the index of its last chunk
     for k in range(steps):
-        step = (pack(records[k]), flag_bytes[k],
-                head_bytes[size * firsts[k]:size * firsts[k + 1]], *columns[k], calls[k][1])
-        chunks += step
-        end += sum(map(len, step))
-        ends.append(end)
-    return b"".join(chunks), ends
+        chunks += (pack(records[k]), flag_bytes[k],
+                   head_bytes[size * firsts[k]:size * firsts[k + 1]], *columns[k], calls[k][1])
+        last_chunk.append(len(chunks) - 1)
+    ends = np.cumsum(np.fromiter(map(len, chunks), dtype=np.int64, count=len(chunks)))
+    return b"".join(chunks), ends[last_chunk].tolist()
 
 
 def _packed_columns(parts: list[PackedMessages], bounds: np.ndarray, steps: list[int],
@@ -715,7 +713,8 @@ def _packed_columns(parts: list[PackedMessages], bounds: np.ndarray, steps: list
             columns[k] = (length_bytes[2 * r0:2 * r1], payload_bytes[bytes_at[j]:bytes_at[j + 1]],
                           situation_bytes[24 * r0:24 * r1])
         return
-    distance_bytes = np.concatenate([d.distances for d in parts]).astype("<f8").tobytes()
+    distance_bytes = np.concatenate([d.distances for d in parts]).astype("<f8", copy=False
+                                                                         ).tobytes()
     azimuths = np.concatenate([d.azimuths for d in parts])
     elevations = np.concatenate([d.elevations for d in parts])
     # A step's bearing columns are written when any of its bearings has a bit set (-0.0 too)
@@ -724,8 +723,8 @@ def _packed_columns(parts: list[PackedMessages], bounds: np.ndarray, steps: list
     if bearing.any():
         at = np.concatenate([[0], np.cumsum(bearing != 0)])[bounds]
         with_bearings = set(np.flatnonzero(np.diff(at)).tolist())
-        azimuth_bytes = azimuths.astype("<f8").tobytes()
-        elevation_bytes = elevations.astype("<f8").tobytes()
+        azimuth_bytes = azimuths.astype("<f8", copy=False).tobytes()
+        elevation_bytes = elevations.astype("<f8", copy=False).tobytes()
     common = [low] * len(steps)  # each step's payload length, -1: several (a lengths column)
     if low != high:
         starts = bounds[:-1]  # every step in `steps` has messages
