@@ -226,10 +226,10 @@ def test_latched_led_stays_latched_and_out_of_the_input_log(recorded: dict) -> N
 def test_kilobot_inputs_are_written_compact_and_older_formats_as_they_were(
         recorded: dict) -> None:
     """Format 4 writes a Kilobot step's messages without a lengths column (every payload is
-    as long) and without bearing columns (a Kilobot senses no bearing), uncompressed (the
-    .rrd's own compression takes them), and flat keyframes; a format 3 recording holds zstd
-    frames in the full layout and pickled keyframes. Either decodes to the same kind of
-    messages: 8-byte payloads, zero bearings."""
+    as long) and without bearing columns (a Kilobot senses no bearing), a flush's blobs as one
+    zstd frame that the reader opens (so each step's blob comes back raw), and flat
+    keyframes; a format 3 recording holds a zstd frame per step in the full layout and pickled
+    keyframes. Either decodes to the same kind of messages: 8-byte payloads, zero bearings."""
     recording = recorded["recording"]
     blobs = [blob for blob in recording.inputs if blob]
     zstd_magic = b"\x28\xb5\x2f\xfd"
