@@ -1,11 +1,15 @@
-"""The compressor of a recording's own blobs (per-step VM inputs, keyframes): Zstandard.
+"""The compressor of a recording's own blobs (keyframes, VM inputs): Zstandard.
 
-Design: the recorder compresses one input blob per step and one keyframe per robot every
-`KEYFRAME_EVERY` steps on the simulation's thread, so the compressor's speed is recording
-cost. Measured on a 25-drone SAR swarm (M300, steps 50-200): zstd level 1 compresses a step's
-11.7 KB of inputs in ~40 us and a 10.6 KB keyframe delta in ~110 us, against zlib level 1's
-~90 us and ~310 us, to sizes a few % smaller. `zstandard` comes with viser already; it is
-pinned in pyproject.toml because we use it directly.
+Design: the recorder compresses one keyframe per robot every `KEYFRAME_EVERY` steps on the
+simulation's thread, so the compressor's speed is recording cost. Measured on a 25-drone SAR
+swarm (M300, steps 50-200): zstd level 1 compresses a 10.6 KB keyframe delta in ~110 us,
+against zlib level 1's ~310 us, to sizes a few % smaller. Until format 3 each step's input
+blob was compressed alone (level -1, ~40 us for an M300 step's 11.7 KB, ~13 us for a Kilobot
+step: a zstd call's fixed cost dominates such small blobs); format 4 compresses a flush's
+input blobs as one frame (~5 us a Kilobot step, ~7 an M300 step). Left to the LZ4 that
+Rerun's writer thread applies to every chunk, the raw inputs cost that thread more (~14 us a
+Kilobot step, ~25 more for SAR) and the file grew. `zstandard` comes with viser already; it
+is pinned in pyproject.toml because we use it directly.
 
 A blob that does not decompress is a `CompressionError` (a corrupt recording).
 """
@@ -17,8 +21,9 @@ import zstandard
 #: zstd level 1 for keyframes: level 3 makes full snapshots 6 % smaller (5.7 vs 6.1 KB) for
 #: 40 % more time, level -1 makes deltas 20 % larger.
 KEYFRAME_LEVEL = 1
-#: zstd level -1 for the per-step inputs: the same size as level 1 (1.30 vs 1.28 KB a step)
-#: in two thirds of the time; one blob is compressed every step.
+#: zstd level -1 for the inputs: a Kilobot flush's 2.7 KB a step compress to 1.48 KB in
+#: 4.8 us a step (level 1: 1.38 KB, 6.9 us; level 3: 1.31 KB, 8.7 us), an M300 flush's
+#: 8.1 KB to 0.85 KB in 6.8 us (level 1: the same size, 10 us). Formats 2-3: per step.
 INPUT_LEVEL = -1
 
 

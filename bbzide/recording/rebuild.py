@@ -23,7 +23,7 @@ from collections.abc import Callable
 from typing import Any
 
 from bbzide.diagnostics import SourceLocation
-from bbzide.recording import keyframes
+from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import CompressionError, decompress
 from bbzide.recording.reader import Keyframe, Recording
 from bbzide.recording.recorder import RecordingError, build_robot
@@ -153,6 +153,9 @@ class RobotRebuilder:
         self._build = build or (lambda program, profile, robot_id, host: build_robot(
             program, profile, robot_id, host, meta.get("loop", "pop"),
             meta.get("instruction_budget")))
+        #: how the input blobs are laid out (formats 2-3: full, 4: compact)
+        self._input_layout = layout.input_layout(int(meta.get("version", 0)))
+        self._inputs_compressed = layout.inputs_compressed(int(meta.get("version", 0)))
         self._programs: dict[int, Any] = {}
         self._cache: dict[int, tuple[int, Any, ReplayHostFunctions, int]] = {}
         self._decoded: dict[tuple[int, int], dict[int, Any]] = {}
@@ -276,7 +279,9 @@ class RobotRebuilder:
         if decoded is None:
             try:
                 blob = self.recording.inputs[self.recording.row(step)]
-                decoded = decode_step(decompress(blob), only=index) if blob else {}
+                if blob and self._inputs_compressed:
+                    blob = decompress(blob)
+                decoded = decode_step(blob, only=index, layout=self._input_layout) if blob else {}
             except (InputLogError, CompressionError) as error:
                 raise RecordingError(f"corrupt inputs at step {step}: {error}") from None
             if len(self._decoded) > 4096:  # a bounded memo: seeks revisit nearby steps

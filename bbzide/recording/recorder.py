@@ -7,16 +7,19 @@ and only wraps the world host functions it passes them (`input_log.SwarmCapture.
 pass-through until a recorder switches capture on). So a swarm started in the IDE can be
 recorded from any step on, and `bbzide run --record` records from step 0.
 
-After each `Simulation.step()`, `record_step()` copies the step's figures into small numpy
-buffers (positions, LED colours, headings, failure flags, watched labels, message counters,
-heap figures of every robot, radio links) and keeps what the step's inputs are made of: the
-engine's deliveries (`Simulation.step_deliveries`, numpy columns), which robots ran a
-control step (`Robot.steps_done` moved), and the host calls the taps wrote as bytes. Every
-`flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the inputs of all buffered
-steps are encoded at once (`input_log.encode_steps`) and the buffers go to Rerun as a
-handful of `send_columns` calls (one chunk per entity and flush, not one `log` per robot per
-step: 50-100x cheaper, ui-stack-notes §4); the stream is flushed to disk, so a process
-killed mid-run leaves a file readable up to its last flush.
+After each `Simulation.step()`, `record_step()` writes the step's figures into the flush
+window (`_Window`): positions, LED colours, headings and failure flags as rows of arrays
+allocated once per window, the heap figures of every robot as plain ints, the watched labels,
+message counters and radio links as the engine's arrays; and it keeps what the step's inputs
+are made of: the engine's deliveries (`Simulation.step_deliveries`, numpy columns), which
+robots ran a control step (`Robot.steps_done` moved), and the host calls the taps wrote as
+bytes. Every `flush_every` steps (or `FLUSH_SECONDS`, whichever comes first) the inputs of all
+buffered steps are encoded at once (`input_log.encode_steps_joined`: one buffer, compressed as
+one zstd frame, format 4) and the window goes to Rerun as a handful of `send_columns` calls (one
+chunk per entity and flush, not one `log` per robot per step: 50-100x cheaper, ui-stack-notes
+§4); the stream is flushed to disk, so a process killed mid-run leaves a file readable up to
+its last flush. The viewer-only arrows (headings, radio links) are sent for every
+`VIEWER_ARROWS_EVERY`-th step; every per-step value bbzide reads back is sent for every step.
 
 Exact VM state at any step = the robot's nearest earlier keyframe (its `Robot.snapshot()`,
 compressed, taken when recording starts, whenever it boots, e.g. on a program reload, and
@@ -47,7 +50,7 @@ from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
 from bbzide.vm.host import LatchedHostFunction
-from bbzide.vm.input_log import SwarmCapture, encode_steps
+from bbzide.vm.input_log import SwarmCapture, encode_steps, encode_steps_joined
 from bbzide.vm.vm import State
 
 #: A robot is keyframed at least every 150 steps (15 s of Kilobot time)...
@@ -92,12 +95,13 @@ KEYFRAME_CHECK_EVERY = 8
 #: then the budget grows to 12x the keyframe's cost, which keeps keyframes under ~8 % of its
 #: VM time (the recording goal is <= 10 %) at the price of longer seeks for such robots.
 KEYFRAME_COST_FACTOR = 12
-#: Columns are sent and flushed every 250 steps (25 s of Kilobot time, ~2.5 s of a 25-drone SAR
-#: swarm): each flush costs ~18 `send_columns` calls of Rerun's Python-side conversion and
-#: our own preparation of the columns (~15 ms in all for 100 SAR steps, ~25 ms for 250), so
-#: fewer, larger chunks (100 steps cost 0.15 ms per step, 250 0.10; 500 no less than 250,
-#: measured on 25 Kilobots in session 5: ~0.1 ms a step either way)...
-FLUSH_EVERY = 250
+#: Columns are sent and flushed every 500 steps (50 s of Kilobot time, ~5 s of a 25-drone SAR
+#: swarm): each flush costs ~15 `send_columns` calls of Rerun's Python-side conversion and
+#: our own preparation of the columns, partly a fixed cost per flush, so fewer, larger chunks
+#: (session 5: 100 steps cost 0.15 ms per SAR step, 250 0.10; session 6, once the per-step
+#: costs had shrunk, 25 Kilobots: 500 steps 7.5-8.0 % of the simulation's CPU time against
+#: 8.0-8.3 % for 250, three runs each)...
+FLUSH_EVERY = 500
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow
 #: swarm made that framing most of the file.)
@@ -118,9 +122,11 @@ OVERLAY_EVERY = 10
 #: last step is always looked at when the recording closes. A Kilobot's light field never
 #: changes, and building its raster every 10 steps was ~0.02 ms a step, ~7 % of the recorder.
 OVERLAY_EVERY_MAX = 80
-#: The Rerun viewer's radio-link arrows are logged every 5th step only: at ~24 B per link per
-#: array they were a fifth of a dense Kilobot recording; `pairs` keeps every step's links.
-LINK_ARROWS_EVERY = 5
+#: The Rerun viewer's arrows (radio links, headings) are logged every 5th step only (half a
+#: second of Kilobot time): at ~24 B per link per array the link arrows were a fifth of a dense
+#: Kilobot recording, and the heading arrows of every step were ~150 KB a flush for Rerun's
+#: writer thread to compress; `pairs` and `heading` keep every step's links and headings.
+VIEWER_ARROWS_EVERY = 5
 
 #: The label of `Robot.boot`'s last phase (`on_phase`): the boot has ended.
 BOOT_DONE_PHASE = "init"
@@ -130,11 +136,18 @@ BOOT_DONE_PHASE = "init"
 MAX_ID_TABLE = 1 << 16
 
 
-#: Heap figures of a robot without a VM (a passive body): size, ROP, LSP, peak, GC runs, has VM.
-_NO_HEAP = (0, 0, 0, 0, 0, 0)
-#: The first five of those, read from a heap in one C call.
-_HEAP_FIGURES = operator.attrgetter("size", "rtobj", "ltseg", "peak_used", "gc_runs")
+#: The heap figures read every step, from each heap in one C call: ROP, LSP, peak, GC runs
+#: (its size never changes: read when the recorder attaches the robot, `_attach`).
+_HEAP_FIGURES = operator.attrgetter("rtobj", "ltseg", "peak_used", "gc_runs")
+_HEAP_FIGURE_COUNT = 4
+#: A flush window's arrays start this many steps long (`FLUSH_EVERY`) and double when a
+#: larger `flush_every` needs more.
+WINDOW_ROWS = 512
 _STEPS_DONE = operator.attrgetter("steps_done")
+#: What the per-step pass reads of each `RobotState` (one C getter per robot and figure)
+_FAILURE = operator.attrgetter("failure")
+_PROGRAM = operator.attrgetter("program")
+_WORLD_LABELS = operator.attrgetter("_labels")
 #: A step's host calls when there were none (`CallLog.ordered` of an empty log).
 _NO_CALLS: tuple[list[int], bytes] = ([], b"")
 _INSTRUCTIONS = operator.attrgetter("instructions_executed")
@@ -318,6 +331,35 @@ def _target_points(overlays: dict[str, Any]) -> np.ndarray | None:
     return np.array(points, dtype=np.float32)
 
 
+class _Window:
+    """What a recorder buffers until its next flush: per-robot figures in arrays of `rows`
+    steps (row k: the k-th buffered step), the rest in lists, one item per step."""
+
+    def __init__(self, n: int, rows: int) -> None:
+        self.rows = rows
+        self.positions = np.empty((rows, n, 3), dtype=np.float32)
+        self.headings = np.empty((rows, n), dtype=np.float32)
+        self.leds = np.empty((rows, n, 3), dtype=np.float32)
+        self.failed = np.zeros((rows, n), dtype=bool)  # written only while some robot failed
+        #: per step and robot, its `_HEAP_FIGURES` (n x 4 ints a step, flat)
+        self.heap: list[int] = []
+        self.has_vm: list[np.ndarray] = []  # per step: has a recorded VM, per robot
+        self.heap_sizes: list[np.ndarray] = []  # ... and its heap's size
+        self.labels: list[dict[str, np.ndarray]] = []
+        self.traffic: list[tuple[np.ndarray, ...]] = []
+        self.links: list[np.ndarray] = []
+        self.inputs: list[tuple[Any, ...] | None] = []
+
+    def grow(self) -> None:
+        """Twice as many rows (the rows written so far kept)."""
+        for name in ("positions", "headings", "leds", "failed"):
+            old = getattr(self, name)
+            new = np.zeros((2 * self.rows, *old.shape[1:]), dtype=old.dtype)
+            new[:self.rows] = old
+            setattr(self, name, new)
+        self.rows *= 2
+
+
 class MissionRecorder:
     """Records `sim` into `path` from its current step; call `record_step()` after each step."""
 
@@ -361,6 +403,7 @@ class MissionRecorder:
         self._heaps: list[Any] = [_NO_ROBOT.vm.heap] * n
         self._recorded = np.zeros(n, dtype=bool)  # has a firmware loop we record
         self._recorded_now = self._recorded.copy()
+        self._heap_sizes = np.zeros(n, dtype=np.int64)  # of each robot's heap (0: no VM)
         self._all_recorded = False
         self._keyframed: dict[int, int] = {}  # robot index -> step of its last keyframe
         # Per robot, as arrays (the per-step pass is a few numpy operations, not 25 loops):
@@ -371,15 +414,19 @@ class MissionRecorder:
         self._busy = np.zeros(n)
         self._cpu_then = np.zeros(n)
         self._wall_then = np.zeros(n)
-        self._clocks = (time.thread_time(), time.perf_counter())  # sampled once per step
+        # (thread CPU, wall) clocks: read when a keyframe is taken or a robot's budget is
+        # looked at, not every step (a `thread_time` call is a system call, ~3 us)
         # What the last step left (to see what the next one did): each robot's
         # `steps_done` (it ran a control step) and `vm.instructions_executed` (its share of
         # the swarm's VM time), whether it had failed, and the engine's VM seconds.
-        self._steps_done = np.zeros(n, dtype=np.int64)
+        self._steps_done = [0] * n
+        self._all_stepped = np.ones(n, dtype=bool)  # (never written to)
         self._instructions = np.zeros(n, dtype=np.int64)
         self._failed = np.zeros(n, dtype=bool)
+        self._any_failed = False  # self._failed.any()
         self._vm_seconds = float(sim.timings.get("vm", 0.0))
         self._check_at = 0  # the next step at which `_keyframes_due` looks
+        self._budget_check_at = 0  # ... and the next at which it looks at the VM budgets
         #: messages come from `sim.step_deliveries` (else from receive hooks on the robots)
         self._packed = hasattr(sim, "step_deliveries") and not getattr(sim, "asynchronous",
                                                                        False)
@@ -412,7 +459,7 @@ class MissionRecorder:
         self.start_step = int(sim.step_count)
         self._programs: dict[int, int] = {}
         self._program_objects: list[Any] = []
-        self._buffer: dict[str, list[Any]] = {}
+        self._window = _Window(n, min(flush_every, WINDOW_ROWS))
         self._steps: list[int] = []
         self._last_flush = time.monotonic()
         self._last_texts: dict[str, list[str]] = {}  # each watched label, per robot
@@ -422,7 +469,9 @@ class MissionRecorder:
         self._overlay_fingerprint: Any = None
         self._targets_found = 0
         self._watch_in_program: dict[int, bool] = {}
-        self._label_programs: list[Any] = []  # each robot's program when labels were last read
+        # A robot's program changes only with the robot (the engine boots a new one, which the
+        # recorder attaches): which programs can have watched globals is looked at again then
+        self._programs_changed = True
         self._globals_watched = True  # some robot's program can have a watched global
         self._has_targets = False  # targets still to find: poll every step (found events)
         self._overlay_every = OVERLAY_EVERY // 2  # doubled at the first look
@@ -449,8 +498,7 @@ class MissionRecorder:
         gc.collect()
         # The CPU share of the first keyframes' budget is counted from here: the set-up above
         # is all CPU work and would make any waiting of the robots look like CPU time.
-        self._clocks = (time.thread_time(), time.perf_counter())
-        self._cpu_then[:], self._wall_then[:] = self._clocks
+        self._cpu_then[:], self._wall_then[:] = time.thread_time(), time.perf_counter()
         self._vm_seconds = float(sim.timings.get("vm", 0.0))
 
     # ---- static parts ---------------------------------------------------------------------------
@@ -523,6 +571,9 @@ class MissionRecorder:
         self._heaps[index] = robot.vm.heap
         self._recorded[index] = True
         self._recorded_now = self._recorded.copy()  # what the steps from now on hold
+        self._programs_changed = True
+        self._heap_sizes = self._heap_sizes.copy()  # (the buffered steps keep the old one)
+        self._heap_sizes[index] = robot.vm.heap.size
         self._all_recorded = bool(self._recorded.all())
         if not self._packed:
             self._capture.hook_receive(robot, index)
@@ -550,12 +601,13 @@ class MissionRecorder:
         if not indexes:
             return
         snapshots, programs, bases = [], [], []
+        clocks = (time.thread_time(), time.perf_counter())
         for index in indexes:
             state = self.sim.robots[index]
             self._keyframed[index] = step
             robot = state.robot
             self._busy[index] = 0.0
-            self._cpu_then[index], self._wall_then[index] = self._clocks
+            self._cpu_then[index], self._wall_then[index] = clocks
             self._steps_done[index] = getattr(robot, "steps_done", 0)
             self._instructions[index] = getattr(robot.vm, "instructions_executed", 0)
             started = time.thread_time()
@@ -586,7 +638,6 @@ class MissionRecorder:
         if self.closed:
             return
         started = time.perf_counter()
-        self._clocks = (time.thread_time(), started)
         self._frame(int(self.sim.step_count))
         if (len(self._steps) >= self.flush_every
                 or time.monotonic() - self._last_flush > FLUSH_SECONDS):
@@ -610,51 +661,61 @@ class MissionRecorder:
         # Each numpy call costs several us here, with the caches cold after the simulation
         # step: the common case (no failure, every robot recorded) makes as few as it can, and
         # what can wait (stacking, the heap's `has VM` column) waits for the flush.
-        failures = [s.failure for s in states]
-        if failures.count(None) == n and not self._failed.any():
+        failures = list(map(_FAILURE, states))
+        if failures.count(None) == n and not self._any_failed:
             failed = new_failures = self._failed  # none, as before (never written to)
         else:
             failed = np.fromiter((f is not None for f in failures), dtype=bool, count=n)
             new_failures = failed & ~self._failed
             self._failed = failed
+            self._any_failed = bool(failed.any())
             for i in np.flatnonzero(new_failures).tolist():
                 if i not in self._known_failures:
                     self._known_failures.add(i)
                     self._event(step, layout.EVENT_ERROR, i,
                                 f"robot {states[i].robot_id}: {_failure_text(failures[i])}")
-        heap = np.fromiter(chain.from_iterable(map(_HEAP_FIGURES, self._heaps)),
-                           dtype=np.int64, count=n * 5)
+        window = self._window
+        row = len(self._steps)
+        if row == window.rows:
+            window.grow()
+        # Plain ints in one list, made into one array at the flush: converting 100 ints to
+        # numpy here, with the caches cold after the simulation step, took as long as reading
+        # them (~10 us); kept as tuples, they made the garbage collector run every ~30 steps.
+        window.heap.extend(chain.from_iterable(map(_HEAP_FIGURES, self._heaps)))
         labels = self._labels(states, step, first) if sim.watch else {}
         inputs = None  # the first frame has none
         due: list[int] = []
         if not first:
-            steps_done = np.fromiter(map(_STEPS_DONE, robots), dtype=np.int64, count=n)
-            stepped = steps_done != self._steps_done
+            steps_done = list(map(_STEPS_DONE, robots))
+            if all(map(operator.ne, steps_done, self._steps_done)):
+                stepped = self._all_stepped  # the usual case: every robot stepped
+            else:
+                stepped = np.fromiter(map(operator.ne, steps_done, self._steps_done),
+                                      dtype=bool, count=n)
             if new_failures is not failed or not self._all_recorded:
                 stepped = (stepped | new_failures) & self._recorded
             self._steps_done = steps_done
             inputs = self._step_inputs(stepped)
             due = self._keyframes_due(step, self._vms, failed)
         stats = sim.stats
-        buffer = self._buffer
         self._steps.append(step)
         self._last_step = step
-        buffer.setdefault("positions", []).append(np.asarray(sim.positions, dtype=np.float32))
-        buffer.setdefault("headings", []).append(np.asarray(sim.headings, dtype=np.float32))
-        buffer.setdefault("leds", []).append(np.asarray(sim.leds, dtype=np.float32))
-        # Kept as numpy arrays, which the garbage collector does not track: lists kept alive
-        # until the flush made it run (full passes of ~100 ms) several times more often.
-        buffer.setdefault("failed", []).append(failed)
-        buffer.setdefault("heap", []).append(heap)
-        buffer.setdefault("has_vm", []).append(self._recorded_now)
-        buffer.setdefault("labels", []).append(labels)
+        # Written into the flush window's arrays (one copy each, stacked already), which the
+        # garbage collector does not track: lists kept alive until the flush made it run
+        # (full passes of ~100 ms) several times more often.
+        window.positions[row] = sim.positions
+        window.headings[row] = sim.headings
+        window.leds[row] = sim.leds
+        if self._any_failed:
+            window.failed[row] = failed
+        window.has_vm.append(self._recorded_now)  # (the same array until a robot is attached)
+        window.heap_sizes.append(self._heap_sizes)
+        window.labels.append(labels)
         # the engine's counters: new arrays every step, stacked at the flush
-        buffer.setdefault("traffic", []).append(
-            (stats.sent, stats.received, stats.dropped, stats.bytes_sent))
+        window.traffic.append((stats.sent, stats.received, stats.dropped, stats.bytes_sent))
         pairs = getattr(sim, "link_indexes", None)  # (sender, receiver) indexes, if given
-        buffer.setdefault("links", []).append(
-            self._link_indexes(sim.links) if pairs is None else pairs)
-        buffer.setdefault("inputs", []).append(inputs)
+        window.links.append(self._link_indexes(sim.links) if pairs is None else pairs)
+        window.inputs.append(inputs)
         self._keyframe(due, step)
         if not first and (self._has_targets or step >= self._overlays_due):
             self._record_overlays(step)
@@ -675,11 +736,18 @@ class MissionRecorder:
         `KEYFRAME_BUDGET_SECONDS` of VM CPU time. A robot's VM time is the engine's VM time
         of the step (`sim.timings["vm"]`, wall clock) shared out by the instructions each
         robot executed in it (robots are not timed one by one: an engine steps them in one
-        batch), scaled by this thread's CPU share since the robot's last keyframe. Checked
-        every `KEYFRAME_CHECK_EVERY` steps, and at the steps where the step bound falls."""
+        batch), scaled by this thread's CPU share since the robot's last keyframe. The budget
+        is looked at every `KEYFRAME_CHECK_EVERY` steps; at the steps where some robot's step
+        bound falls in between, only the step bounds are (robots keyframed at different steps
+        made those a third of the looks, each reading every robot's instruction counter)."""
         if step < self._check_at:
             return []
-        self._check_at = min(step + KEYFRAME_CHECK_EVERY, int(self._due_step.min()))
+        if step < self._budget_check_at:  # a step bound falls due: nothing else to look at
+            self._check_at = min(self._budget_check_at, int(self._due_step.min()))
+            due = self._due_step <= step
+            return np.flatnonzero(due & self._recorded & ~failed).tolist()
+        self._budget_check_at = step + KEYFRAME_CHECK_EVERY
+        self._check_at = min(self._budget_check_at, int(self._due_step.min()))
         instructions = np.fromiter(map(_INSTRUCTIONS, vms), dtype=np.int64, count=self.count)
         ran = np.maximum(instructions - self._instructions, 0)
         self._instructions = instructions
@@ -692,7 +760,7 @@ class MissionRecorder:
         due = self._due_step <= step
         over = self._busy >= self._budget  # wall >= CPU time: the CPU share only for these
         if over.any():
-            cpu, wall = self._clocks
+            cpu, wall = time.thread_time(), time.perf_counter()
             for i in np.flatnonzero(over).tolist():
                 span = wall - self._wall_then[i]
                 share = 1.0 if span <= 0 else min(1.0, max(
@@ -705,18 +773,20 @@ class MissionRecorder:
     def _labels(self, states: list[Any], step: int, first: bool) -> dict[str, np.ndarray]:
         """The watched labels of every robot as one text array per name (the last step's
         array again when nothing changed), and a `role` event per change."""
-        programs = [state.program for state in states]
-        if programs != self._label_programs:  # (re)loaded: which robots can have them?
-            self._label_programs = programs
+        if self._programs_changed:  # (re)loaded: which robots can have them?
+            self._programs_changed = False
+            programs = list(map(_PROGRAM, states))
             self._globals_watched = any(
                 self._can_have_watched(p) for p in {id(p): p for p in programs}.values())
         if self._globals_watched or not hasattr(states[0], "_labels"):
             current = [state.labels for state in states]
         else:  # no watched global in any program: the world's labels (read only)
-            current = [state._labels for state in states]
+            current = list(map(_WORLD_LABELS, states))
         labels = {}
+        unlabelled = not any(current)  # no robot has any label (a Kilobot world's usual case)
         for name in self.sim.watch:
-            texts = ["" if (value := c.get(name)) is None else str(value) for c in current]
+            texts = ([""] * len(current) if unlabelled else
+                     ["" if (value := c.get(name)) is None else str(value) for c in current])
             last = self._last_texts.get(name)
             if texts != last:
                 if last is not None and not first:
@@ -816,75 +886,123 @@ class MissionRecorder:
         dt = float(self.sim.world.step_seconds)
         indexes = [rr.TimeColumn(layout.TIMELINE, sequence=steps),
                    rr.TimeColumn(layout.TIME_SECONDS, duration=steps * dt)]
-        b = self._buffer
+        b = self._window
+        self._window = _Window(n, min(self.flush_every, WINDOW_ROWS))  # (Rerun may keep b's)
         per_robot = [n] * rows
-        positions = np.stack(b["positions"]).reshape(-1, 3)
-        headings = np.stack(b["headings"]).reshape(-1)
-        colors = (np.clip(np.stack(b["leds"]).reshape(-1, 3), 0, 1) * 255).astype(np.uint8)
+        positions = b.positions[:rows].reshape(-1, 3)
+        headings = b.headings[:rows].reshape(-1)
+        colors = (np.clip(b.leds[:rows].reshape(-1, 3), 0, 1) * 255).astype(np.uint8)
         radius = float(self.sim.world.robot_radius)
-        watch = list(b["labels"][0])
+        watch = list(b.labels[0])
         send = self.rec.send_columns
-        send(layout.ROBOTS, indexes=indexes, columns=rr.Points3D.columns(
-            positions=positions, colors=colors).partition(per_robot))
-        self._send_viewer_labels(steps, b["labels"], radius)
+        self._send_viewer_labels(steps, b.labels, radius)
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
         extra = {"heading": pa.array(headings),
-                 "failed": pa.array(np.concatenate(b["failed"]))}
-        for name in watch:
+                 "failed": pa.array(b.failed[:rows].reshape(-1))}
+        for name in watch:  # (the label arrays are object arrays, often the same one)
             extra[f"label:{name}"] = pa.array(
-                [v for labels in b["labels"] for v in labels[name]], type=pa.string())
-        send(layout.ROBOTS, indexes=indexes,
-             columns=rr.AnyValues.columns(**extra).partition(per_robot))
-        reach = radius * 2.5
-        vectors = np.stack([np.cos(headings), np.sin(headings), np.zeros_like(headings)], 1)
-        send(layout.HEADINGS, indexes=indexes, columns=rr.Arrows3D.columns(
-            origins=positions, vectors=(vectors * reach).astype(np.float32)).partition(per_robot))
-        links = b["links"]
+                np.concatenate([labels[name] for labels in b.labels]), type=pa.string())
+        # The points and the other per-robot values in one chunk (one send each was twice
+        # Rerun's per-call work for the same rows)
+        send(layout.ROBOTS, indexes=indexes, columns=[
+            *self._points(positions, colors, np.full(rows, n)),
+            *rr.AnyValues.columns(**extra).partition(per_robot)])
+        # The viewer's arrows, at every VIEWER_ARROWS_EVERY-th step
+        links = b.links
         link_counts = [len(x) for x in links]
-        sampled = [r for r in range(rows) if steps[r] % LINK_ARROWS_EVERY == 0 and link_counts[r]]
+        sampled = [r for r in range(rows) if steps[r] % VIEWER_ARROWS_EVERY == 0]
         if sampled:
-            ends = np.concatenate([b["positions"][r][links[r]] for r in sampled])
             at = steps[sampled]
-            send(layout.LINKS, indexes=[rr.TimeColumn(layout.TIMELINE, sequence=at),
-                                        rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)],
-                 columns=rr.Arrows3D.columns(origins=ends[:, 0], vectors=ends[:, 1] - ends[:, 0])
-                 .partition([link_counts[r] for r in sampled]))
+            sampled_indexes = [rr.TimeColumn(layout.TIMELINE, sequence=at),
+                               rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+            angles = b.headings[sampled].reshape(-1)
+            reach = radius * 2.5
+            vectors = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], 1)
+            send(layout.HEADINGS, indexes=sampled_indexes, columns=self._arrows(
+                b.positions[sampled].reshape(-1, 3), (vectors * reach).astype(np.float32),
+                np.full(len(sampled), n)))
+            linked = [r for r in sampled if link_counts[r]]
+            if linked:  # both ends of every link of those steps, in one gather
+                counts = [link_counts[r] for r in linked]
+                ends = b.positions[np.repeat(linked, counts)[:, None],
+                                   np.concatenate([links[r] for r in linked])]
+                if len(linked) < len(sampled):
+                    at = steps[linked]
+                    sampled_indexes = [rr.TimeColumn(layout.TIMELINE, sequence=at),
+                                       rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+                send(layout.LINKS, indexes=sampled_indexes,
+                     columns=self._arrows(ends[:, 0], ends[:, 1] - ends[:, 0], counts))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
                       else np.zeros(0, np.uint16)).astype(np.uint16)
         send(layout.LINKS, indexes=indexes, columns=rr.AnyValues.columns(
             pairs=pa.array(flat_pairs, type=pa.uint16())).partition([2 * c for c in link_counts]))
-        traffic = np.array(b["traffic"])  # rows, (sent, received, dropped, bytes_sent), n
+        traffic = np.array(b.traffic)  # rows, (sent, received, dropped, bytes_sent), n
         send(layout.MESSAGES, indexes=indexes, columns=rr.AnyValues.columns(
             sent=pa.array(traffic[:, 0].reshape(-1).astype(np.int32)),
             received=pa.array(traffic[:, 1].reshape(-1).astype(np.int32)),
             bytes_sent=pa.array(traffic[:, 3].reshape(-1).astype(np.int32))).partition(per_robot))
         totals = traffic.sum(axis=2).astype(np.float64)  # rows, 4: the same four, summed
         send(layout.MESSAGE_TOTALS, indexes=indexes,
-             columns=rr.Scalars.columns(scalars=totals.reshape(-1)).partition([4] * rows))
-        size, rop, lsp, peak, gc_runs = np.concatenate(b["heap"]).reshape(
-            rows, n, len(_NO_HEAP) - 1).transpose(2, 0, 1)  # each: rows, n
-        has_vm = np.array(b["has_vm"])
+             columns=self._scalars(totals.reshape(-1), np.full(rows, 4)))
+        rop, lsp, peak, gc_runs = np.array(b.heap, dtype=np.int64).reshape(
+            rows, n, _HEAP_FIGURE_COUNT).transpose(2, 0, 1)  # each: rows, n
+        size = np.array(b.heap_sizes)
+        has_vm = np.array(b.has_vm)
         used = (rop + size - lsp) * has_vm
+        lengths = np.full(rows, n)
         for figure, values in zip(layout.HEAP_FIGURES, (used, size - used, peak, rop, lsp,
                                                         gc_runs), strict=True):
-            send(f"{layout.HEAP}/{figure}", indexes=indexes, columns=rr.Scalars.columns(
-                scalars=values.reshape(-1).astype(np.float64)).partition(per_robot))
-        send(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
-            inputs=pa.array(self._encoded_inputs(b["inputs"]), type=pa.binary())
-        ).partition([1] * rows))
+            send(f"{layout.HEAP}/{figure}", indexes=indexes,
+                 columns=self._scalars(values.reshape(-1).astype(np.float64), lengths))
+        self._send_inputs(steps, indexes, b.inputs)
         self._send_rare_rows()
         self._steps = []
-        self._buffer = {}
         self.rec.flush()
         self._last_flush = time.monotonic()
 
-    def _encoded_inputs(self, buffered: list[tuple[Any, ...] | None]) -> list[bytes]:
-        """The buffered steps' inputs as compressed `input_log` bytes (b"" for the first)."""
+    def _send_inputs(self, steps: np.ndarray, indexes: list[Any],
+                     buffered: list[tuple[Any, ...] | None]) -> None:
+        """The buffered steps' inputs as `input_log` bytes (b"" for the recording's first
+        step), laid out as `layout.FORMAT_VERSION` says. Format 4: the steps' bytes back to
+        back (`encode_steps_joined`), zstd-compressed as one frame and sent as one row at the
+        flush's first step, with the steps and where each one's bytes end (one zstd call per
+        step was ~13 us of a Kilobot step, a call's fixed cost; left uncompressed, the ~650 KB
+        a flush cost Rerun's writer thread ~14 us a step to compress, against ~5 us for zstd
+        here and ~4 for the writer). Formats 2-3 (written only by tests, to check that they
+        still read): one zstd frame per step, one row each."""
+        rr = self.rr
+        import pyarrow as pa
+
         kept = [parts for parts in buffered if parts is not None]
-        encoded = iter(encode_steps(*zip(*kept, strict=True)) if kept else [])
+        version = layout.FORMAT_VERSION
         compress = self._inputs_compressor.compress
-        return [b"" if parts is None else compress(next(encoded)) for parts in buffered]
+        if not layout.inputs_per_flush(version):
+            encoded = iter(encode_steps(*zip(*kept, strict=True),
+                                        layout=layout.input_layout(version)) if kept else [])
+            blobs = pa.array([b"" if parts is None else compress(next(encoded))
+                              for parts in buffered], type=pa.binary())
+            self.rec.send_columns(layout.INPUTS, indexes=indexes, columns=rr.AnyValues.columns(
+                inputs=blobs).partition([1] * len(buffered)))
+            return
+        data, ends = (encode_steps_joined(*zip(*kept, strict=True),
+                                          layout=layout.input_layout(version))
+                      if kept else (b"", []))
+        if len(kept) < len(buffered):  # the recording's first step has no inputs
+            kept_ends = iter(ends)
+            end = 0
+            ends = []
+            for parts in buffered:
+                if parts is not None:
+                    end = next(kept_ends)
+                ends.append(end)
+        self.rec.send_columns(layout.INPUTS, indexes=self._time_columns([int(steps[0])]),
+                              columns=[
+            *rr.AnyValues.columns(inputs=pa.array([compress(data)], type=pa.binary())
+                                  ).partition([1]),
+            *rr.AnyValues.columns(input_steps=pa.array(steps, type=pa.int64()),
+                                  input_ends=pa.array(ends, type=pa.int64())
+                                  ).partition([len(buffered)])])
 
     def _send_viewer_labels(self, steps: np.ndarray, labels: list[dict[str, np.ndarray]],
                             radius: float) -> None:
@@ -917,6 +1035,32 @@ class MissionRecorder:
         self.rec.send_columns(layout.ROBOTS, indexes=self._time_columns(steps[rows].tolist()),
                               columns=self.rr.Points3D.columns(**columns).partition(
                                   [n] * len(rows)))
+
+    # The per-step archetypes' columns are built from their components (the same Arrow
+    # columns and descriptors as `Archetype.columns(...).partition(...)`): the archetypes'
+    # machinery cost ~0.1-0.2 ms more per column and flush, and sending its Scalars ~0.08 ms
+    # more (about 12 such columns a flush).
+    def _scalars(self, values: np.ndarray, lengths: Any) -> list[Any]:
+        """`Scalars` `values` (float64) as a column of batches of `lengths`."""
+        rr = self.rr
+        return [rr.ComponentColumn(rr.Scalars.descriptor_scalars(),
+                                   rr.components.ScalarBatch(values), lengths=lengths)]
+
+    def _points(self, positions: np.ndarray, colors: np.ndarray, lengths: Any) -> list[Any]:
+        """`Points3D` positions and colours (RGB u8) as columns of batches of `lengths`."""
+        rr = self.rr
+        return [rr.ComponentColumn(rr.Points3D.descriptor_positions(),
+                                   rr.components.Position3DBatch(positions), lengths=lengths),
+                rr.ComponentColumn(rr.Points3D.descriptor_colors(),
+                                   rr.components.ColorBatch(colors), lengths=lengths)]
+
+    def _arrows(self, origins: np.ndarray, vectors: np.ndarray, lengths: Any) -> list[Any]:
+        """`Arrows3D` from `origins` along `vectors` as columns of batches of `lengths`."""
+        rr = self.rr
+        return [rr.ComponentColumn(rr.Arrows3D.descriptor_origins(),
+                                   rr.components.Position3DBatch(origins), lengths=lengths),
+                rr.ComponentColumn(rr.Arrows3D.descriptor_vectors(),
+                                   rr.components.Vector3DBatch(vectors), lengths=lengths)]
 
     def _time_columns(self, steps: list[int]) -> list[Any]:
         at = np.array(steps, dtype=np.int64)

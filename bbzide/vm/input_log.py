@@ -22,9 +22,11 @@ then `control_step` with host functions that repeat the recorded effects instead
 the world. Replaying a host function also checks that the script calls the same function it
 called when recorded, so a diverging replay is an error, never a silently wrong state.
 
-`encode_steps` (columns of whole steps) / `encode_step` (per-robot records, the reference) /
-`decode_step` turn the inputs of every robot for one step into bytes with a fixed
-little-endian layout (no pickle: a recording is a file a user may get from anywhere).
+`encode_steps_joined` / `encode_steps` (columns of whole steps, back to back or one bytes object
+per step) / `encode_step` (per-robot records, the reference) / `decode_step` turn the inputs of
+every robot for one step into bytes with a fixed little-endian layout (no pickle: a recording
+is a file a user may get from anywhere), in one of two layouts: `LAYOUT_COMPACT` (recording
+format 4 on) or `LAYOUT_FULL` (formats 2 and 3, still read).
 """
 
 from __future__ import annotations
@@ -456,19 +458,40 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
 
 
 # ---- bytes -------------------------------------------------------------------------------------
-# Layout of one step (all little-endian):
+# Layout of one step (all little-endian), `LAYOUT_COMPACT` (recording format 4 on):
 #   u16 robot records (r)
+#   u8 step flags: 1 = the lengths column is there, 2 = the bearing columns are there (else
+#     every azimuth and elevation is +0.0)
+#   without a lengths column: u8 the length of every payload of the step (0 when none)
 #   r headers: u16 robot index, u8 flags (1 = stepped), u16 messages, u16 host calls
 #   the messages of all records, in record order (M in all), as columns:
-#     u16 length[M], the M payloads back to back, f64 situation[3M] (distance, azimuth,
-#     elevation of each message; a Kilobot's zero bearings compress to next to nothing)
+#     [u16 length[M]], the M payloads back to back, f64 distance[M],
+#     [f64 azimuth[M], f64 elevation[M]]
 #   the host calls of all records, in record order:
 #     host call: u8 name length, name (UTF-8), u8 effects
 #       effect: b"E" u8 n | b"F" u8 length, kind | b"R" value
 #       value:  b"N" | b"I" i64 | b"D" f64 | b"T" u8 entries, (u8 length, key, value)*
+# `LAYOUT_FULL` (formats 2 and 3, still read) has no step flags byte, always the lengths, and
+# f64 situation[3M] (distance, azimuth, elevation of each message, interleaved) instead of the
+# distance and bearing columns. A Kilobot swarm's ~150 messages a step all have 8-byte
+# payloads and no bearings: the compact layout is 16 instead of 34 bytes a message (5.5 ->
+# 2.6 KB a step), and its payloads are one strided copy of the engine's payload table (cutting
+# each row to its own length with a mask was ~10 us of the recorder's ~180 a step).
 # Step-wide columns copied from the captured ones, not one packed struct per message: an M300
 # swarm receives ~300 messages a step, and ~300 `pack` calls were one of the recorder's
 # largest costs; like values side by side also compress better.
+#: The input layouts (`decode_step(layout=...)`; `recording.layout.input_layout` says which a
+#: recording format uses).
+LAYOUT_FULL = 1
+LAYOUT_COMPACT = 2
+#: Step flags of `LAYOUT_COMPACT` (the full layout has both columns always).
+_LENGTHS = 1
+_BEARINGS = 2
+
+
+def _step_head(flags: int, length: int) -> bytes:
+    """A compact step's flags byte, and the length of all its payloads (no lengths column)."""
+    return bytes((flags,)) if flags & _LENGTHS else bytes((flags, length))
 _U16 = struct.Struct("<H")
 _HEAD = struct.Struct("<HBHH")
 _I64 = struct.Struct("<q")
@@ -535,24 +558,37 @@ _KEYS: dict[Any, bytes] = {}
 _MAX_KEYS = 1024
 
 
-def encode_step(records: Sequence[tuple[int, StepInputs]]) -> bytes:
+def encode_step(records: Sequence[tuple[int, StepInputs]], layout: int = LAYOUT_COMPACT
+                ) -> bytes:
     """The inputs of the robots of one step (robots with none may be left out)."""
+    payloads = list(chain.from_iterable(inputs.payloads for _, inputs in records))
+    lengths = array("H", map(len, payloads))
+    situation = array("d")
+    for _, inputs in records:
+        situation += inputs.situation
     out = bytearray(_U16.pack(len(records)))
+    flags = _LENGTHS | _BEARINGS
+    if layout == LAYOUT_COMPACT:
+        flags = ((_LENGTHS if len(set(lengths)) > 1 else 0)
+                 | (_BEARINGS if any(situation[1::3].tobytes() + situation[2::3].tobytes())
+                    else 0))  # any bit set: -0.0 is kept as it is
+        out += _step_head(flags, lengths[0] if lengths else 0)
     for index, inputs in records:
         out += _HEAD.pack(index, _STEPPED if inputs.stepped else 0, len(inputs.payloads),
                           len(inputs.host_calls))
-    payloads = list(chain.from_iterable(inputs.payloads for _, inputs in records))
     if payloads:
-        lengths = array("H", map(len, payloads))
-        situation = array("d")
-        for _, inputs in records:
-            situation += inputs.situation
         if _SWAP:
             lengths.byteswap()
             situation.byteswap()
-        out += lengths.tobytes()
+        if flags & _LENGTHS:
+            out += lengths.tobytes()
         out += b"".join(payloads)
-        out += situation.tobytes()
+        if layout == LAYOUT_COMPACT:
+            out += situation[0::3].tobytes()
+            if flags & _BEARINGS:
+                out += situation[1::3].tobytes() + situation[2::3].tobytes()
+        else:
+            out += situation.tobytes()
     _encode_calls(chain.from_iterable(inputs.host_calls for _, inputs in records), out)
     return bytes(out)
 
@@ -562,14 +598,24 @@ _HEAD_ROW = np.dtype([("index", "<u2"), ("flags", "u1"), ("messages", "<u2"), ("
 
 
 def encode_columns(stepped: np.ndarray, deliveries: PackedMessages | ReceivedColumns | None,
-                   calls: tuple[Sequence[int], bytes]) -> bytes:
+                   calls: tuple[Sequence[int], bytes], layout: int = LAYOUT_COMPACT) -> bytes:
     """`encode_steps` of one step."""
-    return encode_steps([stepped], [deliveries], [calls])[0]
+    return encode_steps([stepped], [deliveries], [calls], layout)[0]
 
 
 def encode_steps(stepped: Sequence[np.ndarray],
                  deliveries: Sequence[PackedMessages | ReceivedColumns | None],
-                 calls: Sequence[tuple[Sequence[int], bytes]]) -> list[bytes]:
+                 calls: Sequence[tuple[Sequence[int], bytes]],
+                 layout: int = LAYOUT_COMPACT) -> list[bytes]:
+    """`encode_steps_joined`, as one bytes object per step."""
+    data, ends = encode_steps_joined(stepped, deliveries, calls, layout)
+    return [data[a:b] for a, b in zip([0, *ends], ends, strict=False)]
+
+
+def encode_steps_joined(stepped: Sequence[np.ndarray],
+                        deliveries: Sequence[PackedMessages | ReceivedColumns | None],
+                        calls: Sequence[tuple[Sequence[int], bytes]],
+                        layout: int = LAYOUT_COMPACT) -> tuple[bytes, list[int]]:
     """`encode_step`'s bytes for each of several steps of a whole swarm, given as columns
     (what a recorder keeps per step until it flushes: the engine's `step_deliveries` and
     the encoded host calls, instead of per-robot records).
@@ -582,45 +628,35 @@ def encode_steps(stepped: Sequence[np.ndarray],
     `receive` does. Batched: the packed deliveries of all the steps are concatenated and
     encoded by a few numpy operations, then each step's bytes are slices of those columns
     (one step at a time, this was ~25 numpy calls per step with cold caches after each
-    simulation step)."""
+    simulation step). Returned back to back, with the offset where each step's bytes end (a
+    recorder hands them to Arrow as they are: one bytes object per step, then copied into an
+    Arrow array, was ~5 us a Kilobot step)."""
     steps = len(stepped)
     if steps == 0:
-        return []
+        return b"", []
     count = len(stepped[0])
     ran = np.array(stepped, dtype=bool).reshape(steps, count)
     received = np.zeros(steps * count, dtype=np.int64)
-    columns: list[tuple[bytes, bytes, bytes] | None] = [None] * steps
+    # per step: its flags and common payload length (compact layout), its message columns
+    columns: list[tuple[bytes, ...]] = [()] * steps
+    flag_bytes = [_step_head(0, 0) if layout == LAYOUT_COMPACT else b""] * steps
     packed = [k for k, d in enumerate(deliveries)
-              if isinstance(d, PackedMessages) and len(d)]
+              if isinstance(d, PackedMessages) and len(d.robots)]
     if packed:
         parts = [deliveries[k] for k in packed]
-        sizes = np.array([len(d) for d in parts], dtype=np.int64)
+        sizes = np.array([len(d.robots) for d in parts], dtype=np.int64)
         robots = np.concatenate([d.robots for d in parts])
         received += np.bincount(np.repeat(np.array(packed) * count, sizes) + robots,
                                 minlength=steps * count)
-        lengths = np.minimum(np.concatenate([d.lengths for d in parts]), PAYLOAD_SIZE)
-        payloads = np.concatenate([d.payloads for d in parts])
-        if lengths.min() == PAYLOAD_SIZE:  # the usual case: every payload 9 bytes
-            payload_bytes = payloads.tobytes()
-        else:
-            payload_bytes = payloads[np.arange(PAYLOAD_SIZE) < lengths[:, None]].tobytes()
-        situation = np.column_stack([np.concatenate([getattr(d, name) for d in parts])
-                                     for name in ("distances", "azimuths", "elevations")])
-        length_bytes = lengths.astype("<u2").tobytes()
-        situation_bytes = situation.astype("<f8").tobytes()
         bounds = np.concatenate([[0], np.cumsum(sizes)])
-        rows = bounds.tolist()
-        bytes_at = np.concatenate([[0], np.cumsum(lengths)])[bounds].tolist()  # per step
-        for j, k in enumerate(packed):
-            r0, r1 = rows[j], rows[j + 1]
-            columns[k] = (length_bytes[2 * r0:2 * r1],
-                          payload_bytes[bytes_at[j]:bytes_at[j + 1]],
-                          situation_bytes[24 * r0:24 * r1])
+        _packed_columns(parts, bounds, packed, layout, columns, flag_bytes)
     for k, d in enumerate(deliveries):
         if isinstance(d, ReceivedColumns) and len(d):
-            robots, length_bytes, payload_bytes, situation_bytes = _message_columns(d)
+            robots, lengths, payload_bytes, situation = _message_columns(d)
             received[k * count:(k + 1) * count] += np.bincount(robots, minlength=count)
-            columns[k] = (length_bytes, payload_bytes, situation_bytes)
+            flags, columns[k] = _step_columns(lengths, payload_bytes, situation, layout)
+            if layout == LAYOUT_COMPACT:
+                flag_bytes[k] = _step_head(flags, int(lengths[0]))
     called = np.zeros(steps * count, dtype=np.int64)
     call_rows = [(k, indexes) for k, (indexes, _) in enumerate(calls) if len(indexes)]
     if call_rows:
@@ -639,10 +675,95 @@ def encode_steps(stepped: Sequence[np.ndarray],
     firsts = np.concatenate([[0], np.cumsum(per_step)]).tolist()
     records = per_step.tolist()
     size = _HEAD.size
-    join, pack, none = b"".join, _U16.pack, (b"", b"", b"")
-    return [join((pack(records[k]), head_bytes[size * firsts[k]:size * firsts[k + 1]],
-                  *(columns[k] or none), calls[k][1]))
-            for k in range(steps)]
+    pack = _U16.pack
+    chunks: list[bytes] = []
+    last_chunk = []  # per step: the index of its last chunk
+    for k in range(steps):
+        chunks += (pack(records[k]), flag_bytes[k],
+                   head_bytes[size * firsts[k]:size * firsts[k + 1]], *columns[k], calls[k][1])
+        last_chunk.append(len(chunks) - 1)
+    ends = np.cumsum(np.fromiter(map(len, chunks), dtype=np.int64, count=len(chunks)))
+    return b"".join(chunks), ends[last_chunk].tolist()
+
+
+def _packed_columns(parts: list[PackedMessages], bounds: np.ndarray, steps: list[int],
+                    layout: int, columns: list[tuple[bytes, ...]], flag_bytes: list[bytes]
+                    ) -> None:
+    """The message columns (and compact step heads) of the steps `steps`, whose deliveries
+    are `parts` (rows `bounds[j]:bounds[j + 1]` once concatenated), written into `columns`
+    and `flag_bytes` at those steps: each column is encoded once for all the steps, and each
+    step's bytes are slices of it."""
+    lengths = np.minimum(np.concatenate([d.lengths for d in parts]), PAYLOAD_SIZE)
+    payloads = np.concatenate([d.payloads for d in parts])
+    low, high = int(lengths.min()), int(lengths.max())
+    rows = bounds.tolist()
+    if low == high:  # the usual case: every payload as long (8 bytes for a Kilobot)
+        payload_bytes = payloads[:, :low].tobytes()
+        bytes_at = (low * bounds).tolist()
+    else:
+        payload_bytes = payloads[np.arange(PAYLOAD_SIZE) < lengths[:, None]].tobytes()
+        bytes_at = np.concatenate([[0], np.cumsum(lengths)])[bounds].tolist()
+    if layout == LAYOUT_FULL:
+        length_bytes = lengths.astype("<u2").tobytes()
+        situation_bytes = np.column_stack([np.concatenate([getattr(d, name) for d in parts])
+                                           for name in ("distances", "azimuths", "elevations")]
+                                          ).astype("<f8").tobytes()
+        for j, k in enumerate(steps):
+            r0, r1 = rows[j], rows[j + 1]
+            columns[k] = (length_bytes[2 * r0:2 * r1], payload_bytes[bytes_at[j]:bytes_at[j + 1]],
+                          situation_bytes[24 * r0:24 * r1])
+        return
+    distance_bytes = np.concatenate([d.distances for d in parts]).astype("<f8", copy=False
+                                                                         ).tobytes()
+    azimuths = np.concatenate([d.azimuths for d in parts])
+    elevations = np.concatenate([d.elevations for d in parts])
+    # A step's bearing columns are written when any of its bearings has a bit set (-0.0 too)
+    bearing = azimuths.view(np.uint64) | elevations.view(np.uint64)
+    with_bearings: set[int] = set()
+    if bearing.any():
+        at = np.concatenate([[0], np.cumsum(bearing != 0)])[bounds]
+        with_bearings = set(np.flatnonzero(np.diff(at)).tolist())
+        azimuth_bytes = azimuths.astype("<f8", copy=False).tobytes()
+        elevation_bytes = elevations.astype("<f8", copy=False).tobytes()
+    common = [low] * len(steps)  # each step's payload length, -1: several (a lengths column)
+    if low != high:
+        starts = bounds[:-1]  # every step in `steps` has messages
+        lows = np.minimum.reduceat(lengths, starts)
+        common = np.where(lows == np.maximum.reduceat(lengths, starts), lows, -1).tolist()
+        length_bytes = lengths.astype("<u2").tobytes()
+    heads = {}
+    for j, k in enumerate(steps):
+        r0, r1 = rows[j], rows[j + 1]
+        step = [payload_bytes[bytes_at[j]:bytes_at[j + 1]], distance_bytes[8 * r0:8 * r1]]
+        flags = 0
+        if common[j] < 0:
+            flags = _LENGTHS
+            step.insert(0, length_bytes[2 * r0:2 * r1])
+        if j in with_bearings:
+            flags |= _BEARINGS
+            step += (azimuth_bytes[8 * r0:8 * r1], elevation_bytes[8 * r0:8 * r1])
+        columns[k] = tuple(step)
+        head = heads.get((flags, common[j]))
+        if head is None:
+            head = heads[flags, common[j]] = _step_head(flags, common[j])
+        flag_bytes[k] = head
+
+
+def _step_columns(lengths: np.ndarray, payload_bytes: bytes, situation: np.ndarray,
+                  layout: int) -> tuple[int, tuple[bytes, ...]]:
+    """One step's message columns in `layout` (and its compact flags) from the messages'
+    lengths (already cut to PAYLOAD_SIZE), payloads back to back and (M, 3) situated data."""
+    length_bytes = lengths.astype("<u2").tobytes()
+    if layout == LAYOUT_FULL:
+        return 0, (length_bytes, payload_bytes, situation.astype("<f8").tobytes())
+    flags = ((_LENGTHS if int(lengths.min()) != int(lengths.max()) else 0)
+             | (_BEARINGS if bool(situation[:, 1:].view(np.uint64).any()) else 0))
+    step = [payload_bytes, situation[:, 0].astype("<f8").tobytes()]
+    if flags & _LENGTHS:
+        step.insert(0, length_bytes)
+    if flags & _BEARINGS:
+        step += (situation[:, 1].astype("<f8").tobytes(), situation[:, 2].astype("<f8").tobytes())
+    return flags, tuple(step)
 
 
 def encode_calls(records: Iterable[HostCallRecord]) -> bytes:
@@ -652,27 +773,15 @@ def encode_calls(records: Iterable[HostCallRecord]) -> bytes:
     return bytes(out)
 
 
-def _message_columns(deliveries: PackedMessages | ReceivedColumns
-                     ) -> tuple[np.ndarray, bytes, bytes, bytes]:
-    """Receivers, and the bytes of the three message columns of the layout: u16 lengths,
-    payloads back to back, f64 (distance, azimuth, elevation) per message."""
-    if isinstance(deliveries, PackedMessages):
-        lengths = np.minimum(deliveries.lengths, PAYLOAD_SIZE)
-        whole = bool(lengths.min() == PAYLOAD_SIZE)  # the usual case: every payload 9 bytes
-        return (deliveries.robots, lengths.astype("<u2").tobytes(),
-                deliveries.payloads.tobytes() if whole else
-                deliveries.payloads[np.arange(PAYLOAD_SIZE) < lengths[:, None]].tobytes(),
-                np.column_stack((deliveries.distances, deliveries.azimuths,
-                                 deliveries.elevations)).astype("<f8").tobytes())
+def _message_columns(deliveries: ReceivedColumns
+                     ) -> tuple[np.ndarray, np.ndarray, bytes, np.ndarray]:
+    """Hooked receives as receivers, payload lengths, payloads back to back and (M, 3)
+    situated data (distance, azimuth, elevation of each message)."""
     columns = deliveries.sorted()
-    sizes = array("H", map(len, columns.payloads))
-    situation = columns.situation
-    if _SWAP:
-        sizes.byteswap()
-        situation = array("d", situation)
-        situation.byteswap()
-    return (np.array(columns.robots, dtype=np.int64), sizes.tobytes(),
-            b"".join(columns.payloads), situation.tobytes())
+    return (np.array(columns.robots, dtype=np.int64),
+            np.fromiter(map(len, columns.payloads), dtype=np.int64, count=len(columns.payloads)),
+            b"".join(columns.payloads),
+            np.frombuffer(columns.situation, dtype=np.float64).reshape(-1, 3))
 
 
 def _encode_calls(calls: Iterable[HostCallRecord], out: bytearray) -> None:
@@ -798,36 +907,52 @@ def _read_calls(reader: _Reader, calls: int) -> list[HostCallRecord]:
     return records
 
 
-def _read_messages(reader: _Reader, total: int, first: int, count: int
-                   ) -> tuple[list[bytes], array]:
+def _read_messages(reader: _Reader, total: int, first: int, count: int, flags: int,
+                   common: int, layout: int) -> tuple[list[bytes], array]:
     """Payloads and situated data of messages `first`..`first + count` of the step's `total`
-    (the whole block is stepped over; only those are built)."""
-    lengths = array("H")
-    lengths.frombytes(reader.take(2 * total))
-    if _SWAP:
-        lengths.byteswap()
-    payload_bytes = sum(lengths)
-    block = reader.take(payload_bytes + 24 * total)
-    at = sum(lengths[:first])
+    (the whole block is stepped over; only those are built); `common`: the length of every
+    payload when there is no lengths column."""
+    if flags & _LENGTHS:
+        lengths = array("H")
+        lengths.frombytes(reader.take(2 * total))
+        if _SWAP:
+            lengths.byteswap()
+        payload_bytes = sum(lengths)
+        at = sum(lengths[:first])
+        sizes: Iterable[int] = lengths[first:first + count]
+    else:  # every payload `common` bytes
+        payload_bytes, at, sizes = common * total, common * first, [common] * count
+    block = reader.take(payload_bytes + (24 if flags & _BEARINGS else 8) * total)
     payloads = []
-    for length in lengths[first:first + count]:
+    for length in sizes:
         payloads.append(block[at:at + length])
         at += length
-    situation = array("d")
-    start = payload_bytes + 24 * first
-    situation.frombytes(block[start:start + 24 * count])
+    if layout == LAYOUT_FULL:  # (distance, azimuth, elevation) interleaved
+        start = payload_bytes + 24 * first
+        situation = array("d", block[start:start + 24 * count])
+    else:  # a distance column, then (if there) an azimuth and an elevation column
+        situation = array("d", bytes(24 * count))  # bearings +0.0 unless written
+        for column in range(3 if flags & _BEARINGS else 1):
+            start = payload_bytes + 8 * (column * total + first)
+            situation[column::3] = array("d", block[start:start + 8 * count])
     if _SWAP:
         situation.byteswap()
     return payloads, situation
 
 
-def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
-    """`encode_step`'s bytes back: robot index -> its inputs (with `only`, just that robot's:
-    the other records are stepped over, not built)."""
+def decode_step(data: bytes, only: int | None = None, layout: int = LAYOUT_COMPACT
+                ) -> dict[int, StepInputs]:
+    """`encode_step`'s bytes in `layout` back: robot index -> its inputs (with `only`, just
+    that robot's: the other records are stepped over, not built)."""
     reader = _Reader(data)
+    records = reader.unpack(_U16)[0]
+    step_flags = reader.byte() if layout == LAYOUT_COMPACT else _LENGTHS | _BEARINGS
+    if step_flags & ~(_LENGTHS | _BEARINGS):
+        raise InputLogError(f"unknown step flags {step_flags:#x} in input log")
+    common = 0 if step_flags & _LENGTHS else reader.byte()
     # The record headers as one numpy view (a seek decodes a step of 25 robots per step it
     # re-executes: 25 struct unpacks were a third of that)
-    heads = np.frombuffer(reader.take(_HEAD.size * reader.unpack(_U16)[0]), _HEAD_ROW)
+    heads = np.frombuffer(reader.take(_HEAD.size * records), _HEAD_ROW)
     indexes, flags = heads["index"].tolist(), heads["flags"].tolist()
     counts, calls = heads["messages"].tolist(), heads["calls"].tolist()
     total = sum(counts)
@@ -836,8 +961,9 @@ def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
     if only is not None:  # one robot's slice of the columns (if it has a record)
         mine = indexes.index(only) if only in indexes else None
         first, count = (0, 0) if mine is None else (firsts[mine], counts[mine])
-        payloads, situation = (_read_messages(reader, total, first, count) if total
-                               else ([], array("d")))
+        payloads, situation = (
+            _read_messages(reader, total, first, count, step_flags, common, layout) if total
+            else ([], array("d")))
         if mine is None:
             _skip_calls(reader, sum(calls))
         else:
@@ -846,8 +972,9 @@ def decode_step(data: bytes, only: int | None = None) -> dict[int, StepInputs]:
                                       host_calls=_read_calls(reader, calls[mine]))
             _skip_calls(reader, sum(calls[mine + 1:]))
     else:  # everything: one pass over the columns
-        payloads, situation = (_read_messages(reader, total, 0, total) if total
-                               else ([], array("d")))
+        payloads, situation = (
+            _read_messages(reader, total, 0, total, step_flags, common, layout) if total
+            else ([], array("d")))
         for i, index in enumerate(indexes):
             a, b = firsts[i], firsts[i + 1]
             result[index] = StepInputs(payloads[a:b], situation[3 * a:3 * b],

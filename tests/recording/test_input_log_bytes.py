@@ -7,12 +7,18 @@ import numpy as np
 import pytest
 
 from bbzide.vm.input_log import (
+    LAYOUT_COMPACT,
+    LAYOUT_FULL,
     HostCallRecord,
     InputLogError,
     StepInputs,
     decode_step,
     encode_step,
 )
+
+#: Both input layouts: the compact one (format 4 on) and the full one (formats 2 and 3).
+LAYOUTS = pytest.mark.parametrize("layout", [LAYOUT_COMPACT, LAYOUT_FULL],
+                                  ids=["compact", "full"])
 
 
 def inputs_of(robot: int) -> StepInputs:
@@ -33,32 +39,55 @@ def inputs_of(robot: int) -> StepInputs:
     return StepInputs.of(received, stepped=robot % 3 != 0, host_calls=calls)
 
 
-def test_every_input_round_trips_and_one_robot_decodes_alone() -> None:
+@LAYOUTS
+def test_every_input_round_trips_and_one_robot_decodes_alone(layout: int) -> None:
     records = [(index, inputs_of(index)) for index in (0, 1, 2, 4, 7, 11)]
-    data = encode_step(records)
-    assert decode_step(data) == dict(records)
+    data = encode_step(records, layout)
+    assert decode_step(data, layout=layout) == dict(records)
     for index, inputs in records:
-        assert decode_step(data, only=index) == {index: inputs}
-    assert decode_step(data, only=3) == {}  # a robot with no record this step
+        assert decode_step(data, only=index, layout=layout) == {index: inputs}
+    assert decode_step(data, only=3, layout=layout) == {}  # a robot with no record this step
 
 
-def test_a_torn_record_is_an_error_even_when_skipped() -> None:
-    data = encode_step([(0, inputs_of(1)), (1, inputs_of(2))])
+@LAYOUTS
+def test_a_torn_record_is_an_error_even_when_skipped(layout: int) -> None:
+    data = encode_step([(0, inputs_of(1)), (1, inputs_of(2))], layout)
     with pytest.raises(InputLogError):
-        decode_step(data[:-3], only=1)
+        decode_step(data[:-3], only=1, layout=layout)
     with pytest.raises(InputLogError):
-        decode_step(data[:20], only=1)  # cut inside robot 0's record, which is stepped over
+        # cut inside robot 0's record, which is stepped over
+        decode_step(data[:20], only=1, layout=layout)
 
 
-def test_a_negative_zero_bearing_keeps_its_sign() -> None:
+@LAYOUTS
+def test_a_negative_zero_bearing_keeps_its_sign(layout: int) -> None:
     """Situated data is stored as its exact bits: a bbzfloat conversion keeps the sign of
-    -0.0, so it must come back as -0.0."""
+    -0.0, so it must come back as -0.0 (the compact layout writes the bearings then)."""
     import math
 
     inputs = StepInputs.of([(b"\x00\x01\x00", 2.0, -0.0, 0.0)], stepped=True)
-    (message, distance, azimuth, elevation), = decode_step(encode_step([(5, inputs)]))[5].received
+    (message, distance, azimuth, elevation), = decode_step(
+        encode_step([(5, inputs)], layout), layout=layout)[5].received
     assert (message, distance, elevation) == (b"\x00\x01\x00", 2.0, 0.0)
     assert math.copysign(1.0, azimuth) == -1.0
+
+
+def test_the_compact_layout_leaves_out_equal_lengths_and_zero_bearings() -> None:
+    """A Kilobot-like step (every payload 8 bytes, no bearings) is 18 bytes a message smaller
+    in the compact layout: no u16 length and no f64 azimuth and elevation per message, for 2
+    bytes of step head; one bearing or one other length brings its column back, whole."""
+    received = [(bytes([k] * 8), 10.0 + k, 0.0, 0.0) for k in range(6)]
+    records = [(k, StepInputs.of(received[2 * k:2 * k + 2], stepped=True)) for k in range(3)]
+    full, compact = (encode_step(records, layout) for layout in (LAYOUT_FULL, LAYOUT_COMPACT))
+    assert len(full) - len(compact) == 18 * 6 - 2
+    assert compact[2:4] == b"\x00\x08"  # flags: no columns; every payload 8 bytes
+    bearing = [*received[:5], (bytes(8), 1.0, 0.0, 0.5)]
+    short = [*received[:5], (bytes(5), 1.0, 0.0, 0.0)]
+    for changed, flags, grown in ((bearing, 2, 16 * 6), (short, 1, 2 * 6 - 1 - 3)):
+        records = [(k, StepInputs.of(changed[2 * k:2 * k + 2], stepped=True)) for k in range(3)]
+        data = encode_step(records, LAYOUT_COMPACT)
+        assert data[2] == flags and len(data) - len(compact) == grown
+        assert decode_step(data, layout=LAYOUT_COMPACT) == dict(records)
 
 
 class _Inner:
@@ -107,7 +136,8 @@ def test_hooked_receives_are_noted_and_reach_the_robot_its_way() -> None:
         assert type(inner) in (_Inner, _BulkInner)  # the robot itself is not wrapped
 
 
-def test_columns_encode_to_the_same_bytes_as_per_robot_records() -> None:
+@LAYOUTS
+def test_columns_encode_to_the_same_bytes_as_per_robot_records(layout: int) -> None:
     """`encode_steps` (several steps' deliveries as numpy columns and their host calls as
     bytes, the recorder's way at each flush) writes exactly `encode_step`'s layout for each
     step, so `decode_step` and every recording stay as they were; payloads longer than a VM
@@ -130,14 +160,14 @@ def test_columns_encode_to_the_same_bytes_as_per_robot_records() -> None:
              (2, HostCallRecord("led", [("expect", 1), ("fail", "TYPE")]))]
     encoded_calls = ([c[0] for c in calls], encode_calls(c[1] for c in calls))
     stepped = np.array([True, False, True, False, False])
-    packed = encode_columns(stepped, PackedMessages.from_rows(rows), encoded_calls)
+    packed = encode_columns(stepped, PackedMessages.from_rows(rows), encoded_calls, layout)
     records = [
         (0, StepInputs.of([(r[2][:9], *r[3:]) for r in rows[:2]], True, [calls[0][1]])),
         (2, StepInputs.of([], True, [c[1] for c in calls[1:]])),
         (3, StepInputs.of([(rows[2][2], *rows[2][3:])], False)),
     ]
-    assert packed == encode_step(records)
-    decoded = decode_step(packed)
+    assert packed == encode_step(records, layout)
+    decoded = decode_step(packed, layout=layout)
     assert decoded[0].received[1][0] == long[:9]
     assert decoded[2].host_calls[0].effects == [("ret", {"x": 1.5, "y": -2})]
     hooked = ReceivedColumns()  # the hooked receives' form, in another receiver order
@@ -147,11 +177,11 @@ def test_columns_encode_to_the_same_bytes_as_per_robot_records() -> None:
     several = encode_steps(
         [stepped, np.zeros(5, bool), stepped, np.ones(5, bool)],
         [PackedMessages.from_rows(rows), None, hooked, PackedMessages.from_rows(nine)],
-        [encoded_calls, ([], b""), encoded_calls, ([], b"")])
-    assert several[:3] == [packed, encode_step([]), packed]
+        [encoded_calls, ([], b""), encoded_calls, ([], b"")], layout)
+    assert several[:3] == [packed, encode_step([], layout), packed]
     assert several[3] == encode_step([
         (i, StepInputs.of([(r[2], *r[3:]) for r in nine if r[0] == i], True))
-        for i in range(5)])
+        for i in range(5)], layout)
 
 
 def test_host_calls_are_written_as_they_happen_in_the_layout() -> None:

@@ -14,10 +14,12 @@ import importlib.util
 import random
 import zlib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from bbzide.recording import layout
 from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
 from bbzide.recording.recorder import MissionRecorder, Recordable
@@ -42,16 +44,20 @@ def vm_state(robot: object) -> tuple:
             Robot.comparable(robot.snapshot()))  # type: ignore[attr-defined]
 
 
-#: (script, asynchronous): the lockstep engine hands the recorder a step's deliveries as
-#: columns (`step_deliveries`); the asynchronous one calls each robot's `receive`, which the
-#: recorder then hooks.
-CASES = [("gradient.bzz", False), ("firefly.bzz", False), ("gradient.bzz", True)]
+#: (script, asynchronous, format): the lockstep engine hands the recorder a step's deliveries
+#: as columns (`step_deliveries`); the asynchronous one calls each robot's `receive`, which the
+#: recorder then hooks. Format 3 (the full input layout, zstd blobs) is written as an older
+#: bbzide wrote it, and must still rebuild exactly.
+CASES = [("gradient.bzz", False, layout.FORMAT_VERSION), ("firefly.bzz", False,
+                                                          layout.FORMAT_VERSION),
+         ("gradient.bzz", True, layout.FORMAT_VERSION), ("gradient.bzz", False, 3)]
 
 
-@pytest.fixture(scope="module", params=CASES, ids=["gradient", "firefly", "gradient-async"])
+@pytest.fixture(scope="module", params=CASES,
+                ids=["gradient", "firefly", "gradient-async", "gradient-format-3"])
 def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> dict:
     spec = WORLDS["kilobot"]
-    script, asynchronous = request.param
+    script, asynchronous, version = request.param
     program = load_script(REPO / "examples/kilobot" / script, spec.host_names, [])
     recordable = Recordable()
     sim = Simulation("kilobot", program, robots=ROBOTS, seed=5,
@@ -66,14 +72,32 @@ def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
             "states": [vm_state(s.robot) for s in sim.robots],
         }
 
-    with MissionRecorder(path, sim, recordable, keyframe_every=10) as recorder:
-        note()
-        for _ in range(STEPS):
-            sim.step()
-            recorder.record_step()
+    newest, flat = layout.FORMAT_VERSION, Robot.snapshot
+    layout.FORMAT_VERSION = version  # (module-scoped: no monkeypatch) what the recorder writes
+    if version < 4:  # and the keyframes as formats 2 and 3 held them: pickled
+        Robot.snapshot = Robot.pickled_snapshot  # type: ignore[method-assign]
+    try:
+        with MissionRecorder(path, sim, recordable, keyframe_every=10) as recorder:
             note()
+            for _ in range(STEPS):
+                sim.step()
+                recorder.record_step()
+                note()
+    finally:
+        layout.FORMAT_VERSION, Robot.snapshot = newest, flat  # type: ignore[method-assign]
     assert not sim.failures, [str(s.failure) for s in sim.failures]
     return {"recording": read_recording(path), "live": live}
+
+
+def decoded_inputs(recording: Any) -> list[dict[int, Any]]:
+    """Every step's decoded inputs, read the way the recording's format says."""
+    from bbzide.recording.compression import decompress
+    from bbzide.vm.input_log import decode_step
+
+    version = recording.meta["version"]
+    return [decode_step(decompress(blob) if layout.inputs_compressed(version) else blob,
+                        layout=layout.input_layout(version)) if blob else {}
+            for blob in recording.inputs]
 
 
 def test_replay_shows_live_poses_and_heap_use(recorded: dict) -> None:
@@ -148,7 +172,9 @@ function step() { seen = seen + rand() }
 def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: Path) -> None:
     """The robots stay plain Robots; their `on_phase` hook tells the recorder when a reboot
     ends, so it keyframes the fresh state, and the host calls the boot makes are not
-    recorded as a step's inputs: robots rebuilt after the reload equal the live ones."""
+    recorded as a step's inputs: robots rebuilt after the reload equal the live ones. The
+    watched global `seen` exists only in the second program: its label is recorded from the
+    reload on (the recorder looks at which programs can have it whenever robots reboot)."""
     from bbzide import compiler
 
     spec = WORLDS["kilobot"]
@@ -159,10 +185,12 @@ def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: 
         str(script), string_table=compiler.bittybuzz_string_table(list(spec.host_names))
     ).to_bbo()
     recordable = Recordable()
-    sim = Simulation("kilobot", first, robots=5, seed=3, robot_factory=recordable.factory)
+    sim = Simulation("kilobot", first, robots=5, seed=3, robot_factory=recordable.factory,
+                     watch=("seen",))
     assert all(type(s.robot) is Robot for s in sim.robots)
     path = tmp_path / "reload.rrd"
     live = {}
+    seen = {}
     with MissionRecorder(path, sim, recordable, keyframe_every=50) as recorder:
         for _ in range(30):
             if sim.step_count == 12:
@@ -170,8 +198,11 @@ def test_a_program_reload_mid_recording_keyframes_the_rebooted_robots(tmp_path: 
             sim.step()
             recorder.record_step()
             live[sim.step_count] = [vm_state(s.robot) for s in sim.robots]
+            seen[sim.step_count] = [str(s.global_value("seen")) for s in sim.robots]
     assert not sim.failures
     recording = read_recording(path)
+    assert recording.labels["seen"][recording.row(10)].tolist() == [""] * 5
+    assert recording.labels["seen"][recording.row(30)].tolist() == seen[30] != ["None"] * 5
     assert [k.step for k in recording.keyframes[0]] == [0, 12]
     assert any(e.kind == "program" and e.step == 12 for e in recording.events)
     rebuilder = RobotRebuilder(recording)
@@ -185,15 +216,36 @@ def test_latched_led_stays_latched_and_out_of_the_input_log(recorded: dict) -> N
     """A Kilobot's `led` is a latched host function: in a recorded swarm it stays one (the
     compiled swarm step keeps running it), so its happy-path calls are not in the input log
     (format 3), the meta says so, and the rebuilds above still match the live robots."""
-    from bbzide.recording.compression import decompress
-    from bbzide.vm.input_log import decode_step
-
     recording = recorded["recording"]
     assert all(dict(pairs) == {"led": 1} for pairs in recording.meta["latched"])
-    names = {call.name for blob in recording.inputs if blob
-             for inputs in decode_step(decompress(blob)).values()
+    names = {call.name for step in decoded_inputs(recording) for inputs in step.values()
              for call in inputs.host_calls}
     assert "led" not in names
+
+
+def test_kilobot_inputs_are_written_compact_and_older_formats_as_they_were(
+        recorded: dict) -> None:
+    """Format 4 writes a Kilobot step's messages without a lengths column (every payload is
+    as long) and without bearing columns (a Kilobot senses no bearing), a flush's blobs as one
+    zstd frame that the reader opens (so each step's blob comes back raw), and flat
+    keyframes; a format 3 recording holds a zstd frame per step in the full layout and pickled
+    keyframes. Either decodes to the same kind of messages: 8-byte payloads, zero bearings."""
+    recording = recorded["recording"]
+    blobs = [blob for blob in recording.inputs if blob]
+    zstd_magic = b"\x28\xb5\x2f\xfd"
+    snapshot = RobotRebuilder(recording).snapshot(1, recording.keyframes[1][-1])
+    assert snapshot.startswith(b"BZR" if recording.meta["version"] >= 4 else b"\x80")
+    if recording.meta["version"] >= 4:
+        assert not any(blob.startswith(zstd_magic) for blob in blobs)
+        assert {blob[2:4] for blob in blobs} <= {b"\x00\x08", b"\x00\x00"}  # flags, length
+    else:
+        assert all(blob.startswith(zstd_magic) for blob in blobs)
+    received = [inputs for step in decoded_inputs(recording) for inputs in step.values()
+                if inputs.payloads]
+    assert {len(p) for inputs in received for p in inputs.payloads} == {8}
+    assert all(inputs.situation[1::3].tolist() == [0.0] * len(inputs.payloads)
+               for inputs in received)
+    assert len(received) > STEPS
 
 
 def test_a_reload_whose_boot_fails_is_keyframed_failed(tmp_path: Path) -> None:

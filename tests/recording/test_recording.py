@@ -312,3 +312,31 @@ def test_overlays_looked_at_less_often_while_unchanged_and_at_the_last_step(
     assert looks[looks.index(changes[1][0]) + 1] == changes[1][0] + OVERLAY_EVERY
     assert changes[-1] == (337, 2)  # changed at step 333, between looks: the last step's
     assert recording.overlays_at(recording.last_step)["light"]["values"] == [[2]]
+
+
+def test_a_flush_of_inputs_opens_into_steps_and_a_damaged_one_is_refused() -> None:
+    """Format 4 stores a flush's input blobs as one zstd frame with the steps and where each
+    step's bytes end; the reader turns it back into one blob per step, and a frame that does
+    not decompress, or whose ends do not fit it, is a corrupt recording."""
+    import pyarrow as pa
+
+    from bbzide.recording import layout
+    from bbzide.recording.compression import INPUT_LEVEL, Compressor
+    from bbzide.recording.reader import _input_steps
+
+    blobs = [b"", b"first step", b"", b"the third"]
+    frame = Compressor(INPUT_LEVEL).compress(b"".join(blobs))
+    ends = np.cumsum([len(b) for b in blobs]).tolist()
+
+    def columns(frame: bytes, ends: list[int]) -> dict:
+        row = np.array([40])  # the flush's first step
+        return {(layout.INPUTS, "inputs"): [(row, pa.array([[frame]]))],
+                (layout.INPUTS, "input_steps"): [(row, pa.array([[40, 41, 42, 43]]))],
+                (layout.INPUTS, "input_ends"): [(row, pa.array([ends]))]}
+
+    (steps, opened), = _input_steps(columns(frame, ends), Path("x.rrd"))
+    assert steps.tolist() == [40, 41, 42, 43] and opened == blobs
+    for damaged in (columns(frame[:-2], ends), columns(frame, [*ends[:-1], ends[-1] + 1]),
+                    columns(frame, ends[:-1]), columns(frame, [0, 12, 10, ends[-1]])):
+        with pytest.raises(RecordingError, match="corrupt"):
+            _input_steps(damaged, Path("x.rrd"))
