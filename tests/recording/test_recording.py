@@ -340,3 +340,28 @@ def test_a_flush_of_inputs_opens_into_steps_and_a_damaged_one_is_refused() -> No
                     columns(frame, ends[:-1]), columns(frame, [0, 12, 10, ends[-1]])):
         with pytest.raises(RecordingError, match="corrupt"):
             _input_steps(damaged, Path("x.rrd"))
+
+
+def test_a_flush_window_that_grows_keeps_every_step(tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    """A window whose arrays start shorter than the steps it buffers (a `flush_every` above
+    `WINDOW_ROWS`) doubles them and keeps what was written: every step reads back."""
+    from bbzide.recording import recorder as recorder_module
+
+    monkeypatch.setattr(recorder_module, "WINDOW_ROWS", 3)
+    sim, recordable = toy_swarm(seed=5)
+    path = tmp_path / "grown.rrd"
+    live = {}
+    with MissionRecorder(path, sim, recordable, flush_every=16) as recorder:
+        for _ in range(40):
+            sim.step()
+            recorder.record_step()
+            live[sim.step_count] = (sim.positions.copy(), sim.headings.copy(),
+                                    [s.robot.vm.heap.rtobj for s in sim.robots])
+    recording = read_recording(path)
+    assert recording.last_step == 40
+    for step, (positions, headings, rop) in live.items():
+        row = recording.row(step)
+        np.testing.assert_allclose(recording.positions[row], positions, atol=1e-6)
+        np.testing.assert_allclose(recording.headings[row], headings, atol=1e-6)
+        assert recording.heap["rop"][row].tolist() == rop
