@@ -164,9 +164,9 @@ def test_two_tabs_keep_their_own_selection(ide: IdeSession) -> None:
         page2.wait_for_selector("canvas")
         client2.get_render(height=200, width=300)
         ide.click_robot(ide.page, first, 3)
-        ide.page.get_by_text("Robot 3").first.wait_for(timeout=30_000)
+        ide.page.get_by_text("Robot 3").first.wait_for(timeout=UI_WAIT_MS)
         ide.click_robot(page2, client2, 7)
-        page2.get_by_text("Robot 7").first.wait_for(timeout=30_000)
+        page2.get_by_text("Robot 7").first.wait_for(timeout=UI_WAIT_MS)
         assert app._inspectors[first.client_id].selected == 3
         assert app._inspectors[client2.client_id].selected == 7
         assert ide.page.get_by_text("Robot 7").count() == 0  # tab 1 still shows its own robot

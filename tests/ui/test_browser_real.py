@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from browser import UI_WAIT_S, wait_until
+from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from ide_harness import IdeSession, running_ide
 
 from bbzide.ui.program_session import write_atomically
@@ -64,7 +64,7 @@ def test_clicked_robot_shows_its_vms_rop_and_lsp(ide: IdeSession) -> None:
     client = next(iter(ide.app.server.get_clients().values()))
     ide.click_robot(ide.page, client, 4)  # pauses the run first
     header = ide.page.get_by_text(re.compile(r"ROP \d+ · LSP \d+")).first
-    header.wait_for(timeout=30_000)
+    header.wait_for(timeout=UI_WAIT_MS)
     time.sleep(0.6)  # one ticker refresh while paused
     rop, lsp = robot_vm_pointers(ide, 4)
     text = ide.page.get_by_text(re.compile(r"ROP \d+ · LSP \d+")).first.inner_text()
