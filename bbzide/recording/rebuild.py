@@ -87,6 +87,8 @@ def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
         except SnapshotError as error:
             raise RecordingError(f"the {what} is damaged ({error})") from None
         return
+    # a pickle of protocol 0 or 1 has no 0x80 prefix: not checked here, so `Robot` and `VM`
+    # `decode_snapshot` refuse it (every snapshot bbzide writes is flat or a protocol 2+ one)
     if not snapshot.startswith(b"\x80") or depth > _NESTED_PICKLES:
         return
     try:
@@ -243,7 +245,9 @@ class RobotRebuilder:
         robot, host = booted
         try:
             robot.restore(self.snapshot(index, keyframe))
-        except SnapshotError as error:  # e.g. a heap of another profile's size
+        except (SnapshotError, TypeError, ValueError, AttributeError, IndexError) as error:
+            # e.g. a heap of another profile's size; or a pickled keyframe (formats 2-3)
+            # that passed the allow-list but holds another shape than a robot's state
             raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} does "
                                  f"not fit its robot ({error})") from None
         _register_library(robot, profile)
