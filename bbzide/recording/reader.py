@@ -337,15 +337,20 @@ def _input_steps(columns: Columns, path: Path) -> list[tuple[np.ndarray, list[by
     for blob, step_row, end_row in zip(blobs, step_rows, end_rows, strict=True):
         try:
             data = decompress((blob.as_py() or [b""])[0])
+            steps, ends = list(step_row.as_py() or []), list(end_row.as_py() or [])
+            in_order = np.array(steps, dtype=np.int64)
+            ends_at = np.array([0, *ends], dtype=np.int64)
         except CompressionError as error:
             raise RecordingError(f"{path} is a corrupt recording: inputs: {error}") from None
-        steps, ends = step_row.as_py() or [], end_row.as_py() or []
-        if len(steps) != len(ends) or (ends and ends[-1] != len(data)) or \
-                any(b < a for a, b in zip([0, *ends], ends, strict=False)):
+        except (TypeError, ValueError, OverflowError, IndexError):  # rows of another type
+            raise RecordingError(f"{path} is a corrupt recording: unreadable inputs") from None
+        # a flush holds each of its steps once, in order; each step's bytes follow the last's
+        if len(steps) != len(ends) or ends_at[-1] != len(data) or \
+                np.any(np.diff(in_order) <= 0) or np.any(np.diff(ends_at) < 0):
             raise RecordingError(f"{path} is a corrupt recording: inputs do not match their "
                                  "steps")
-        flushes.append((np.array(steps, dtype=np.int64),
-                        [data[a:b] for a, b in zip([0, *ends], ends, strict=False)]))
+        ends = ends_at.tolist()
+        flushes.append((in_order, [data[a:b] for a, b in zip(ends, ends[1:], strict=False)]))
     return flushes
 
 
