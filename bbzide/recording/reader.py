@@ -226,7 +226,9 @@ def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
         raise RecordingError(f"{path}: unreadable mission metadata ({error})") from None
     if not isinstance(meta, dict) or meta.get("format") != layout.FORMAT:
         raise RecordingError(f"{path} is a Rerun recording, but not one of bbzide's")
-    version = int(meta.get("version", 0))
+    version = meta.get("version", 0)
+    if type(version) is not int:
+        raise RecordingError(f"{path}: unreadable mission metadata (format {version!r})")
     if version > layout.FORMAT_VERSION:
         raise RecordingError(f"{path} was written by a newer bbzide (format {version}; this "
                              f"one reads {layout.FORMAT_VERSION})")
@@ -234,7 +236,25 @@ def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
         raise RecordingError(f"{path} was written by an older bbzide (format {version}; this "
                              f"one reads {layout.OLDEST_READABLE}-{layout.FORMAT_VERSION}): "
                              "record the mission again")
+    _check_robots(meta, path)
     return meta
+
+
+def _check_robots(meta: dict[str, Any], path: Path) -> None:
+    """The per-robot metadata the replay indexes by robot: one entry per robot, of its type
+    (a crafted file's short list or string id escaped as an IndexError or ValueError)."""
+    robots = meta.get("robots")
+    per_robot = {"profiles": str, "robot_ids": int, "host_names": list}
+    if meta.get("latched") is not None:  # format 3 on: each robot's latched host functions
+        per_robot["latched"] = list
+    if type(robots) is not int or robots < 0:
+        raise RecordingError(f"{path}: unreadable mission metadata (robots {robots!r})")
+    for key, kind in per_robot.items():
+        values = meta.get(key)
+        if type(values) is not list or len(values) != robots or \
+                any(type(value) is not kind for value in values):
+            raise RecordingError(f"{path}: unreadable mission metadata ({key} is not one "
+                                 f"{kind.__name__} per robot)")
 
 
 def _rows(parts: list[tuple[np.ndarray, Any]]) -> tuple[np.ndarray, list[Any]]:

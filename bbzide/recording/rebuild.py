@@ -227,19 +227,25 @@ class RobotRebuilder:
         from bbzide.vm.profiles import PROFILES
 
         meta = self.recording.meta
+        name = meta["profiles"][index]  # one string per robot (reader._check_robots)
         try:
-            profile = PROFILES[meta["profiles"][index]]
+            profile = PROFILES[name]
         except KeyError:
-            raise RecordingError(f"unknown platform profile {meta['profiles'][index]!r}"
-                                 ) from None
+            raise RecordingError(f"unknown platform profile {name!r}") from None
         key = (index, keyframe.program)
         booted = self._booted.get(key)
         if booted is None:
             latched = meta.get("latched")  # format 3; none in format 2
-            host = ReplayHostFunctions(meta["host_names"][index],
-                                       dict(latched[index]) if latched else None)
-            robot = self._build(self.program(keyframe.program), profile,
-                                int(meta["robot_ids"][index]), host.functions())
+            try:
+                host = ReplayHostFunctions(meta["host_names"][index],
+                                           dict(latched[index]) if latched else None)
+                robot = self._build(self.program(keyframe.program), profile,
+                                    int(meta["robot_ids"][index]), host.functions())
+            except (KeyError, IndexError, TypeError, ValueError) as error:
+                # a crafted recording's metadata or program (the reader checks their shape,
+                # not every value: a loop mode, a budget, a host function's name, a program)
+                raise RecordingError(f"robot #{index} cannot be rebuilt from this recording's "
+                                     f"metadata or program ({error})") from None
             robot.boot()
             booted = self._booted[key] = (robot, host)
         robot, host = booted

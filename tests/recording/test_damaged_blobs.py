@@ -111,3 +111,29 @@ def test_a_flush_whose_steps_repeat_go_back_or_have_other_types_is_refused() -> 
                     flush(frame_stating(2 ** 40), [40, 41, 42], [1, 3, 6])):
         with pytest.raises(RecordingError, match="corrupt"):
             _input_steps(damaged, Path("x.rrd"))
+
+
+def test_crafted_mission_metadata_is_refused_when_read() -> None:
+    """The per-robot metadata the replay indexes by robot: a short list, a missing key or a
+    string where a number belongs escaped as KeyError/IndexError/ValueError from a seek."""
+    import json
+
+    from bbzide.recording.reader import _meta
+
+    good = {"format": layout.FORMAT, "version": layout.FORMAT_VERSION, "robots": 2,
+            "profiles": ["kilobot", "kilobot"], "robot_ids": [0, 1],
+            "host_names": [["led"], ["led"]], "latched": [[["led", 1]], [["led", 1]]]}
+
+    def read(meta: dict) -> dict:
+        return _meta({f"{layout.MISSION}:meta": pa.array([[json.dumps(meta)]])}, Path("x.rrd"))
+
+    assert read(good) == good
+    assert read({**good, "latched": None})["robots"] == 2  # format 2: nothing latched
+    for change in ({"version": "four"}, {"robots": "2"}, {"robots": -1},
+                   {"profiles": ["kilobot"]}, {"profiles": None}, {"robot_ids": ["0", "1"]},
+                   {"host_names": [["led"]]}, {"latched": [5, 5]}):
+        with pytest.raises(RecordingError, match="unreadable mission metadata"):
+            read({**good, **change})
+    for key in ("profiles", "robot_ids", "host_names", "robots"):
+        with pytest.raises(RecordingError, match="unreadable mission metadata"):
+            read({k: v for k, v in good.items() if k != key})
