@@ -137,3 +137,29 @@ def test_crafted_mission_metadata_is_refused_when_read() -> None:
     for key in ("profiles", "robot_ids", "host_names", "robots"):
         with pytest.raises(RecordingError, match="unreadable mission metadata"):
             read({k: v for k, v in good.items() if k != key})
+
+
+def test_a_file_that_crashes_rerun_s_reader_is_refused_when_isolated(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """rerun 0.41's reader aborts the process on some damaged payloads (one byte changed at
+    the right place; which place depends on the file). The replay reads a file in a child
+    process first: a child killed by a signal (here made to abort) means a refusal, and a
+    sound file still opens that way."""
+    from bbzide.recording import reader
+    from bbzide.recording.recorder import MissionRecorder
+    from tests.recording.test_recording import toy_swarm
+
+    sim, recordable = toy_swarm()
+    path = tmp_path / "mission.rrd"
+    with MissionRecorder(path, sim, recordable, flush_every=4) as recorder:
+        for _ in range(6):
+            sim.step()
+            recorder.record_step()
+    assert reader.read_recording(path, isolated=True).last_step == 6
+    cut = tmp_path / "cut.rrd"  # a killed writer's file is read through a prefix copy
+    cut.write_bytes(path.read_bytes()[:-40])
+    assert reader.read_recording(cut, isolated=True).truncated
+    monkeypatch.setattr(reader, "_TRIAL_READ", "import os\nos.abort()\n")
+    for damaged in (path, cut):
+        with pytest.raises(RecordingError, match="Rerun's reader crashed"):
+            reader.read_recording(damaged, isolated=True)
