@@ -11,7 +11,11 @@ Rerun's writer thread applies to every chunk, the raw inputs cost that thread mo
 Kilobot step, ~25 more for SAR) and the file grew. `zstandard` comes with viser already; it
 is pinned in pyproject.toml because we use it directly.
 
-A blob that does not decompress is a `CompressionError` (a corrupt recording).
+A blob that does not decompress is a `CompressionError` (a corrupt recording). A recording
+is untrusted input: a zstd frame states its decompressed size in its header and zstandard
+allocates that much before decompressing (a 13-byte crafted frame asked for 2^40 bytes:
+MemoryError), and a frame of zeros compresses ~32000:1, so `decompress` refuses a frame that
+states more than `limit` bytes, or none (ours always state it).
 """
 
 from __future__ import annotations
@@ -41,8 +45,19 @@ class Compressor:
         return self._context.compress(data)
 
 
-def decompress(blob: bytes) -> bytes:
+#: The most bytes a blob of ours decompresses to: the largest is a flush's input frame, ~4 MB
+#: for 500 steps of a 25-drone M300 swarm (8.1 KB a step); 256 MiB leaves 60x that for larger
+#: swarms and bounds what a crafted frame can make the reader allocate.
+MAX_BLOB_BYTES = 256 << 20
+
+
+def decompress(blob: bytes, limit: int = MAX_BLOB_BYTES) -> bytes:
+    """`blob` decompressed, refused unless its frame states a size of at most `limit` bytes."""
     try:
+        size = zstandard.frame_content_size(blob)
+        if not 0 <= size <= limit:
+            raise CompressionError(f"a compressed blob states {size} bytes (at most {limit})"
+                                   if size >= 0 else "a compressed blob states no size")
         return zstandard.ZstdDecompressor().decompress(blob)
     except zstandard.ZstdError as error:
         raise CompressionError(str(error)) from None

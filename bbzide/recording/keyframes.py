@@ -39,6 +39,11 @@ BLOCK = 64
 #: 15 deltas (a numpy scatter each) to one inflated snapshot.
 FULL_KEYFRAME_EVERY = 16
 
+#: The largest snapshot a keyframe may hold: an M300 drone's (the largest profile, a 60 KB
+#: heap) is ~70 KB; 16 MiB is 200x that and bounds what a crafted keyframe (its stated
+#: length, its zstd frame) can make the reader allocate.
+MAX_SNAPSHOT_BYTES = 16 << 20
+
 _HEAD = struct.Struct("<II")
 #: the `array` type code of a u32 (block numbers)
 _U32 = "I" if array("I").itemsize == 4 else "L"
@@ -64,9 +69,9 @@ def encode_full(snapshot: bytes) -> bytes:
     return _COMPRESSOR.compress(snapshot)
 
 
-def decode_full(stored: bytes) -> bytes:
+def decode_full(stored: bytes, limit: int = MAX_SNAPSHOT_BYTES) -> bytes:
     try:
-        return decompress(stored)
+        return decompress(stored, limit)
     except CompressionError as error:
         raise KeyframeError(str(error)) from None
 
@@ -100,10 +105,13 @@ def encode_delta(snapshot: bytes, base: bytes) -> bytes:
 
 def decode_delta(stored: bytes, base: bytes) -> bytes:
     """`encode_delta`'s snapshot back, given the same `base`."""
-    data = decode_full(stored)
+    # every block of a snapshot changed, with its u32 number: (BLOCK + 4) / BLOCK of it
+    data = decode_full(stored, MAX_SNAPSHOT_BYTES * (BLOCK + 4) // BLOCK + _HEAD.size)
     if len(data) < _HEAD.size:
         raise KeyframeError("keyframe delta shorter than its header")
     length, count = _HEAD.unpack_from(data)
+    if length > MAX_SNAPSHOT_BYTES:
+        raise KeyframeError(f"keyframe delta states a {length}-byte snapshot")
     blocks = -(-length // BLOCK)
     if len(data) != _HEAD.size + 4 * count + BLOCK * count:
         raise KeyframeError("keyframe delta length does not match its block count")

@@ -147,8 +147,33 @@ class Recording:
         return current
 
 
-def read_recording(path: Path | str) -> Recording:
-    """The recording at `path`, or a `RecordingError` saying why it cannot be read."""
+#: What a child process runs on a recording before this one reads it (`isolated=True`): the
+#: chunk stream `_read_columns` reads, nothing kept. (`-I`: no user site, no PYTHONPATH.)
+_TRIAL_READ = ("import sys, warnings\nwarnings.simplefilter('ignore')\n"
+               "from rerun.chunk import RrdReader\n"
+               "for chunk in RrdReader(sys.argv[1]).stream():\n    chunk.to_record_batch()\n")
+
+
+def _crashes_rerun(readable: Path) -> bool:
+    """Whether Rerun's reader kills the process that reads `readable`.
+
+    rerun 0.41's reader (Rust, arrow-rs) panics on some damaged Arrow payloads in a thread of
+    its own, which aborts the whole process (measured: one byte changed in a chunk's payload,
+    "the offset of the new Buffer cannot exceed the existing length"; another file: "memory
+    allocation of 8247061105401226112 bytes failed"). No exception reaches Python, so the
+    replay reads a file in a child process first (~0.75 s for a 15 MB recording) and refuses
+    it if that child dies by a signal. Other failures are left to the reading itself."""
+    import subprocess
+    import sys
+
+    trial = subprocess.run([sys.executable, "-I", "-c", _TRIAL_READ, str(readable)],
+                           capture_output=True, check=False)
+    return trial.returncode < 0
+
+
+def read_recording(path: Path | str, isolated: bool = False) -> Recording:
+    """The recording at `path`, or a `RecordingError` saying why it cannot be read.
+    `isolated`: Rerun's reader first reads it in a child process (`_crashes_rerun`)."""
     path = Path(path)
     try:
         data = path.read_bytes()
@@ -163,12 +188,12 @@ def read_recording(path: Path | str) -> Recording:
     if complete <= FILE_HEADER_BYTES:
         raise RecordingError(f"{path} holds no complete data (cut off before its first flush)")
     if ended:
-        columns = _read_columns(path, path)
+        columns = _read_columns(path, path, isolated)
     else:  # Rerun reads only whole messages: hand it the complete prefix
         with tempfile.NamedTemporaryFile(suffix=".rrd", delete=False) as prefix:
             prefix.write(data[:complete])
         try:
-            columns = _read_columns(Path(prefix.name), path)
+            columns = _read_columns(Path(prefix.name), path, isolated)
         finally:
             os.unlink(prefix.name)
         if f"{layout.MISSION}:meta" not in columns[1]:  # the first flush did not survive
@@ -182,9 +207,12 @@ def read_recording(path: Path | str) -> Recording:
 Columns = dict[tuple[str, str], list[tuple[np.ndarray, Any]]]
 
 
-def _read_columns(readable: Path, shown: Path) -> tuple[Columns, dict[str, Any]]:
+def _read_columns(readable: Path, shown: Path, isolated: bool = False
+                  ) -> tuple[Columns, dict[str, Any]]:
     from rerun.chunk import RrdReader
 
+    if isolated and _crashes_rerun(readable):
+        raise RecordingError(f"{shown} is a corrupt recording: Rerun's reader crashed on it")
     columns: Columns = defaultdict(list)
     static: dict[str, Any] = {}
     try:
@@ -226,7 +254,9 @@ def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
         raise RecordingError(f"{path}: unreadable mission metadata ({error})") from None
     if not isinstance(meta, dict) or meta.get("format") != layout.FORMAT:
         raise RecordingError(f"{path} is a Rerun recording, but not one of bbzide's")
-    version = int(meta.get("version", 0))
+    version = meta.get("version", 0)
+    if type(version) is not int:
+        raise RecordingError(f"{path}: unreadable mission metadata (format {version!r})")
     if version > layout.FORMAT_VERSION:
         raise RecordingError(f"{path} was written by a newer bbzide (format {version}; this "
                              f"one reads {layout.FORMAT_VERSION})")
@@ -234,7 +264,25 @@ def _meta(static: dict[str, Any], path: Path) -> dict[str, Any]:
         raise RecordingError(f"{path} was written by an older bbzide (format {version}; this "
                              f"one reads {layout.OLDEST_READABLE}-{layout.FORMAT_VERSION}): "
                              "record the mission again")
+    _check_robots(meta, path)
     return meta
+
+
+def _check_robots(meta: dict[str, Any], path: Path) -> None:
+    """The per-robot metadata the replay indexes by robot: one entry per robot, of its type
+    (a crafted file's short list or string id escaped as an IndexError or ValueError)."""
+    robots = meta.get("robots")
+    per_robot = {"profiles": str, "robot_ids": int, "host_names": list}
+    if meta.get("latched") is not None:  # format 3 on: each robot's latched host functions
+        per_robot["latched"] = list
+    if type(robots) is not int or robots < 0:
+        raise RecordingError(f"{path}: unreadable mission metadata (robots {robots!r})")
+    for key, kind in per_robot.items():
+        values = meta.get(key)
+        if type(values) is not list or len(values) != robots or \
+                any(type(value) is not kind for value in values):
+            raise RecordingError(f"{path}: unreadable mission metadata ({key} is not one "
+                                 f"{kind.__name__} per robot)")
 
 
 def _rows(parts: list[tuple[np.ndarray, Any]]) -> tuple[np.ndarray, list[Any]]:
@@ -337,15 +385,20 @@ def _input_steps(columns: Columns, path: Path) -> list[tuple[np.ndarray, list[by
     for blob, step_row, end_row in zip(blobs, step_rows, end_rows, strict=True):
         try:
             data = decompress((blob.as_py() or [b""])[0])
+            steps, ends = list(step_row.as_py() or []), list(end_row.as_py() or [])
+            in_order = np.array(steps, dtype=np.int64)
+            ends_at = np.array([0, *ends], dtype=np.int64)
         except CompressionError as error:
             raise RecordingError(f"{path} is a corrupt recording: inputs: {error}") from None
-        steps, ends = step_row.as_py() or [], end_row.as_py() or []
-        if len(steps) != len(ends) or (ends and ends[-1] != len(data)) or \
-                any(b < a for a, b in zip([0, *ends], ends, strict=False)):
+        except (TypeError, ValueError, OverflowError, IndexError):  # rows of another type
+            raise RecordingError(f"{path} is a corrupt recording: unreadable inputs") from None
+        # a flush holds each of its steps once, in order; each step's bytes follow the last's
+        if len(steps) != len(ends) or ends_at[-1] != len(data) or \
+                np.any(np.diff(in_order) <= 0) or np.any(np.diff(ends_at) < 0):
             raise RecordingError(f"{path} is a corrupt recording: inputs do not match their "
                                  "steps")
-        flushes.append((np.array(steps, dtype=np.int64),
-                        [data[a:b] for a, b in zip([0, *ends], ends, strict=False)]))
+        ends = ends_at.tolist()
+        flushes.append((in_order, [data[a:b] for a, b in zip(ends, ends[1:], strict=False)]))
     return flushes
 
 

@@ -87,6 +87,8 @@ def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
         except SnapshotError as error:
             raise RecordingError(f"the {what} is damaged ({error})") from None
         return
+    # a pickle of protocol 0 or 1 has no 0x80 prefix: not checked here, so `Robot` and `VM`
+    # `decode_snapshot` refuse it (every snapshot bbzide writes is flat or a protocol 2+ one)
     if not snapshot.startswith(b"\x80") or depth > _NESTED_PICKLES:
         return
     try:
@@ -225,25 +227,33 @@ class RobotRebuilder:
         from bbzide.vm.profiles import PROFILES
 
         meta = self.recording.meta
+        name = meta["profiles"][index]  # one string per robot (reader._check_robots)
         try:
-            profile = PROFILES[meta["profiles"][index]]
+            profile = PROFILES[name]
         except KeyError:
-            raise RecordingError(f"unknown platform profile {meta['profiles'][index]!r}"
-                                 ) from None
+            raise RecordingError(f"unknown platform profile {name!r}") from None
         key = (index, keyframe.program)
         booted = self._booted.get(key)
         if booted is None:
             latched = meta.get("latched")  # format 3; none in format 2
-            host = ReplayHostFunctions(meta["host_names"][index],
-                                       dict(latched[index]) if latched else None)
-            robot = self._build(self.program(keyframe.program), profile,
-                                int(meta["robot_ids"][index]), host.functions())
+            try:
+                host = ReplayHostFunctions(meta["host_names"][index],
+                                           dict(latched[index]) if latched else None)
+                robot = self._build(self.program(keyframe.program), profile,
+                                    int(meta["robot_ids"][index]), host.functions())
+            except (KeyError, IndexError, TypeError, ValueError) as error:
+                # a crafted recording's metadata or program (the reader checks their shape,
+                # not every value: a loop mode, a budget, a host function's name, a program)
+                raise RecordingError(f"robot #{index} cannot be rebuilt from this recording's "
+                                     f"metadata or program ({error})") from None
             robot.boot()
             booted = self._booted[key] = (robot, host)
         robot, host = booted
         try:
             robot.restore(self.snapshot(index, keyframe))
-        except SnapshotError as error:  # e.g. a heap of another profile's size
+        except (SnapshotError, TypeError, ValueError, AttributeError, IndexError) as error:
+            # e.g. a heap of another profile's size; or a pickled keyframe (formats 2-3)
+            # that passed the allow-list but holds another shape than a robot's state
             raise RecordingError(f"robot #{index}: the keyframe at step {keyframe.step} does "
                                  f"not fit its robot ({error})") from None
         _register_library(robot, profile)

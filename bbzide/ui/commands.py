@@ -104,7 +104,7 @@ def run_replay(args: argparse.Namespace) -> int:
 
     check_listen_address(args.host, args.port)
 
-    recording = read_recording(args.recording)
+    recording = read_recording(args.recording, isolated=True)  # a damaged file may crash Rerun
     app = ReplayApp(ReplaySession(recording), host=args.host, port=args.port).start()
     cut = " (cut off: shown up to its last flushed step)" if recording.truncated else ""
     print(

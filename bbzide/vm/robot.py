@@ -396,6 +396,8 @@ class Robot:
             vm_state, failure, steps_done, booted = snapshot_layout.decode_robot(snapshot)
             return (vm_state, None if failure is None else RobotFailure(*failure),
                     steps_done, booted)
+        if not snapshot.startswith(b"\x80"):  # not a pickle of ours (protocol 2+)
+            raise snapshot_layout.SnapshotError("neither a flat nor a pickled robot snapshot")
         vm_snapshot, failure, steps_done, booted = pickle.loads(snapshot)
         return VM.decode_snapshot(vm_snapshot), failure, steps_done, booted
 

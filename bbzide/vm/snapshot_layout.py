@@ -284,7 +284,8 @@ def _decode_vm(data: bytes, at: int, end: int) -> tuple[Any, ...]:
     heap = (reader.take(f["heap_bytes"]), f["rtobj"], f["ltseg"], f["peak_used"], f["gc_runs"])
     stack = reader.ints(f["stack_entries"], "H")
     record = f["record_bytes"]
-    if record != record_size(f["obj_size"]):
+    if record != record_size(f["obj_size"]) or f["obj_size"] <= 0:
+        # (a record of 0 bytes would make any record count fit the bytes present)
         raise SnapshotError("message record size does not match the object size")
     # built attribute by attribute, in field order, as unpickling does: the constructor would
     # allocate capacity-many records, and the capacities are not checked yet

@@ -53,7 +53,7 @@ from bbzide.vm.heap import (
     HeapFull,
 )
 from bbzide.vm.host import HostFunction, HostRegistry
-from bbzide.vm.messages import MessageQueues
+from bbzide.vm.messages import MessageQueues, record_size
 from bbzide.vm.neighbors import NeighborsState
 from bbzide.vm.packed_queues import PackedQueues, arrays_changed
 from bbzide.vm.profiles import PC, Profile
@@ -515,6 +515,8 @@ class VM:
 
         if snapshot.startswith(snapshot_layout.VM_MAGIC):
             return snapshot_layout.decode_vm(snapshot)
+        if not snapshot.startswith(b"\x80"):  # not a pickle of ours (protocol 2+)
+            raise snapshot_layout.SnapshotError("neither a flat nor a pickled VM snapshot")
         return pickle.loads(snapshot)  # type: ignore[no-any-return]
 
     def restore(self, snapshot: bytes) -> None:
@@ -528,6 +530,13 @@ class VM:
         hs, stack = snap[0], snap[1]
         if len(hs[0]) != self.heap.size or len(stack) != len(self.stack):
             raise SnapshotError("the snapshot's heap or stack size is not this profile's")
+        try:
+            fits = self._fits(snap)
+        except (AttributeError, TypeError, ValueError):  # a pickled state of another shape
+            fits = False
+        if not fits:
+            raise SnapshotError("the snapshot's heap pointers, stack pointers or message "
+                                "rings do not fit this profile's VM")
         (_, _, self.stackptr, self.blockptr, self.pc, self.state, self.error,
          self.lsyms, self.gsyms, self.nil, self.dflt_actrec, self.flist, self.robot,
          events, self.instructions_executed, recs, bcode) = snap
@@ -538,6 +547,41 @@ class VM:
         self.bcode = bcode
         self.bcode_size = len(bcode)
         arrays_changed()
+
+    def _fits(self, snap: tuple[Any, ...]) -> bool:
+        """Whether a decoded snapshot's registers index inside this VM's buffers.
+
+        A recording is untrusted input, and the compiled kernels (fastloop, fastgc,
+        fastreceive: numba, no bounds checks) index the heap, the stack and the message rings
+        with these registers as they are: a heap pointer or a ring index past its buffer read
+        and wrote outside it (measured: segfaults, "double free" aborts, a hang). The heap's
+        bytes and every object index are checked by the kernels themselves; these registers
+        are not. The heap pointers keep ``reserved <= rtobj <= ltseg <= size`` on whole
+        objects and segments; the stack pointers stay in the stack; the message queues and
+        the neighbor ring keep this profile's sizes, with ``start``/``end`` inside them."""
+        heap = self.heap
+        (_, rtobj, ltseg, _, _), stackptr, blockptr = snap[0], snap[2], snap[3]
+        ints = (rtobj, ltseg, stackptr, blockptr)
+        if set(map(type, ints)) != {int} \
+                or not heap.reserved * heap.obj_size <= rtobj <= ltseg <= heap.size \
+                or rtobj % heap.obj_size or (heap.size - ltseg) % heap.seg_size \
+                or not -1 <= blockptr < len(self.stack) or not -1 <= stackptr < len(self.stack):
+            return False
+        _, _, neighbors, queues = snap[15]
+        live = self.queues
+        if (queues.in_capacity, queues.out_capacity, queues.obj_size) != (
+                live.in_capacity, live.out_capacity, live.obj_size):
+            return False
+        record = record_size(live.obj_size)
+        for ring, like in ((queues.inbox, live.inbox), (queues.outbox, live.outbox),
+                           (neighbors.ring, self.neighbors.ring)):
+            if ring.capacity != like.capacity or len(ring.records) != len(like.records) \
+                    or {type(ring.start), type(ring.end)} != {int} \
+                    or not 0 <= ring.start < max(ring.capacity, 1) \
+                    or not 0 <= ring.end < max(ring.capacity, 1):
+                return False
+        return all(type(r) is bytearray and len(r) == record
+                   for r in (*queues.inbox.records, *queues.outbox.records))
 
     # =================================================================== execution
     def step(self) -> None:
