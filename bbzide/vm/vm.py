@@ -561,8 +561,11 @@ class VM:
         the neighbor ring keep this profile's sizes, with ``start``/``end`` inside them."""
         heap = self.heap
         (_, rtobj, ltseg, _, _), stackptr, blockptr = snap[0], snap[2], snap[3]
-        ints = (rtobj, ltseg, stackptr, blockptr)
-        if set(map(type, ints)) != {int} \
+        # every scalar register an int (a pickled keyframe could hold any allowed value: a
+        # list as the pc escaped as a TypeError from the debug map), the state and error kinds
+        ints = (rtobj, ltseg, stackptr, blockptr, snap[4], *snap[7:13], snap[14])
+        if set(map(type, ints)) != {int} or type(snap[5]) is not State \
+                or type(snap[6]) is not Error \
                 or not heap.reserved * heap.obj_size <= rtobj <= ltseg <= heap.size \
                 or rtobj % heap.obj_size or (heap.size - ltseg) % heap.seg_size \
                 or not -1 <= blockptr < len(self.stack) or not -1 <= stackptr < len(self.stack):

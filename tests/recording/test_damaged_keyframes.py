@@ -152,3 +152,20 @@ def test_a_pickle_of_another_shape_is_refused(recorded: dict) -> None:
 
     for payload in (pickle.dumps(5), pickle.dumps((b"\x80", None)), pickle.dumps([1, 2, 3, 4])):
         assert rebuild_with(recorded, payload) != "rebuilt"
+
+
+def test_a_pickled_keyframe_with_registers_of_other_types_is_refused(recorded: dict) -> None:
+    """Formats 2-3 keep pickled keyframes: the allow-list lets lists, strings and floats
+    through, and a list as the pc escaped as a TypeError from the debug map's lookup."""
+    import pickle
+
+    from bbzide.vm.robot import Robot
+
+    vm_state, failure, steps_done, booted = Robot.decode_snapshot(recorded["snapshot"])
+    pickled = pickle.dumps((pickle.dumps(vm_state), failure, steps_done, booted))
+    assert rebuild_with(recorded, pickled) == "rebuilt"  # the same state, pickled
+    for at, value in ((4, []), (2, "0"), (7, 1.5), (14, None), (5, 1)):
+        state = list(vm_state)
+        state[at] = value
+        crafted = pickle.dumps((pickle.dumps(tuple(state)), failure, steps_done, booted))
+        assert "do not fit this profile's VM" in rebuild_with(recorded, crafted), (at, value)
