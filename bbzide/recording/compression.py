@@ -47,7 +47,11 @@ class Compressor:
 
 #: The most bytes a blob of ours decompresses to: the largest is a flush's input frame, ~4 MB
 #: for 500 steps of a 25-drone M300 swarm (8.1 KB a step); 256 MiB leaves 60x that for larger
-#: swarms and bounds what a crafted frame can make the reader allocate.
+#: swarms and bounds what a crafted frame can make the reader allocate. The recorder cannot
+#: write a larger one: a flush comes at least every `FLUSH_SECONDS` (10 s), and the fastest
+#: input producer we have, 1,000 gradient Kilobots at ~15 steps/s with ~10,000 receptions of
+#: ~16 bytes a step, makes ~25 MB in 10 s (measured: ~9,000 deliveries a step, 40 recorded
+#: steps in 3.0 s, so ~19 MB of raw inputs in 10 s).
 MAX_BLOB_BYTES = 256 << 20
 
 
