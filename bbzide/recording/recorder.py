@@ -883,9 +883,7 @@ class MissionRecorder:
         steps = np.array(self._steps, dtype=np.int64)
         rows = len(steps)
         n = self.count
-        dt = float(self.sim.world.step_seconds)
-        indexes = [rr.TimeColumn(layout.TIMELINE, sequence=steps),
-                   rr.TimeColumn(layout.TIME_SECONDS, duration=steps * dt)]
+        indexes = self._time_columns(steps)
         b = self._window
         self._window = _Window(n, min(self.flush_every, WINDOW_ROWS))  # (Rerun may keep b's)
         per_robot = [n] * rows
@@ -913,9 +911,7 @@ class MissionRecorder:
         link_counts = [len(x) for x in links]
         sampled = [r for r in range(rows) if steps[r] % VIEWER_ARROWS_EVERY == 0]
         if sampled:
-            at = steps[sampled]
-            sampled_indexes = [rr.TimeColumn(layout.TIMELINE, sequence=at),
-                               rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+            sampled_indexes = self._time_columns(steps[sampled])
             angles = b.headings[sampled].reshape(-1)
             reach = radius * 2.5
             vectors = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], 1)
@@ -928,9 +924,7 @@ class MissionRecorder:
                 ends = b.positions[np.repeat(linked, counts)[:, None],
                                    np.concatenate([links[r] for r in linked])]
                 if len(linked) < len(sampled):
-                    at = steps[linked]
-                    sampled_indexes = [rr.TimeColumn(layout.TIMELINE, sequence=at),
-                                       rr.TimeColumn(layout.TIME_SECONDS, duration=at * dt)]
+                    sampled_indexes = self._time_columns(steps[linked])
                 send(layout.LINKS, indexes=sampled_indexes,
                      columns=self._arrows(ends[:, 0], ends[:, 1] - ends[:, 0], counts))
         flat_pairs = (np.concatenate([p.reshape(-1) for p in links]) if links
@@ -1062,7 +1056,8 @@ class MissionRecorder:
                 rr.ComponentColumn(rr.Arrows3D.descriptor_vectors(),
                                    rr.components.Vector3DBatch(vectors), lengths=lengths)]
 
-    def _time_columns(self, steps: list[int]) -> list[Any]:
+    def _time_columns(self, steps: list[int] | np.ndarray) -> list[Any]:
+        """The step and time index columns of rows at `steps`."""
         at = np.array(steps, dtype=np.int64)
         dt = float(self.sim.world.step_seconds)
         return [self.rr.TimeColumn(layout.TIMELINE, sequence=at),
