@@ -132,9 +132,8 @@ def test_unusual_listeners_identical(tmp_path: Path) -> None:
     _run_both(program, "kilobot", 16, 12, budget=3000, options={"width": 0.3, "height": 0.3})
 
 
-def test_heap_filling_listener_identical(tmp_path: Path) -> None:
-    """A listener that keeps what it hears until the Kilobot heap is full (MEM)."""
-    program = _compile(tmp_path, """
+#: Listeners that keep what they hear until the Kilobot heap is full (MEM).
+HEAP_FILLING = """
 var kept = {}
 var n = 0
 function init() {
@@ -146,7 +145,12 @@ function init() {
 function step() {
   neighbors.broadcast("k", n)
 }
-""")
+"""
+
+
+def test_heap_filling_listener_identical(tmp_path: Path) -> None:
+    """A listener that keeps what it hears until the Kilobot heap is full (MEM)."""
+    program = _compile(tmp_path, HEAP_FILLING)
     _run_both(program, "kilobot", 10, 25, options={"width": 0.25, "height": 0.25})
 
 
@@ -340,21 +344,10 @@ def test_batch_hand_overs_identical(tmp_path: Path, loop: str) -> None:
 
 
 def test_batch_heap_filling_identical(tmp_path: Path) -> None:
-    """Listeners keep what they hear until the Kilobot heap is full (MEM)."""
-    program = _compile(tmp_path, """
-var kept = {}
-var n = 0
-function init() {
-  neighbors.listen("k", function(vid, value, rid) {
-    n = n + 1
-    kept[n] = value
-  })
-}
-function step() {
-  neighbors.broadcast("k", n)
-  led(n % 8)
-}
-""")
+    """Listeners keep what they hear until the Kilobot heap is full (MEM); the LED, a
+    latched host function, is set every step."""
+    program = _compile(tmp_path, HEAP_FILLING.replace(
+        '  neighbors.broadcast("k", n)\n', '  neighbors.broadcast("k", n)\n  led(n % 8)\n'))
     seen = _run_batches(program, "kilobot", 10, 25, options={"width": 0.25, "height": 0.25})
     assert seen["failed"] > 0
 
