@@ -116,6 +116,12 @@ class PackedQueues:
         if self.xtreme:
             for e, row in zip(neighbors.ring.records, self.ring.tolist(), strict=True):
                 e.robot, e.distance, e.azimuth, e.elevation, e.mark = row
-        (queues.inbox.start, queues.inbox.end, _in_slots, neighbors.ring.start,
-         neighbors.ring.end, _nb_slots, queues.outbox.start, queues.outbox.end, _out_slots,
-         neighbors.clear_counter) = self.ctl[:CLEAR_COUNTER + 1].tolist()
+        (queues.inbox.start, queues.inbox.end, neighbors.ring.start, neighbors.ring.end,
+         queues.outbox.start, queues.outbox.end, neighbors.clear_counter) = self.indices()
+
+    def indices(self) -> tuple[int, int, int, int, int, int, int]:
+        """What `unpack` writes back besides the records: (inbox start, inbox end, ring
+        start, ring end, outbox start, outbox end, the neighbors' clear counter)."""
+        ctl = self.ctl.tolist()
+        return (ctl[IN_START], ctl[IN_END], ctl[NB_START], ctl[NB_END], ctl[OUT_START],
+                ctl[OUT_END], ctl[CLEAR_COUNTER])

@@ -176,8 +176,8 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
     packed = vm._packed if vm._packed_live else None
     if packed is not None:
         # the arrays hold the truth: read them as `PackedQueues.unpack` would write them back
-        (in_start, in_end, _, ring_start, ring_end, _, out_start, out_end, _,
-         clear_counter) = packed.ctl.tolist()[:10]
+        in_start, in_end, ring_start, ring_end, out_start, out_end, clear_counter = \
+            packed.indices()
         inq, outq = packed.inq, packed.outq
         if packed.record != record or (packed.xtreme and len(packed.ring) != len(ring.records)):
             return None
