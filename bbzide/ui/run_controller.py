@@ -8,7 +8,8 @@ status line shows how long the current step has been running.
 
 Readers that need a consistent view (the inspector) take `locked()`, which waits for the end of
 the current step; while the swarm runs that gives a live view, while paused an exact one.
-Frames go to `on_frame` at most `MAX_FRAME_HZ` times a second (and after every single step).
+Frames go to `on_frame` at most `MAX_FRAME_HZ` times a second (and after every single step and
+on pause, so a paused scene always shows the current step).
 A new world drops the program: bytecode names host functions by the old world's string ids, so
 the new world is built only when the program compiled for it arrives.
 """
@@ -180,6 +181,9 @@ class RunController:
         elif command == "pause":
             self._running = False
             self._pending_steps = 0
+            # The last step's frame may have been skipped by the frame-rate limit; a paused view
+            # must show the state the inspector reads, not the one a step before.
+            self._publish(force=True)
         elif command == "step":
             self._running = False
             self._pending_steps += 1

@@ -11,7 +11,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from browser import chromium_context, free_port, open_app_page, wait_until
+import numpy as np
+from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until
 
 from bbzide.ui.app import IdeApp
 from bbzide.ui.run_controller import RunSettings
@@ -45,17 +46,43 @@ class IdeSession:
         assert match, self.status_text()
         return int(match.group(1))
 
+    def settled(self, typed_end: str) -> None:
+        """Wait until the text ending in `typed_end` (trailing whitespace aside) is saved and
+        compiled. Typing is character by character, and on a loaded machine the editor's 400 ms
+        debounce may upload a half-typed line (a prefix such as "i" is a valid program): only
+        once this returns do markers and programs belong to the whole edit."""
+        session = self.app.session
+        wait_until(
+            lambda: (
+                session.text.rstrip().endswith(typed_end)
+                and session.outcome is not None
+                and session.outcome.revision == session.revision
+            ),
+            UI_WAIT_S,
+            message=f"the text ending in {typed_end!r} saved and compiled",
+        )
+
     def click_robot(self, page: object, client: object, index: int) -> None:
         """Look straight down at robot `index` and click it, left of the floating control panel.
 
         The camera looks at a point `shift` metres right of the robot, so the robot appears at a
-        known pixel offset left of the canvas centre (pinhole projection, vertical fov).
+        known pixel offset left of the canvas centre (pinhole projection, vertical fov). The click
+        goes to a spot of the robot's disc that no other robot covers: the world doubles let robots
+        overlap (robot 7 of the mechanics swarm is under a neighbour at ~7 % of steps), and a
+        click there would rightly select the one on top.
         """
-        self.app.controller.pause()
-        time.sleep(0.3)
-        with self.app.controller.locked() as sim:
+        controller = self.app.controller
+        controller.pause()
+        wait_until(  # the pause draws the current step; robots stay where the scene shows them
+            lambda: controller.last_frame is not None
+            and controller.last_frame.step == controller.status.step,
+            UI_WAIT_S,
+            message="the paused frame",
+        )
+        with controller.locked() as sim:
             assert sim is not None
-            x, y = (float(v) for v in sim.frame().positions[index])
+            radius = float(sim.geometry().robot_radius)
+        x, y = uncovered_spot(controller.last_frame.positions, index, radius)
         height, shift = 0.25, 0.06
         client.camera.up_direction = (0.0, 1.0, 0.0)  # type: ignore[attr-defined]
         client.camera.position = (x + shift, y, height)  # type: ignore[attr-defined]
@@ -76,7 +103,9 @@ class IdeSession:
                 time.sleep(0.05)
             if inspector.selected == index:
                 return
-        raise AssertionError(f"clicking robot {index} did not select it")
+        raise AssertionError(
+            f"clicking robot {index} did not select it (selected: {inspector.selected})"
+        )
 
     def open_tab(self) -> tuple[object, object]:
         """A second browser tab on the same run: (page, its viser client)."""
@@ -88,6 +117,26 @@ class IdeSession:
         )
         return page, self.app.server.get_clients()[next(iter(client_id))]
 
+
+
+def uncovered_spot(positions: np.ndarray, index: int, radius: float) -> tuple[float, float]:
+    """A point on robot `index`'s disc at least a tenth of a radius clear of every other disc.
+
+    Candidates are the centre and rings at half and three quarters of the radius, so the point
+    stays well inside the robot's own disc; the one farthest from the other robots wins.
+    """
+    centre = positions[index].astype(float)
+    angles = np.linspace(0.0, 2 * np.pi, 16, endpoint=False)
+    rings = [np.stack([np.cos(angles), np.sin(angles)], axis=1) * f * radius for f in (0.5, 0.75)]
+    candidates = centre + np.vstack([np.zeros((1, 2)), *rings])
+    others = np.delete(positions, index, axis=0).astype(float)
+    if len(others) == 0:
+        return float(centre[0]), float(centre[1])
+    clearance = np.min(np.linalg.norm(candidates[:, None, :] - others[None, :, :], axis=2), axis=1)
+    best = int(np.argmax(clearance))
+    if clearance[best] < 1.1 * radius:
+        raise AssertionError(f"robot {index} is covered by other robots at this step")
+    return float(candidates[best][0]), float(candidates[best][1])
 
 @contextlib.contextmanager
 def running_ide(

@@ -61,21 +61,6 @@ def test_play_advances_the_step_counter(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Play").click()
 
 
-def settled(ide: IdeSession, typed_end: str) -> None:
-    """Wait until the text ending in `typed_end` is saved and compiled: no debounced upload of a
-    half-typed line is still pending, so markers and programs belong to the whole edit."""
-    session = ide.app.session
-    wait_until(
-        lambda: (
-            session.text.rstrip("\n").endswith(typed_end)
-            and session.outcome is not None
-            and session.outcome.revision == session.revision
-        ),
-        30,
-        message=f"the text ending in {typed_end!r} saved and compiled",
-    )
-
-
 def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSession) -> None:
     # Typing is character by character, and on a loaded machine the 400 ms debounce may fire
     # mid-word: a prefix such as "red = @" is a valid program for the double, so the program
@@ -86,7 +71,7 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("\nred = @@ 2")
-    settled(ide, "red = @@ 2")
+    ide.settled("red = @@ 2")
     line = app.session.text.splitlines().index("red = @@ 2") + 1
     assert line == SCRIPT.count("\n") + 2 == 10  # SCRIPT ends with a newline: one line past
     marker = ide.editor.locator("#gutter div.error-line")
@@ -105,7 +90,7 @@ def test_syntax_error_marks_the_line_and_the_fix_reloads_the_robots(ide: IdeSess
     for _ in range(4):
         ide.page.keyboard.press("Backspace")  # "red = @@ 2" -> "red = "
     ide.page.keyboard.type("2")
-    settled(ide, "\nred = 2")
+    ide.settled("\nred = 2")
     assert app.session.outcome is not None and app.session.outcome.ok
     marker.wait_for(state="detached", timeout=UI_WAIT_MS)
     sim = app.backend.created[-1]  # type: ignore[attr-defined]
@@ -147,9 +132,10 @@ def test_external_save_reloads_the_editor(ide: IdeSession) -> None:
     new_text = SCRIPT + "# saved by another editor\n"
     saved_at = time.monotonic()
     write_atomically(app.session.path, new_text)
-    wait_until(lambda: app.session.text == new_text, 5, interval=0.01, message="server reload")
-    print(f"disk save -> recompiled in {time.monotonic() - saved_at:.2f} s")
-    assert time.monotonic() - saved_at < 1.0
+    wait_until(
+        lambda: app.session.text == new_text, UI_WAIT_S, interval=0.01, message="server reload"
+    )
+    print(f"disk save -> reloaded in {time.monotonic() - saved_at:.2f} s (goal: editor_bench)")
     source = ide.editor.locator("#source")
     wait_until(lambda: source.input_value() == new_text, UI_WAIT_S,
                message="editor shows the new text")

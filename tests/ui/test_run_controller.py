@@ -40,6 +40,28 @@ def test_play_pause_step_reset() -> None:
         controller.stop()
 
 
+
+def test_a_paused_scene_shows_the_current_step() -> None:
+    """At full speed most frames are skipped (30 Hz limit); a pause still draws the last step."""
+    controller, _backend = make_controller()
+    try:
+        for _round in range(5):
+            controller.play()
+            start = controller.status.step
+            wait_until(
+                lambda start=start: controller.status.step > start + 50, 5, message="running"
+            )
+            controller.pause()
+            wait_until(
+                lambda: controller.last_frame.step == controller.status.step,
+                5,
+                message="the paused frame to be the current step",
+            )
+            with controller.locked() as sim:
+                assert controller.last_frame.step == sim.step_count
+    finally:
+        controller.stop()
+
 def test_new_program_keeps_or_resets_the_world() -> None:
     controller, backend = make_controller()
     try:
