@@ -39,11 +39,11 @@ def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
 def test_real_syntax_error_marker_and_fix(ide: IdeSession) -> None:
     app = ide.app
     assert app.session.outcome is not None and app.session.outcome.ok
-    generation = app.controller.status.program_generation
     source = ide.editor.locator("#source")
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("if count > 10 {\n")  # Buzz needs parentheses: error at line 11
+    ide.settled("if count > 10 {")  # a half-typed "i" may have compiled and reloaded on the way
     marker = ide.editor.locator("#gutter div.error-line")
     marker.wait_for(timeout=UI_WAIT_MS)
     first = app.session.outcome.diagnostics[0]
@@ -52,14 +52,17 @@ def test_real_syntax_error_marker_and_fix(ide: IdeSession) -> None:
     assert ide.editor.locator(".error-span").first.inner_text() == "count"
     assert "11:3: Syntax error: expected (" in ide.editor.locator("#diagnostics").inner_text()
     ide.screenshot("buzz_syntax_error")
-    assert app.controller.status.program_generation == generation  # old program keeps running
-    source.fill(SCRIPT + "if (count > 10) {\n  count = 0\n}\n")
+    generation = app.controller.status.program_generation
+    step = ide.shown_step()
+    wait_until(lambda: ide.shown_step() > step + 3, UI_WAIT_S,
+               message="robots keep running the old code")
+    assert app.controller.status.program_generation == generation  # the error loads nothing
+    fixed = SCRIPT + "if (count > 10) {\n  count = 0\n}\n"
+    source.fill(fixed)  # one input event: one upload
     marker.wait_for(state="detached", timeout=UI_WAIT_MS)
-    wait_until(
-        lambda: app.controller.status.program_generation == generation + 1,
-        UI_WAIT_S,
-        message="robots reloaded",
-    )
+    sim = app.backend.created[-1]  # type: ignore[attr-defined]
+    wait_until(lambda: sim.program.text == fixed, UI_WAIT_S, message="robots on the fixed code")
+    assert app.controller.status.program_generation > generation
     ide.page.get_by_role("tab", name="Build").click()
     listing = ide.page.locator("pre.asm-listing")
     listing.wait_for(timeout=UI_WAIT_MS)

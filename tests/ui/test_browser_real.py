@@ -65,10 +65,12 @@ def test_clicked_robot_shows_its_vms_rop_and_lsp(ide: IdeSession) -> None:
     ide.click_robot(ide.page, client, 4)  # pauses the run first
     header = ide.page.get_by_text(re.compile(r"ROP \d+ · LSP \d+")).first
     header.wait_for(timeout=UI_WAIT_MS)
-    time.sleep(0.6)  # one ticker refresh while paused
-    rop, lsp = robot_vm_pointers(ide, 4)
-    text = ide.page.get_by_text(re.compile(r"ROP \d+ · LSP \d+")).first.inner_text()
-    assert f"ROP {rop} · LSP {lsp}" in text
+    rop, lsp = robot_vm_pointers(ide, 4)  # paused: the VM holds still
+    wait_until(  # the inspector's ticker refreshes the paused robot's figures
+        lambda: f"ROP {rop} · LSP {lsp}" in header.inner_text(),
+        UI_WAIT_S,
+        message=f"ROP {rop} · LSP {lsp} in the inspector",
+    )
     assert ide.page.locator(f'svg.heap-map[data-rop="{rop}"][data-lsp="{lsp}"]').count() == 1
     ide.screenshot("real_inspector")
     ide.app.controller.play()
@@ -86,15 +88,7 @@ def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> No
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("\nx = = 1")
-    wait_until(
-        lambda: (
-            session.text.rstrip("\n").endswith("x = = 1")
-            and session.outcome is not None
-            and session.outcome.revision == session.revision
-        ),
-        30,
-        message="the typed line saved and compiled",
-    )
+    ide.settled("x = = 1")
     assert session.outcome is not None and not session.outcome.ok
     broken_line = session.text.splitlines().index("x = = 1") + 1
     assert broken_line == len(original.splitlines()) + (2 if original.endswith("\n") else 1)
