@@ -91,7 +91,7 @@ def open_app_page(context: object, app: object) -> object:
     page.set_default_timeout(FIRST_RENDER_TIMEOUT_MS)
     page.goto(app.url, wait_until="domcontentloaded")  # type: ignore[attr-defined]
     server = app.server  # type: ignore[attr-defined]
-    wait_until(lambda: server.get_clients(), 30, message="websocket")
+    wait_until(lambda: server.get_clients(), UI_WAIT_S, message="websocket")
     page.wait_for_selector("canvas")
     client = next(iter(server.get_clients().values()))
     started = time.monotonic()

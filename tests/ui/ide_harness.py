@@ -127,7 +127,7 @@ class IdeSession:
         page = self.context.new_page()  # type: ignore[attr-defined]
         page.goto(self.app.url, wait_until="domcontentloaded")
         client_id = wait_until(
-            lambda: set(self.app.server.get_clients()) - known, 30, message="2nd tab"
+            lambda: set(self.app.server.get_clients()) - known, UI_WAIT_S, message="2nd tab"
         )
         return page, self.app.server.get_clients()[next(iter(client_id))]
 

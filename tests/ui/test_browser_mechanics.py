@@ -231,7 +231,7 @@ def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     assert body.count("\n") == 300
     write_atomically(app.session.path, body)
     source = ide.editor.locator("#source")
-    wait_until(lambda: source.input_value() == body, 30, message="300 lines in the editor")
+    wait_until(lambda: source.input_value() == body, UI_WAIT_S, message="300 lines in the editor")
     assert ide.editor.locator("#gutter div").count() == 301
     frame = ide.page.frame(url=ide.app.editor_server.url())
     assert frame is not None
@@ -244,5 +244,5 @@ def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("# end\n")
-    wait_until(lambda: app.session.text.endswith("# end\n"), 30, message="typed text saved")
+    wait_until(lambda: app.session.text.endswith("# end\n"), UI_WAIT_S, message="typed text saved")
     ide.screenshot("mechanics_300_lines")

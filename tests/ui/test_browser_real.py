@@ -108,7 +108,7 @@ def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> No
             and session.outcome is not None
             and session.outcome.revision == session.revision
         ),
-        30,
+        UI_WAIT_S,
         message="the fix saved and compiled",
     )
     assert session.outcome is not None and session.outcome.ok, session.outcome.diagnostics
@@ -160,4 +160,4 @@ def test_infinite_loop_keeps_controls_responsive(ide: IdeSession) -> None:
     source.fill(original)
     ide.page.get_by_role("button", name="Play").click()
     step = app.controller.status.step
-    wait_until(lambda: app.controller.status.step > step + 3, 30, message="running again")
+    wait_until(lambda: app.controller.status.step > step + 3, UI_WAIT_S, message="running again")

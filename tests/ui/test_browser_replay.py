@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from browser import chromium_context, free_port, open_app_page, wait_until
+from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until
 
 from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
@@ -78,8 +78,8 @@ def test_dragging_the_slider_moves_the_step_and_the_robots(replay: tuple) -> Non
     for fraction in (0.2, 0.4, 0.6, 0.7):
         page.mouse.move(track["x"] + track["width"] * fraction, y, steps=4)
     page.mouse.up()
-    wait_until(lambda: app.step > STEPS // 3, 15, message="the slider to seek")
-    wait_until(lambda: shown_step(page) == app.step, 15, message="the step label to follow")
+    wait_until(lambda: app.step > STEPS // 3, UI_WAIT_S, message="the slider to seek")
+    wait_until(lambda: shown_step(page) == app.step, UI_WAIT_S, message="the step label to follow")
     assert_scene_shows(app, app.step)
     assert np.abs(sent_positions(app) - start).max() > 1e-3, "robots did not move"
     page.screenshot(path="/tmp/bbzide-ui-screenshots/replay_slider.png")
@@ -89,19 +89,19 @@ def test_dragging_the_slider_moves_the_step_and_the_robots(replay: tuple) -> Non
 def test_step_buttons_play_and_jumps(replay: tuple) -> None:
     app, page = replay
     app.seek(40)
-    wait_until(lambda: shown_step(page) == 40, 10, message="seek 40")
+    wait_until(lambda: shown_step(page) == 40, UI_WAIT_S, message="seek 40")
     page.get_by_role("button", name="+1").click()
-    wait_until(lambda: shown_step(page) == 41, 10, message="+1")
+    wait_until(lambda: shown_step(page) == 41, UI_WAIT_S, message="+1")
     assert_scene_shows(app, 41)
     page.get_by_role("button", name="−1").click()
-    wait_until(lambda: shown_step(page) == 40, 10, message="-1")
+    wait_until(lambda: shown_step(page) == 40, UI_WAIT_S, message="-1")
     page.get_by_role("combobox", name="Speed").click()
     page.get_by_role("option", name="16×").click()
-    wait_until(lambda: app.speed == 16.0, 10, message="speed 16x")
+    wait_until(lambda: app.speed == 16.0, UI_WAIT_S, message="speed 16x")
     page.get_by_role("button", name="▶ Play").click()
-    wait_until(lambda: shown_step(page) > 60, 20, message="playing")
+    wait_until(lambda: shown_step(page) > 60, UI_WAIT_S, message="playing")
     page.get_by_role("button", name="❚❚ Pause").click()
-    wait_until(lambda: not app.playing, 10, message="paused")
+    wait_until(lambda: not app.playing, UI_WAIT_S, message="paused")
     paused = app.step
     time.sleep(0.5)
     assert app.step == paused
@@ -110,12 +110,12 @@ def test_step_buttons_play_and_jumps(replay: tuple) -> None:
 def test_jump_to_the_robot_error(replay: tuple) -> None:
     app, page = replay
     app.seek(10)
-    wait_until(lambda: shown_step(page) == 10, 10, message="seek 10")
+    wait_until(lambda: shown_step(page) == 10, UI_WAIT_S, message="seek 10")
     errors = app.session.event_steps("error")
     assert len(errors) == 1
     kinds = [kind for kind, _ in JUMP_KINDS]
     page.get_by_role("button", name="next ▶").nth(kinds.index("error")).click()
-    wait_until(lambda: shown_step(page) == errors[0], 10, message="jump to the error")
+    wait_until(lambda: shown_step(page) == errors[0], UI_WAIT_S, message="jump to the error")
     assert "1 in error" in page.locator("text=/of \\d+\\.\\.\\d+/").first.inner_text()
     page.get_by_role("button", name="◀ previous").nth(kinds.index("error")).click()
     time.sleep(0.5)
