@@ -1,5 +1,5 @@
-"""Shared pytest setup: the tests directory is importable (`import corpus`), and the run ends
-with the conformance corpus pass counts.
+"""Shared pytest setup: the tests directory is importable (`import corpus`), the property tests'
+Hypothesis profile, and the run ends with the conformance corpus pass counts.
 
 Every test module that imports a corpus folder from `tests/corpus.py` is a corpus test; its
 parametrised tests (one case per corpus script or run) are tallied per test function and printed
@@ -12,6 +12,20 @@ from collections import defaultdict
 
 import corpus
 import pytest
+from hypothesis import HealthCheck, settings
+
+# Property tests judge behaviour, not speed: no per-example deadline and no "too slow" health
+# check, which a loaded machine trips (the default deadline is 200 ms of wall time). With `CI`
+# set, Hypothesis starts from its own "ci" profile (the same two, and derandomised examples, so
+# a CI result reproduces); this profile extends whichever is loaded, so local runs get the same
+# tolerance and keep exploring new examples.
+settings.register_profile(
+    "bbzide",
+    settings.default,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile("bbzide")
 
 _CORPUS_PATHS = {corpus.CORPUS, corpus.COMPILER_DIR, corpus.COMPILER_ERRORS_DIR, corpus.BBZ_DIR}
 _tally: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # passed, run
