@@ -67,6 +67,53 @@ def test_a_frame_stating_no_size_is_refused() -> None:
         decompress(unsized)
 
 
+
+def flipped_bits(blob: bytes) -> list[bytes]:
+    """`blob` with one bit flipped, for every bit."""
+    out = []
+    for at in range(len(blob)):
+        for bit in range(8):
+            damaged = bytearray(blob)
+            damaged[at] ^= 1 << bit
+            out.append(bytes(damaged))
+    return out
+
+
+def test_a_flipped_bit_in_any_blob_is_refused_never_read_as_other_bytes() -> None:
+    """Blobs carry zstd's content checksum. Without it most flipped bits of a keyframe or an
+    input frame decompressed to other bytes without a word (the contrast below), and the replay
+    rebuilt a different robot."""
+    snapshot = VM(PROFILES["kilobot"], 3).snapshot()
+    later = bytearray(snapshot)
+    later[200:264] = bytes(range(64))
+    inputs = b"".join(struct.pack("<HHh", i, i * 7 % 300, -i) for i in range(200))
+    blobs = {
+        "full keyframe": keyframes.encode_full(snapshot),
+        "keyframe delta": keyframes.encode_delta(bytes(later), snapshot),
+        "input frame": Compressor(INPUT_LEVEL).compress(inputs),
+    }
+    for name, blob in blobs.items():
+        original, refused = decompress(blob), 0
+        for damaged in flipped_bits(blob):
+            try:
+                opened = decompress(damaged)
+            except CompressionError:
+                refused += 1
+            else:
+                assert opened == original, f"{name}: a flipped bit read as other bytes"
+        assert refused >= 0.95 * 8 * len(blob), (name, refused)
+    unchecked = zstandard.ZstdCompressor(level=INPUT_LEVEL).compress(inputs)
+    silent = sum(1 for damaged in flipped_bits(unchecked)
+                 if _opens_as_other_bytes(damaged, inputs))
+    assert silent > len(unchecked), "without the checksum most flips pass unseen"
+
+
+def _opens_as_other_bytes(blob: bytes, original: bytes) -> bool:
+    try:
+        return decompress(blob) != original
+    except CompressionError:
+        return False
+
 def test_a_delta_stating_a_huge_snapshot_is_refused() -> None:
     base = bytes(range(256)) * 8
     delta = keyframes.decode_full(keyframes.encode_delta(base[:-64] + b"x" * 64, base))

@@ -61,11 +61,18 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 def rebuild_with(recorded: dict, damaged: bytes) -> str:
     """Rebuild robot ROBOT from `damaged` as its keyframe: "rebuilt", or the refusal."""
+    keyframe: Keyframe = recorded["keyframe"]
+    return rebuild_from(recorded, [Keyframe(keyframe.step, keyframes.encode_full(damaged),
+                                            keyframe.program)])
+
+
+def rebuild_from(recorded: dict, robot_keyframes: list[Keyframe]) -> str:
+    """Rebuild robot ROBOT from `robot_keyframes` from the keyframe's step on: "rebuilt", or
+    the refusal."""
     recording: Recording = recorded["recording"]
     keyframe: Keyframe = recorded["keyframe"]
     saved = recording.keyframes[ROBOT]
-    recording.keyframes[ROBOT] = [Keyframe(keyframe.step, keyframes.encode_full(damaged),
-                                           keyframe.program)]
+    recording.keyframes[ROBOT] = robot_keyframes
     try:
         rebuilder = RobotRebuilder(recording)
         for step in range(keyframe.step, keyframe.step + AFTER + 1):
@@ -169,3 +176,22 @@ def test_a_pickled_keyframe_with_registers_of_other_types_is_refused(recorded: d
         state[at] = value
         crafted = pickle.dumps((pickle.dumps(tuple(state)), failure, steps_done, booted))
         assert "do not fit this profile's VM" in rebuild_with(recorded, crafted), (at, value)
+
+
+def test_a_bit_flipped_in_a_stored_keyframe_is_refused(recorded: dict) -> None:
+    """The stored bytes themselves (compressed, as the recorder wrote them): their zstd
+    checksum refuses a flipped bit that would otherwise decompress to another robot."""
+    recording: Recording = recorded["recording"]
+    keyframe: Keyframe = recorded["keyframe"]
+    stored = list(recording.keyframes[ROBOT])
+    at = stored.index(keyframe)
+    assert rebuild_from(recorded, stored) == "rebuilt"
+    rng = random.Random(7)
+    for _trial in range(40):
+        damaged = bytearray(keyframe.snapshot)
+        damaged[rng.randrange(len(damaged))] ^= 1 << rng.randrange(8)
+        flipped = list(stored)
+        flipped[at] = Keyframe(keyframe.step, bytes(damaged), keyframe.program, keyframe.base)
+        outcome = rebuild_from(recorded, flipped)
+        assert outcome != "rebuilt"
+        assert "checksum" in outcome or "corrupt" in outcome or "keyframe" in outcome, outcome
