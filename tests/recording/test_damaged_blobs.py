@@ -103,6 +103,7 @@ def test_a_flipped_bit_in_any_blob_is_refused_never_read_as_other_bytes() -> Non
                 assert opened == original, f"{name}: a flipped bit read as other bytes"
         assert refused >= 0.95 * 8 * len(blob), (name, refused)
     unchecked = zstandard.ZstdCompressor(level=INPUT_LEVEL).compress(inputs)
+    assert decompress(unchecked) == inputs  # blobs of recordings made before the checksum
     silent = sum(1 for damaged in flipped_bits(unchecked)
                  if _opens_as_other_bytes(damaged, inputs))
     assert silent > len(unchecked), "without the checksum most flips pass unseen"
