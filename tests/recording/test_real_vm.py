@@ -27,6 +27,7 @@ from bbzide.vm.robot import Robot
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
+from tests.recording.test_recording import record_steps
 
 pytestmark = pytest.mark.skipif(importlib.util.find_spec("bbzide.vm.robot") is None,
                                 reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
@@ -147,12 +148,8 @@ def test_closures_created_after_boot_survive_a_rebuild(tmp_path: Path) -> None:
     recordable = Recordable()
     sim = Simulation("kilobot", program, robots=6, seed=2, robot_factory=recordable.factory)
     path = tmp_path / "late.rrd"
-    live = {}
     with MissionRecorder(path, sim, recordable, keyframe_every=5) as recorder:
-        for _ in range(24):
-            sim.step()
-            recorder.record_step()
-            live[sim.step_count] = [vm_state(s.robot) for s in sim.robots]
+        live = record_steps(sim, recorder, 24, lambda: [vm_state(s.robot) for s in sim.robots])
     assert not sim.failures
     rebuilder = RobotRebuilder(read_recording(path))
     for index in range(6):
@@ -324,15 +321,11 @@ def test_a_recording_of_pickled_snapshots_still_rebuilds_exactly(
     recordable = Recordable()
     sim = Simulation("kilobot", program, robots=4, seed=7, robot_factory=recordable.factory)
     path = tmp_path / "old.rrd"
-    live = {}
     with monkeypatch.context() as patch:
         patch.setattr(Robot, "snapshot", Robot.pickled_snapshot)
         with MissionRecorder(path, sim, recordable, keyframe_every=10) as recorder:
-            for _ in range(25):
-                sim.step()
-                recorder.record_step()
-                live[sim.step_count] = [Robot.comparable(s.robot.snapshot())
-                                        for s in sim.robots]
+            live = record_steps(sim, recorder, 25, lambda: [
+                Robot.comparable(s.robot.snapshot()) for s in sim.robots])
     recording = read_recording(path)
     rebuilder = RobotRebuilder(recording)
     assert rebuilder.snapshot(1, recording.keyframes[1][-1]).startswith(b"\x80")

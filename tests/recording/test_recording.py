@@ -14,7 +14,9 @@ import signal
 import subprocess
 import sys
 import textwrap
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import pytest
@@ -26,6 +28,8 @@ from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
 from tests.recording.doubles import ToyRobot
+
+T = TypeVar("T")
 
 REPO = Path(__file__).resolve().parents[2]
 ROBOTS = 12
@@ -39,6 +43,18 @@ def toy_swarm(seed: int = 3) -> tuple[Simulation, Recordable]:
     sim = Simulation("kilobot", program, robots=ROBOTS, seed=seed,
                      robot_factory=recordable.factory, watch=())
     return sim, recordable
+
+
+def record_steps(sim: Simulation, recorder: MissionRecorder, steps: int,
+                 note: Callable[[], T]) -> dict[int, T]:
+    """Step and record the swarm `steps` times; what `note()` returns after each step, by the
+    step it saw (the live side a rebuilt recording is compared with)."""
+    live = {}
+    for _ in range(steps):
+        sim.step()
+        recorder.record_step()
+        live[sim.step_count] = note()
+    return live
 
 
 @pytest.fixture(scope="module")
@@ -246,12 +262,9 @@ def test_passive_bodies_are_recorded_without_a_vm(tmp_path: Path) -> None:
     sim = Simulation("kilobot", seed=4, robot_factory=recordable.factory, watch=(),
                      groups=[RobotGroup(4, program), RobotGroup(2, None)])
     path = tmp_path / "passive.rrd"
-    live = {}
     with MissionRecorder(path, sim, recordable, keyframe_every=7) as recorder:
-        for _ in range(30):
-            sim.step()
-            recorder.record_step()
-            live[sim.step_count] = [s.robot.snapshot() for s in sim.robots[:4]]
+        live = record_steps(sim, recorder, 30,
+                            lambda: [s.robot.snapshot() for s in sim.robots[:4]])
     recording = read_recording(path)
     assert recording.heap["rop"][:, 4:].max() == 0 and recording.heap["rop"][:, :4].min() > 0
     rebuilder = RobotRebuilder(recording, build=ToyRobot)
@@ -269,14 +282,10 @@ def test_a_format_2_recording_still_opens_and_rebuilds(tmp_path: Path,
 
     path = tmp_path / "v2.rrd"
     sim, recordable = toy_swarm()
-    live = {}
     with monkeypatch.context() as patched:
         patched.setattr(layout, "FORMAT_VERSION", 2)
         with MissionRecorder(path, sim, recordable, keyframe_every=5) as recorder:
-            for _ in range(8):
-                sim.step()
-                recorder.record_step()
-                live[sim.step_count] = sim.robots[2].robot.snapshot()
+            live = record_steps(sim, recorder, 8, lambda: sim.robots[2].robot.snapshot())
     recording = read_recording(path)
     assert recording.meta["version"] == 2
     assert RobotRebuilder(recording, build=ToyRobot).robot_at(2, 8).snapshot() == live[8]
@@ -351,13 +360,10 @@ def test_a_flush_window_that_grows_keeps_every_step(tmp_path: Path,
     monkeypatch.setattr(recorder_module, "WINDOW_ROWS", 3)
     sim, recordable = toy_swarm(seed=5)
     path = tmp_path / "grown.rrd"
-    live = {}
     with MissionRecorder(path, sim, recordable, flush_every=16) as recorder:
-        for _ in range(40):
-            sim.step()
-            recorder.record_step()
-            live[sim.step_count] = (sim.positions.copy(), sim.headings.copy(),
-                                    [s.robot.vm.heap.rtobj for s in sim.robots])
+        live = record_steps(sim, recorder, 40, lambda: (
+            sim.positions.copy(), sim.headings.copy(), [s.robot.vm.heap.rtobj for s in sim.robots]
+        ))
     recording = read_recording(path)
     assert recording.last_step == 40
     for step, (positions, headings, rop) in live.items():
