@@ -78,19 +78,19 @@ class IdeSession:
             radius = float(sim.geometry().robot_radius)
         spot = None
         for _step in range(MAX_STEPS_TO_UNCOVER):
-            shown = wait_until(  # the pause draws the current step: the scene shows these robots
+            wait_until(  # the pause draws the current step: the scene shows these robots
                 lambda: controller.last_frame is not None
-                and controller.last_frame.step == controller.status.step
-                and controller.last_frame,
+                and controller.last_frame.step == controller.status.step,
                 UI_WAIT_S,
                 message="the paused frame",
             )
-            spot = uncovered_spot(shown.positions, index, radius)  # type: ignore[attr-defined]
+            shown = controller.last_frame  # paused: it stays until the step below
+            spot = uncovered_spot(shown.positions, index, radius)
             if spot is not None:
                 break
             controller.single_step()  # the doubles' robots drive through each other
             wait_until(
-                lambda shown=shown: controller.status.step > shown.step,  # type: ignore[misc]
+                lambda shown=shown: controller.status.step > shown.step,
                 UI_WAIT_S,
                 message="one step",
             )
