@@ -13,10 +13,10 @@ is pinned in pyproject.toml because we use it directly.
 
 Every blob carries zstd's content checksum (4 bytes: the low half of the XXH64 of its
 decompressed bytes), which the decompressor verifies on every read. Without it a flipped bit
-mostly decompressed to other bytes without a word: of the 481 single-bit flips of a 481-byte
-frame, 458 gave wrong bytes silently and with it all 481 were refused (session 7), so a
-damaged keyframe or input frame no longer rebuilds a different robot. Older recordings' blobs
-have none and still open (the frame header says whether one is there).
+mostly decompressed to other bytes without a word: flipping the lowest bit of each byte of a
+481-byte frame, 458 of the 481 frames gave wrong bytes silently; with it every one was refused
+(session 7), so a damaged keyframe or input frame no longer rebuilds a different robot.
+Older recordings' blobs have none and still open (the frame header says whether one is there).
 
 A blob that does not decompress is a `CompressionError` (a corrupt recording). A recording
 is untrusted input: a zstd frame states its decompressed size in its header and zstandard
