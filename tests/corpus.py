@@ -1,9 +1,8 @@
 """Where the conformance corpus is, for tests and benchmarks.
 
-The corpus (`shared/conformance/`, the reference toolchains' outputs) sits beside the repository
-in CI and on developer machines (`<repo>/../shared/conformance`); a git worktree may sit deeper,
-so every ancestor of the repository is tried. `BBZIDE_CORPUS` overrides the search. A missing
-corpus is an error, never a skip: CI must run the whole corpus.
+The corpus (`tests/conformance/`: our Buzz scripts and the reference toolchains' outputs for
+them, see its README) is part of the repository. `BBZIDE_CORPUS` points the tests at another
+copy. A missing corpus is an error, never a skip: every run checks the whole corpus.
 """
 
 from __future__ import annotations
@@ -17,14 +16,16 @@ REPO_ROOT = Path(__file__).resolve().parent.parent
 def corpus_root() -> Path:
     override = os.environ.get("BBZIDE_CORPUS")
     if override:
-        return Path(override).resolve()
-    for ancestor in REPO_ROOT.parents:
-        candidate = ancestor / "shared" / "conformance"
-        if candidate.is_dir():
-            return candidate
+        chosen = Path(override).resolve()
+        if not chosen.is_dir():
+            raise FileNotFoundError(f"BBZIDE_CORPUS={override}: no such folder")
+        return chosen
+    bundled = REPO_ROOT / "tests" / "conformance"
+    if bundled.is_dir():
+        return bundled
     raise FileNotFoundError(
-        "conformance corpus not found: expected shared/conformance beside the repository "
-        "(or set BBZIDE_CORPUS)"
+        f"conformance corpus not found: expected {bundled} (part of the repository; "
+        "restore it with git, or point BBZIDE_CORPUS at a copy)"
     )
 
 
