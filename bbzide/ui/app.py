@@ -1,12 +1,13 @@
 """The IDE, wired together: one viser server, one editor, one program, one running swarm.
 
     browser tab ──(viser websocket)──▶ RunControls, SwarmScene clicks, InspectorPanel (per tab)
-         └──<iframe>──(HTTP, EditorServer)──▶ ProgramSession ──compile──▶ RunController.load_program
+         └──<iframe /editor/>──(editor websocket)──▶ ProgramSession ──compile──▶ RunController
     FileWatcher (external saves) ──────────▶ ProgramSession.reload_from_disk
     RunController thread ──frames (≤30 Hz)──▶ SwarmScene.draw
     ticker thread (4 Hz) ──▶ status line, build view, each tab's inspector (under the run lock)
 
-`IdeApp` only connects the parts; each part lives in its own module.
+`IdeApp` only connects the parts; each part lives in its own module. Everything is served on one
+port, behind one check of every request (`bbzide.ui.viser_server`, `bbzide.ui.access`).
 """
 
 from __future__ import annotations
@@ -18,9 +19,10 @@ from pathlib import Path
 
 import viser
 
+from bbzide.ui.access import new_token
 from bbzide.ui.build_panel import footprint_markdown, listing_html
 from bbzide.ui.controls import RunControls
-from bbzide.ui.editor_server import EditorServer
+from bbzide.ui.editor_server import EDITOR_PATH, editor_routes
 from bbzide.ui.file_watcher import FileWatcher
 from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
@@ -50,14 +52,15 @@ class IdeApp:
         settings: RunSettings,
         host: str = "127.0.0.1",
         port: int = 8080,
+        token: str | None = None,
     ) -> None:
         self.backend = backend
-        self.server = open_server(host, port)
+        self.token = token or new_token()
         self.controller = RunController(backend, settings)
         self.session = ProgramSession(
             source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls
         )
-        self.editor_server = EditorServer(self.session, host=host)
+        self.server = open_server(host, port, self.token, editor_routes(self.session))
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.overlays = OverlayView(self.server)
         self._overlay_ticks = 0
@@ -75,7 +78,7 @@ class IdeApp:
             target=self._tick_loop, name="bbzide-ui-ticker", daemon=True
         )
         self.watcher = FileWatcher(source_path, self._reload_from_disk)
-        self._build_gui(host)
+        self._build_gui()
         self.controller.add_frame_listener(self._on_frame)
         self.session.add_listener(self._on_compiled)
         self.server.on_client_connect(self._on_client_connect)
@@ -84,10 +87,15 @@ class IdeApp:
     # ---- lifetime ------------------------------------------------------------------------------
     @property
     def url(self) -> str:
-        return page_url(self.server)
+        """The address to open, with the launch's token."""
+        return page_url(self.server, self.token)
+
+    @property
+    def editor_url(self) -> str:
+        """The editor frame's address as the page at `url` loads it (no token: the cookie)."""
+        return self.url.partition("?")[0].rstrip("/") + EDITOR_PATH
 
     def start(self, run: bool = True) -> IdeApp:
-        self.editor_server.start()
         self.controller.start()
         self.watcher.start()
         self.session.compile_now()  # first program -> controller builds the world
@@ -100,19 +108,17 @@ class IdeApp:
         self._stop.set()
         self.watcher.stop()
         self.controller.stop()
-        self.editor_server.stop()
         if self._ticker.is_alive():
             self._ticker.join(timeout=5)
         self.server.stop()
 
     # ---- layout --------------------------------------------------------------------------------
-    def _build_gui(self, host: str) -> None:
+    def _build_gui(self) -> None:
         gui = self.server.gui
-        browser_host = "127.0.0.1" if host in ("0.0.0.0", "") else host
         panel = gui.add_panel()
         with panel.add_tab(self.session.path.name, icon=viser.Icon.CODE):
-            gui.add_html(
-                f'<iframe src="{self.editor_server.url(browser_host)}" title="Buzz editor" '
+            gui.add_html(  # relative: the frame comes from wherever the page came from
+                f'<iframe src="{EDITOR_PATH}" title="Buzz editor" '
                 'class="bbzide-editor" style="width:100%;height:calc(100vh - 140px);border:0;'
                 'display:block"></iframe>'
             )

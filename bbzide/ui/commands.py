@@ -1,7 +1,8 @@
 """`bbzide ide [X.bzz]`: open the browser IDE (also what plain `bbzide` does).
 
-    bbzide ide [X.bzz] [--world W] [--robots N] [--seed K] [--host H] [--port P] [--no-browser]
-    bbzide replay X.rrd [--host H] [--port P] [--no-browser]
+    bbzide ide [X.bzz] [--world W] [--robots N] [--seed K] [--host H] [--port P] [--token T]
+               [--no-browser]
+    bbzide replay X.rrd [--host H] [--port P] [--token T] [--no-browser]
 
 Without a script the IDE opens the world's example. The example is copied once to a scratch
 file in the user's data directory (`~/.local/share/bbzide/scratch/`), because the editor saves
@@ -23,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bbzide.diagnostics import UserError
+from bbzide.ui.access import TOKEN_ENV, TokenError, choose_token
 
 if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
     from bbzide.ui.app import IdeApp
@@ -53,6 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     ide.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     ide.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (default 8080)")
+    add_token_argument(ide)
     ide.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     ide.add_argument("--paused", action="store_true", help="start paused")
     ide.set_defaults(
@@ -64,6 +67,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         speed=30.0,
         host="127.0.0.1",
         port=DEFAULT_PORT,
+        token=None,
         no_browser=False,
         paused=False,
     )
@@ -77,8 +81,25 @@ def register_replay(subparsers: argparse._SubParsersAction) -> None:
     replay.add_argument("recording", type=Path, help="a recording made with --record")
     replay.add_argument("--host", default="127.0.0.1", help="address to listen on")
     replay.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (default 8080)")
+    add_token_argument(replay)
     replay.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     replay.set_defaults(handler=run_replay)
+
+
+def add_token_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--token",
+        help=f"secret the browser must present (default: ${TOKEN_ENV}, else a new random one "
+        "per launch; it is part of the printed address)",
+    )
+
+
+def launch_token(args: argparse.Namespace) -> str:
+    """`--token`, $BBZIDE_TOKEN or a fresh one; a bad given token is the user's error."""
+    try:
+        return choose_token(getattr(args, "token", None))
+    except TokenError as error:
+        raise IdeError(str(error)) from None
 
 
 def check_listen_address(host: str, port: int) -> None:
@@ -103,9 +124,11 @@ def run_replay(args: argparse.Namespace) -> int:
     from bbzide.ui.replay_session import ReplaySession
 
     check_listen_address(args.host, args.port)
+    token = launch_token(args)
 
     recording = read_recording(args.recording, isolated=True)  # a damaged file may crash Rerun
-    app = ReplayApp(ReplaySession(recording), host=args.host, port=args.port).start()
+    app = ReplayApp(ReplaySession(recording), host=args.host, port=args.port,
+                    token=token).start()
     cut = " (cut off: shown up to its last flushed step)" if recording.truncated else ""
     print(
         f"bbzide replay: {app.url}  ({args.recording}: steps {recording.first_step}.."
@@ -121,6 +144,7 @@ def run_ide(args: argparse.Namespace) -> int:
     from bbzide.ui.world_adapter import WorldsBackend
 
     check_listen_address(args.host, args.port)
+    token = launch_token(args)
     if args.seed < 0:  # numpy's seed sequences take non-negative integers only
         raise IdeError(f"--seed must be >= 0, got {args.seed}")
     if args.script is not None:
@@ -141,7 +165,7 @@ def run_ide(args: argparse.Namespace) -> int:
     settings = RunSettings(
         world=world, robots=robots, seed=args.seed, steps_per_second=max(0.0, args.speed)
     )
-    app = IdeApp(script, backend, settings, host=args.host, port=args.port)
+    app = IdeApp(script, backend, settings, host=args.host, port=args.port, token=token)
     app.start(run=not args.paused)
     print(f"bbzide IDE: {app.url}  (editing {script}; Ctrl-C to stop)", flush=True)
     return serve_until_interrupted(app, open_browser=not args.no_browser)

@@ -1,114 +1,150 @@
-"""A small HTTP server for the Buzz editor page and its JSON API.
+"""The Buzz editor's page and its websocket, served on the IDE's own (viser's) port.
 
 viser 1.1.1 has no code-editor widget (its multiline text input is a plain textarea without
-line numbers, highlighting or markers) and its HTTP handler serves only its own client bundle.
-So the editor is our own page (`static/editor.html|css|js`), served here on 127.0.0.1 and shown
-inside the viser panel in an <iframe>. It talks to `ProgramSession` through four JSON routes
-(see the top of `static/editor.js`). Only the one `.bzz` file of the session can be written, and
-only through `ProgramSession.edit_from_browser` (atomic save).
+line numbers, highlighting or markers), so the editor is our own page (`static/editor.html|
+css|js`), shown inside the viser panel in an <iframe src="/editor/">. `editor_routes` hands the
+page's three files and its websocket, ``/editor/socket``, to `bbzide.ui.viser_server`, which
+checks every request (token, origin, host) before they get here.
+
+The page and `ProgramSession` talk over that websocket in JSON: the page sends
+``{"id": n, "op": ..., ...}`` and gets ``{"id": n, "code": <HTTP status>, ...}`` back, where
+the code keeps HTTP's meaning (200 done, 400 malformed, 409 conflict, 413 too large):
+
+    {"op": "state"}                               -> session.state()
+    {"op": "source"}                              -> {revision, text}
+    {"op": "save", "text": s, "base_revision": r} -> state, or 409 with the current {revision, text}
+    {"op": "compile"}                             -> state
+
+A save names the revision it was based on; if the file changed since (another tab, an external
+editor), nothing is written and the page shows both texts (`ProgramSession.edit_from_browser`).
+Only the one `.bzz` file of the session can be written, and only atomically. Each message is
+answered in a worker thread (a compile takes up to a second), so viser's event loop, which
+carries the 3D scene, never waits for one. A malformed message gets a 4xx answer and the
+connection stays open; nothing a page sends reaches the terminal as a traceback.
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
-import threading
 from http import HTTPStatus
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from typing import Any
 
-from bbzide.ui.program_session import ProgramSession
+from websockets.asyncio.server import ServerConnection
+from websockets.exceptions import ConnectionClosed
+
+from bbzide.ui.program_session import EditConflict, ProgramSession
+from bbzide.ui.viser_server import Page, Routes
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
+#: Where the editor lives on the IDE's port (viser's own client owns "/").
+EDITOR_PATH = "/editor/"
+SOCKET_PATH = EDITOR_PATH + "socket"
 STATIC_FILES = {
-    "/": ("editor.html", "text/html; charset=utf-8"),
-    "/editor.html": ("editor.html", "text/html; charset=utf-8"),
-    "/editor.css": ("editor.css", "text/css; charset=utf-8"),
-    "/editor.js": ("editor.js", "application/javascript; charset=utf-8"),
+    EDITOR_PATH: ("editor.html", "text/html; charset=utf-8"),
+    EDITOR_PATH + "editor.css": ("editor.css", "text/css; charset=utf-8"),
+    EDITOR_PATH + "editor.js": ("editor.js", "application/javascript; charset=utf-8"),
 }
-#: Largest request body accepted: a generous bound for a Buzz script (the Kilobot flash is 32 KB).
-MAX_BODY_BYTES = 2 * 1024 * 1024
+#: Largest message accepted: a generous bound for a Buzz script (the Kilobot flash is 32 KB);
+#: a larger one closes the connection (websocket close code 1009) before it is read whole.
+MAX_MESSAGE_BYTES = 2 * 1024 * 1024
 
 
-class EditorServer:
-    """Serves the editor on `host:port` (port 0 = any free port) from a daemon thread."""
+class BadMessage(ValueError):
+    """A message the editor protocol does not allow; answered with `status`."""
 
-    def __init__(self, session: ProgramSession, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, message: str, status: HTTPStatus = HTTPStatus.BAD_REQUEST) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+def editor_routes(session: ProgramSession) -> Routes:
+    pages = {
+        path: Page((STATIC_DIR / name).read_bytes(), mime)
+        for path, (name, mime) in STATIC_FILES.items()
+    }
+    return Routes(pages=pages, sockets={SOCKET_PATH: EditorSocket(session).serve})
+
+
+class EditorSocket:
+    """Answers one editor page's messages for as long as its websocket is open."""
+
+    def __init__(self, session: ProgramSession) -> None:
         self.session = session
-        handler = _make_handler(session)
-        self._httpd = ThreadingHTTPServer((host, port), handler)
-        self._httpd.daemon_threads = True
-        self.host = host
-        self.port = self._httpd.server_address[1]
-        self._thread = threading.Thread(
-            target=self._httpd.serve_forever, name="bbzide-editor", daemon=True
-        )
 
-    def start(self) -> EditorServer:
-        self._thread.start()
-        return self
+    async def serve(self, connection: ServerConnection) -> None:
+        connection.protocol.max_message_size = MAX_MESSAGE_BYTES
+        pending: set[asyncio.Task[None]] = set()
+        try:
+            async for message in connection:
+                task = asyncio.create_task(self._reply(connection, message))
+                pending.add(task)
+                task.add_done_callback(pending.discard)
+        except ConnectionClosed:
+            pass  # the tab closed or sent what the protocol forbids (e.g. too large)
+        finally:
+            for task in pending:
+                task.cancel()
 
-    def url(self, browser_host: str | None = None) -> str:
-        return f"http://{browser_host or self.host}:{self.port}/"
+    async def _reply(self, connection: ServerConnection, message: str | bytes) -> None:
+        reply = await asyncio.to_thread(self.answer, message)
+        try:
+            await connection.send(json.dumps(reply))
+        except ConnectionClosed:
+            pass  # the tab went away while its answer was computed
 
-    def stop(self) -> None:
-        self._httpd.shutdown()
-        self._httpd.server_close()
-        self._thread.join(timeout=5)
+    def answer(self, message: str | bytes) -> dict[str, Any]:
+        """The reply to one message, always a JSON object with the request's id (if any)."""
+        request_id: object = None
+        try:
+            request = parse_message(message)
+            request_id = request.get("id")
+            return {"id": request_id, "code": int(HTTPStatus.OK), **self._do(request)}
+        except EditConflict as conflict:
+            return {"id": request_id, "code": int(HTTPStatus.CONFLICT),
+                    "error": "the file changed since this text was loaded",
+                    "revision": conflict.revision, "text": conflict.text,
+                    **self.session.state()}
+        except BadMessage as bad:
+            return {"id": request_id, "code": int(bad.status), "error": str(bad)}
+        except OSError as error:  # the disk refused the save: the page shows why
+            return {"id": request_id, "code": int(HTTPStatus.INTERNAL_SERVER_ERROR),
+                    "error": f"could not save: {error.strerror or error}",
+                    **self.session.state()}
+
+    def _do(self, request: dict[str, Any]) -> dict[str, Any]:
+        session = self.session
+        op = request.get("op")
+        if op == "state":
+            return session.state()
+        if op == "source":
+            return session.source()
+        if op == "compile":
+            session.compile_now()
+            return session.state()
+        if op == "save":
+            text = request.get("text")
+            base = request.get("base_revision")
+            if not isinstance(text, str):
+                raise BadMessage("save needs \"text\": a string")
+            if not isinstance(base, int) or isinstance(base, bool):
+                raise BadMessage("save needs \"base_revision\": the revision the text is based on")
+            session.edit_from_browser(text, base_revision=base)
+            return session.state()
+        raise BadMessage(f"unknown op {op!r}: state, source, save or compile")
 
 
-def _make_handler(session: ProgramSession) -> type[BaseHTTPRequestHandler]:
-    class EditorRequestHandler(BaseHTTPRequestHandler):
-        server_version = "bbzide-editor"
-
-        def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib signature
-            return  # keep the terminal for the IDE's own messages
-
-        def do_GET(self) -> None:  # noqa: N802 - stdlib naming
-            path = self.path.partition("?")[0]
-            if path in STATIC_FILES:
-                name, mime = STATIC_FILES[path]
-                self._send(HTTPStatus.OK, (STATIC_DIR / name).read_bytes(), mime)
-            elif path == "/api/state":
-                self._send_json(session.state())
-            elif path == "/api/source":
-                self._send_json(session.source())
-            else:
-                self._send(HTTPStatus.NOT_FOUND, b"not found", "text/plain")
-
-        def do_POST(self) -> None:  # noqa: N802 - stdlib naming
-            length = int(self.headers.get("Content-Length") or 0)
-            if length > MAX_BODY_BYTES:
-                self._send(HTTPStatus.REQUEST_ENTITY_TOO_LARGE, b"too large", "text/plain")
-                return
-            try:
-                body = json.loads(self.rfile.read(length) or b"{}")
-            except json.JSONDecodeError:
-                self._send(HTTPStatus.BAD_REQUEST, b"bad json", "text/plain")
-                return
-            path = self.path.partition("?")[0]
-            if path == "/api/source" and isinstance(body.get("text"), str):
-                try:
-                    session.edit_from_browser(body["text"])
-                except OSError as error:
-                    self._send_json({**session.state(), "save_error": str(error)})
-                    return
-                self._send_json(session.state())
-            elif path == "/api/compile":
-                session.compile_now()
-                self._send_json(session.state())
-            else:
-                self._send(HTTPStatus.NOT_FOUND, b"not found", "text/plain")
-
-        def _send_json(self, payload: dict[str, Any]) -> None:
-            self._send(HTTPStatus.OK, json.dumps(payload).encode(), "application/json")
-
-        def _send(self, status: HTTPStatus, body: bytes, mime: str) -> None:
-            self.send_response(status)
-            self.send_header("Content-Type", mime)
-            self.send_header("Content-Length", str(len(body)))
-            self.send_header("Cache-Control", "no-store")
-            self.end_headers()
-            self.wfile.write(body)
-
-    return EditorRequestHandler
+def parse_message(message: str | bytes) -> dict[str, Any]:
+    """A message as a JSON object, or `BadMessage` saying what is wrong with it."""
+    if isinstance(message, bytes):
+        raise BadMessage("send JSON text, not binary frames")
+    if len(message) > MAX_MESSAGE_BYTES:  # also bounded by the websocket (see serve)
+        raise BadMessage("message too large", HTTPStatus.REQUEST_ENTITY_TOO_LARGE)
+    try:
+        request = json.loads(message)
+    except (json.JSONDecodeError, RecursionError):
+        raise BadMessage("not JSON") from None
+    if not isinstance(request, dict):
+        raise BadMessage("the message must be a JSON object")
+    return request

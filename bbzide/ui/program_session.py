@@ -4,7 +4,12 @@
 the same place (`_accept_text` → compile):
 
 * the browser editor (`edit_from_browser`): the text is saved to disk atomically (temp file in the
-  same directory, fsync, `os.replace`) so an editor or a crash never sees half a file;
+  same directory, fsync, `os.replace`) so an editor or a crash never sees half a file. The
+  editor says which revision its text was based on; if the text changed since (another tab, or
+  an external save, even one the file watcher has not delivered yet: the file is re-read
+  first), nothing is written and `EditConflict` carries the newer text, so that newer text is
+  never overwritten silently. (Between that re-read and the rename lie microseconds in which an
+  external save could still be replaced: no file lock spans two programs on every system.)
 * the file on disk (`reload_from_disk`, called by the file watcher): external editors' saves;
 * the user asking for a compile (`compile_now`).
 
@@ -89,6 +94,15 @@ def write_atomically(path: Path, text: str) -> None:
         raise
 
 
+class EditConflict(Exception):
+    """A browser edit based on an older revision than the current text: nothing was saved."""
+
+    def __init__(self, revision: int, text: str) -> None:
+        super().__init__(f"the text changed since (now revision {revision})")
+        self.revision = revision
+        self.text = text
+
+
 class ProgramSession:
     """Source text, revisions, compile results and the last good program of one `.bzz` file."""
 
@@ -122,21 +136,43 @@ class ProgramSession:
         self._on_program = on_program
 
     # ---- the three ways the text changes ---------------------------------------------------
-    def edit_from_browser(self, text: str) -> CompileOutcome:
-        """The editor's new text: save it atomically, then compile it."""
+    def edit_from_browser(self, text: str, base_revision: int | None = None) -> CompileOutcome:
+        """The editor's new text: save it atomically, then compile it.
+
+        With `base_revision` (the revision the editor's text started from), a text that changed
+        since raises `EditConflict` instead of being overwritten; an external save not yet seen
+        becomes a revision of its own first (and is compiled, as the file watcher would).
+        """
+        external: int | None = None
         with self._lock:
-            if text == self.text and self.outcome is not None:
-                return self.outcome
-            write_atomically(self.path, text)
-            self._disk_text = text
-            revision = self._accept_text(text)
+            disk = self._read_disk()
+            if disk is not None and disk != self._disk_text:
+                self._disk_text = disk
+                if disk != self.text:
+                    external = self._accept_text(disk)
+            stale = base_revision is not None and base_revision != self.revision
+            if stale and text != self.text:
+                conflict = EditConflict(self.revision, self.text)
+            else:
+                conflict = None
+                if text == self.text and self.outcome is not None and external is None:
+                    return self.outcome
+                if text != self.text:
+                    write_atomically(self.path, text)
+                    self._disk_text = text
+                    revision = self._accept_text(text)
+                else:
+                    revision = self.revision
+        if conflict is not None:
+            if external is not None:
+                self._compile(external)
+            raise conflict
         return self._compile(revision)
 
     def reload_from_disk(self) -> CompileOutcome | None:
         """Re-read the file after an external save; None if its text did not change."""
-        try:
-            text = self.path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError):
+        text = self._read_disk()
+        if text is None:
             return None  # mid-rename or unreadable: the next event will bring it
         with self._lock:
             if text == self._disk_text:
@@ -146,6 +182,12 @@ class ProgramSession:
                 return None
             revision = self._accept_text(text)
         return self._compile(revision)
+
+    def _read_disk(self) -> str | None:
+        try:
+            return self.path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError):
+            return None
 
     def compile_now(self) -> CompileOutcome:
         with self._lock:

@@ -20,6 +20,7 @@ import time
 
 import viser
 
+from bbzide.ui.access import new_token
 from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
 from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
@@ -35,9 +36,16 @@ SOURCE_PANEL_WIDTH = 560
 
 
 class ReplayApp:
-    def __init__(self, session: ReplaySession, host: str = "127.0.0.1", port: int = 8080) -> None:
+    def __init__(
+        self,
+        session: ReplaySession,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        token: str | None = None,
+    ) -> None:
         self.session = session
-        self.server = open_server(host, port)
+        self.token = token or new_token()
+        self.server = open_server(host, port, self.token)
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.scene.set_world(session.geometry(), session.frame(session.first_step).positions)
         self.overlays = OverlayView(self.server)
@@ -56,7 +64,8 @@ class ReplayApp:
 
     @property
     def url(self) -> str:
-        return page_url(self.server)
+        """The address to open, with the launch's token."""
+        return page_url(self.server, self.token)
 
     def start(self) -> ReplayApp:
         # One robot's warm-up now, before the page is announced: it pays the process's one-off

@@ -233,7 +233,7 @@ def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     source = ide.editor.locator("#source")
     wait_until(lambda: source.input_value() == body, UI_WAIT_S, message="300 lines in the editor")
     assert ide.editor.locator("#gutter div").count() == 301
-    frame = ide.page.frame(url=ide.app.editor_server.url())
+    frame = ide.page.frame(url=ide.app.editor_url)
     assert frame is not None
     render_ms = frame.evaluate(
         "() => { const t = performance.now(); for (let i = 0; i < 20; i++) render();"

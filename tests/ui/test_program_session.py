@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from doubles import FakeBackend
 
-from bbzide.ui.program_session import ProgramSession, write_atomically
+from bbzide.ui.program_session import EditConflict, ProgramSession, write_atomically
 
 GOOD = "function step() {\n  x = 1\n}\n"
 BAD = "function step() {\n  x = @@ 1\n}\n"
@@ -68,3 +69,38 @@ def test_atomic_write_failure_leaves_the_old_file(tmp_path: Path) -> None:
         pass
     assert path.read_text() == GOOD
     assert sorted(p.name for p in tmp_path.iterdir()) == ["main.bzz"]
+
+
+def test_an_edit_based_on_an_old_revision_never_overwrites_newer_text(tmp_path: Path) -> None:
+    """A stale tab (based on revision 0) saves after another tab's save (revision 1)."""
+    session, _, path = make_session(tmp_path)
+    session.compile_now()
+    session.edit_from_browser(GOOD + "# other tab\n", base_revision=0)
+    with pytest.raises(EditConflict) as refused:
+        session.edit_from_browser(GOOD + "# stale tab\n", base_revision=0)
+    assert path.read_text() == GOOD + "# other tab\n"  # the newer text stays on disk
+    assert (refused.value.revision, refused.value.text) == (1, GOOD + "# other tab\n")
+    session.edit_from_browser(GOOD + "# stale tab\n", base_revision=1)  # "overwrite" chosen
+    assert path.read_text() == GOOD + "# stale tab\n" and session.revision == 2
+
+
+def test_an_external_save_the_watcher_has_not_delivered_yet_is_not_overwritten(
+    tmp_path: Path,
+) -> None:
+    session, loaded, path = make_session(tmp_path)
+    session.compile_now()
+    write_atomically(path, GOOD + "# vim\n")  # no reload_from_disk: the watcher is late
+    with pytest.raises(EditConflict) as refused:
+        session.edit_from_browser(GOOD + "# browser\n", base_revision=0)
+    assert path.read_text() == GOOD + "# vim\n"
+    assert refused.value.text == GOOD + "# vim\n" and session.text == GOOD + "# vim\n"
+    assert [p.text for p in loaded] == [GOOD, GOOD + "# vim\n"]  # the external text compiled
+    assert session.reload_from_disk() is None  # the late watcher event finds nothing new
+
+
+def test_an_edit_equal_to_the_newer_text_is_no_conflict(tmp_path: Path) -> None:
+    session, _, path = make_session(tmp_path)
+    session.compile_now()
+    session.edit_from_browser(GOOD + "# same\n", base_revision=0)
+    outcome = session.edit_from_browser(GOOD + "# same\n", base_revision=0)
+    assert outcome.ok and session.revision == 1 and path.read_text() == GOOD + "# same\n"

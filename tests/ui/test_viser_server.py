@@ -10,10 +10,12 @@ from bbzide.ui.viser_server import open_server, page_url
 
 def test_open_server_binds_loopback_and_gives_its_url() -> None:
     port = free_port()
-    server = open_server("127.0.0.1", port)
+    server = open_server("127.0.0.1", port, "launch-token")
     try:
         assert server.get_host() == "127.0.0.1"
-        assert page_url(server) == f"http://127.0.0.1:{server.get_port()}/"
+        assert page_url(server, "launch-token") == (
+            f"http://127.0.0.1:{server.get_port()}/?token=launch-token"
+        )
     finally:
         server.stop()
 
@@ -30,4 +32,5 @@ class _WildcardBound:
 
 
 def test_page_url_of_a_wildcard_bind_is_loopback() -> None:
-    assert page_url(_WildcardBound()) == "http://127.0.0.1:8123/"  # type: ignore[arg-type]
+    url = page_url(_WildcardBound(), "t0ken-123")  # type: ignore[arg-type]
+    assert url == "http://127.0.0.1:8123/?token=t0ken-123"

@@ -5,13 +5,17 @@
 // the lines and carries the error markers. Both layers share one font and line height, and the
 // textarea is sized to its content so that a single outer box scrolls both together.
 //
-// The text lives on the server (bbzide/ui/editor_server.py), which owns the .bzz file:
-//   GET  api/state   -> {revision, filename, status, diagnostics_revision, diagnostics: [...]}
-//   GET  api/source  -> {revision, text}
-//   POST api/source  {text, base_revision} -> state      (save atomically + compile; debounced here)
-//   POST api/compile {} -> state                          (compile now)
-// A poll of api/state brings in external edits (the file watcher bumps the revision) and the
-// diagnostics of the latest compile.
+// The text lives on the server (bbzide/ui/editor_server.py), which owns the .bzz file. The page
+// talks to it over one websocket on the IDE's own port (/editor/socket; the browser sends the
+// IDE's cookie with it), one JSON request -> one JSON reply, matched by id:
+//   {op: "state"}   -> {code: 200, revision, filename, status, diagnostics_revision, diagnostics}
+//   {op: "source"}  -> {code: 200, revision, text}
+//   {op: "save", text, base_revision} -> state, or {code: 409, revision, text} when the file
+//                                        changed since base_revision (another tab, another editor)
+//   {op: "compile"} -> state
+// A poll of "state" brings in external edits (the file watcher bumps the revision) and the
+// diagnostics of the latest compile. A 409 never loses text: the user's stays in the editor and
+// a notice offers the file's version or overwriting it with theirs.
 
 "use strict";
 
@@ -36,9 +40,13 @@ const diagnosticsBox = document.getElementById("diagnostics");
 const statusBox = document.getElementById("status");
 const filenameBox = document.getElementById("filename");
 
+const conflictBox = document.getElementById("conflict");
+
 let localRevision = -1;     // revision of the text the textarea shows (server numbering)
 let editTimer = null;       // pending debounced upload
 let uploading = false;
+let uploadAgain = false;    // the text changed while an upload was out: send it when it returns
+let conflict = null;        // {revision, text} of the file when a save was refused, until resolved
 let lastState = null;
 
 // ---- tokenizer --------------------------------------------------------------------------
@@ -170,50 +178,98 @@ function renderStatus() {
   if (editTimer !== null || uploading || lastState.diagnostics_revision !== localRevision) {
     kind = "busy"; label = "compiling…";
   }
+  if (conflict !== null) { kind = "error"; label = "not saved: file changed"; }
   statusBox.className = "status-" + kind;
   statusBox.textContent = label;
   if (kind === "ok" && lastState.summary) statusBox.textContent = lastState.summary;
 }
 
 // ---- talking to the server ---------------------------------------------------------------
-async function getJson(path) {
-  const response = await fetch(path, {cache: "no-store"});
-  return response.json();
+const RECONNECT_MS = 1000;  // retry a lost connection once a second (the IDE may be restarting)
+let socket = null;
+let socketReady = null;     // promise of an open socket
+let nextId = 1;
+const waiting = new Map();  // id -> {resolve, reject}
+
+function connect() {
+  const url = new URL("socket", window.location.href);
+  url.protocol = url.protocol === "https:" ? "wss:" : "ws:";
+  url.search = "";
+  socketReady = new Promise((resolve, reject) => {
+    socket = new WebSocket(url);
+    socket.onopen = () => resolve(socket);
+    socket.onmessage = (event) => {
+      const reply = JSON.parse(event.data);
+      const request = waiting.get(reply.id);
+      if (!request) return;
+      waiting.delete(reply.id);
+      request.resolve(reply);
+    };
+    socket.onclose = () => {
+      for (const request of waiting.values()) request.reject(new Error("connection lost"));
+      waiting.clear();
+      reject(new Error("connection lost"));
+      statusBox.className = "status-error";
+      statusBox.textContent = "server gone";
+      setTimeout(connect, RECONNECT_MS);
+    };
+  });
+  socketReady.catch(() => {});
 }
 
-async function postJson(path, body) {
-  const response = await fetch(path, {method: "POST", headers: {"Content-Type": "application/json"},
-                                      body: JSON.stringify(body)});
-  return response.json();
+async function call(op, fields = {}) {
+  const open = await socketReady;
+  const id = nextId++;
+  const reply = new Promise((resolve, reject) => waiting.set(id, {resolve, reject}));
+  open.send(JSON.stringify({id, op, ...fields}));
+  return reply;
 }
 
 async function loadSource() {
-  const data = await getJson("api/source");
+  const data = await call("source");
   // The user typed while the request was out: their text wins, it is being uploaded.
-  if (editTimer !== null || uploading || data.revision < localRevision) return;
+  if (hasLocalEdits() || data.revision < localRevision) return;
+  showText(data.text, data.revision);
+}
+
+function showText(text, revision) {
   const {selectionStart, selectionEnd} = source;
-  source.value = data.text;
-  localRevision = data.revision;
-  source.selectionStart = Math.min(selectionStart, data.text.length);
-  source.selectionEnd = Math.min(selectionEnd, data.text.length);
+  source.value = text;
+  localRevision = revision;
+  source.selectionStart = Math.min(selectionStart, text.length);
+  source.selectionEnd = Math.min(selectionEnd, text.length);
   render();
 }
 
-async function uploadNow() {
+function hasLocalEdits() {
+  return editTimer !== null || uploading || conflict !== null;
+}
+
+async function uploadNow(baseRevision = localRevision) {
   if (editTimer !== null) { clearTimeout(editTimer); editTimer = null; }
+  if (uploading) { uploadAgain = true; return; }  // one save at a time, in order
   uploading = true;
   try {
-    const state = await postJson("api/source", {text: source.value, base_revision: localRevision});
-    localRevision = state.revision;
-    applyState(state);
+    const reply = await call("save", {text: source.value, base_revision: baseRevision});
+    if (reply.code === 409) {
+      showConflict(reply);
+    } else if (reply.code === 200) {
+      localRevision = reply.revision;
+      applyState(reply);
+    } else {
+      statusBox.className = "status-error";
+      statusBox.textContent = reply.error || `save refused (${reply.code})`;
+    }
   } finally {
     uploading = false;
   }
+  if (uploadAgain && conflict === null) { uploadAgain = false; uploadNow(); }
 }
 
 async function compileNow() {
+  if (conflict !== null) return;  // the notice asks first which text to keep
   if (editTimer !== null || uploading) { await uploadNow(); return; }
-  applyState(await postJson("api/compile", {}));
+  applyState(await call("compile"));
 }
 
 function applyState(state) {
@@ -221,25 +277,53 @@ function applyState(state) {
   render();
 }
 
+let polling = false;
 async function poll() {
+  if (polling) return;       // a slow answer (a compile) must not pile up polls behind it
+  polling = true;
   try {
-    const state = await getJson("api/state");
-    const typing = editTimer !== null || uploading;
+    const state = await call("state");
     // Revisions only grow: an answer older than our last upload is stale, not an external edit.
-    if (state.revision > localRevision && !typing) {
+    if (state.revision > localRevision && !hasLocalEdits()) {
       lastState = state;
       await loadSource();          // an external save (or another tab) changed the text
     } else {
       applyState(state);
     }
   } catch (error) {
-    statusBox.className = "status-error";
-    statusBox.textContent = "server gone";
+    // connection lost: onclose shows it and reconnects
+  } finally {
+    polling = false;
   }
+}
+
+// ---- a save refused because the file changed -----------------------------------------------
+function showConflict(reply) {
+  conflict = {revision: reply.revision, text: reply.text};
+  uploadAgain = false;
+  lastState = reply;
+  conflictBox.hidden = false;
+  render();
+}
+
+function takeDiskVersion() {
+  const disk = conflict;
+  conflict = null;
+  conflictBox.hidden = true;
+  showText(disk.text, disk.revision);
+  poll();
+}
+
+function overwriteWithMine() {
+  const base = conflict.revision;
+  conflict = null;
+  conflictBox.hidden = true;
+  uploadNow(base);
 }
 
 // ---- editing -------------------------------------------------------------------------------
 function scheduleUpload() {
+  if (conflict !== null) return;  // kept in the editor until the user chooses in the notice
   if (editTimer !== null) clearTimeout(editTimer);
   editTimer = setTimeout(() => { editTimer = null; uploadNow(); }, EDIT_DEBOUNCE_MS);
 }
@@ -295,10 +379,13 @@ diagnosticsBox.addEventListener("click", (event) => {
   source.setSelectionRange(where.offset, where.offset);
 });
 document.getElementById("compile").addEventListener("click", compileNow);
+document.getElementById("take-disk").addEventListener("click", takeDiskVersion);
+document.getElementById("overwrite").addEventListener("click", overwriteWithMine);
 window.addEventListener("resize", render);
 
 (async () => {
-  lastState = await getJson("api/state");
+  connect();
+  lastState = await call("state");
   localRevision = -1;
   await loadSource();
   setInterval(poll, POLL_MS);
