@@ -53,6 +53,8 @@ from bbzide.ui.access import AccessPolicy, Verdict, check_request
 SocketHandler = Callable[[ServerConnection], Awaitable[None]]
 #: viser's hook and handler, as `websockets.serve` receives them.
 ProcessRequest = Callable[[ServerConnection, Request], Response | None]
+#: The headers `check_request` reads; each may appear once.
+CHECKED_HEADERS = ("Host", "Origin", "Sec-Fetch-Site", "Cookie", "Authorization")
 #: Sent with every page: no other site may show the IDE in a frame (clickjacking).
 FRAME_POLICY = "frame-ancestors 'self'"
 
@@ -141,9 +143,14 @@ class Gate:
         request: Request,
         process_request: ProcessRequest | None,
     ) -> Response | None:
-        verdict = check_request(
-            self.policy, request.path, request.headers, connection.local_address[:2]
-        )
+        headers: dict[str, str] = {}
+        for name in CHECKED_HEADERS:
+            values = request.headers.get_all(name)
+            if len(values) > 1:  # which one would count? (a smuggling attempt, or a broken client)
+                return connection.respond(HTTPStatus.BAD_REQUEST, f"duplicate {name} header\n")
+            if values:
+                headers[name] = values[0]
+        verdict = check_request(self.policy, request.path, headers, connection.local_address[:2])
         if not verdict.allowed:
             assert verdict.status is not None
             return connection.respond(verdict.status, verdict.reason + "\n")

@@ -57,7 +57,9 @@ def wait_until(
 
 
 @contextlib.contextmanager
-def chromium_context(width: int = 1400, height: int = 900) -> Iterator[object]:
+def chromium_context(
+    width: int = 1400, height: int = 900, extra_args: tuple[str, ...] = ()
+) -> Iterator[object]:
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright, tempfile.TemporaryDirectory() as profile:
@@ -65,7 +67,7 @@ def chromium_context(width: int = 1400, height: int = 900) -> Iterator[object]:
             profile,
             executable_path=CHROMIUM,
             headless=True,
-            args=CHROMIUM_ARGS,
+            args=[*CHROMIUM_ARGS, *extra_args],
             viewport={"width": width, "height": height},
         )
 
