@@ -165,6 +165,9 @@ class Gate:
             }), page.body)
         elif process_request is not None:
             response = process_request(connection, request)
+            if response is not None and response.status_code >= 400 and not response.body:
+                status = HTTPStatus(response.status_code)  # viser's 404 has no text: give one
+                response = connection.respond(status, status.phrase.lower() + "\n")
         else:
             response = connection.respond(HTTPStatus.NOT_FOUND, "not found\n")
         if response is not None:
