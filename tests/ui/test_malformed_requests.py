@@ -3,7 +3,9 @@
 Two layers: the HTTP requests the IDE's port cannot take (another method than GET, a body, a
 bad Content-Length, an oversized head, bytes that are not UTF-8), and the editor websocket's
 messages (not JSON, not an object, wrong types, missing fields, binary, too large). The server
-runs in this process, so `capfd` holds everything its threads print to the terminal.
+runs in this process, so `capfd` holds everything its threads print to the terminal, and
+`caplog` every log record (pytest's own log handler takes them, where a user's terminal would
+get Python's last-resort handler printing the record and its traceback).
 """
 
 from __future__ import annotations
@@ -51,8 +53,15 @@ def answer_to(port: int, request: bytes) -> tuple[int, str]:
     return int(head.split()[1]), body.decode("utf-8", "replace")
 
 
+def assert_terminal_clean(capfd: pytest.CaptureFixture[str],
+                          caplog: pytest.LogCaptureFixture) -> None:
+    assert_terminal_clean(capfd, caplog)
+    for record in caplog.records:
+        assert record.exc_info is None and "\n" not in record.getMessage(), record.getMessage()
+
+
 def test_http_requests_the_port_cannot_take_get_a_4xx(
-    app: IdeApp, capfd: pytest.CaptureFixture[str]
+    app: IdeApp, capfd: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
 ) -> None:
     port = app.server.get_port()
     host = f"Host: 127.0.0.1:{port}\r\n".encode()
@@ -90,13 +99,12 @@ def test_http_requests_the_port_cannot_take_get_a_4xx(
         got, body = answer_to(port, request)
         assert got == status, (name, got, body)
         assert 0 < len(body) < 200 and "Traceback" not in body, (name, body)
-    out, err = capfd.readouterr()
-    assert "Traceback" not in out + err and "Error" not in out + err, out + err
+    assert_terminal_clean(capfd, caplog)
     assert app.session.text == SCRIPT and Path(app.session.path).read_text() == SCRIPT
 
 
 def test_malformed_editor_messages_get_a_4xx_answer(
-    app: IdeApp, capfd: pytest.CaptureFixture[str]
+    app: IdeApp, capfd: pytest.CaptureFixture[str], caplog: pytest.LogCaptureFixture
 ) -> None:
     port = app.server.get_port()
     messages: list[tuple[str | bytes, int]] = [
@@ -128,6 +136,5 @@ def test_malformed_editor_messages_get_a_4xx_answer(
         with pytest.raises(websockets.exceptions.ConnectionClosed) as closed:
             connection.recv(timeout=UI_WAIT_S)
         assert closed.value.rcvd is not None and closed.value.rcvd.code == 1009  # too big
-    out, err = capfd.readouterr()
-    assert "Traceback" not in out + err, out + err
+    assert_terminal_clean(capfd, caplog)
     assert app.session.text == SCRIPT and Path(app.session.path).read_text() == SCRIPT
