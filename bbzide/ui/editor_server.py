@@ -12,7 +12,9 @@ the code keeps HTTP's meaning (200 done, 400 malformed, 409 conflict, 413 too la
 
     {"op": "state"}                               -> session.state()
     {"op": "source"}                              -> {revision, text}
-    {"op": "save", "text": s, "base_revision": r} -> state, or 409 with the current {revision, text}
+    {"op": "save", "text": s, "base_revision": r} -> state and saved_revision (the revision now
+                                                     holding s), or 409 with the current
+                                                     {revision, text}
     {"op": "compile"}                             -> state
 
 A save names the revision it was based on; if the file changed since (another tab, an external
@@ -130,8 +132,9 @@ class EditorSocket:
                 raise BadMessage("save needs \"text\": a string")
             if not isinstance(base, int) or isinstance(base, bool):
                 raise BadMessage("save needs \"base_revision\": the revision the text is based on")
-            session.edit_from_browser(text, base_revision=base)
-            return session.state()
+            saved = session.save_from_browser(text, base_revision=base)
+            session.ensure_compiled(saved)
+            return {**session.state(), "saved_revision": saved}
         raise BadMessage(f"unknown op {op!r}: state, source, save or compile")
 
 

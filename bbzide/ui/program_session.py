@@ -137,7 +137,20 @@ class ProgramSession:
 
     # ---- the three ways the text changes ---------------------------------------------------
     def edit_from_browser(self, text: str, base_revision: int | None = None) -> CompileOutcome:
-        """The editor's new text: save it atomically, then compile it.
+        """The editor's new text: save it atomically (`save_from_browser`), then compile it
+        (unless that revision is compiled already: the same text again reloads no robot)."""
+        return self.ensure_compiled(self.save_from_browser(text, base_revision))
+
+    def ensure_compiled(self, revision: int) -> CompileOutcome:
+        """The outcome of `revision` (or a newer one), compiling only if there is none yet."""
+        with self._lock:
+            outcome = self.outcome
+        if outcome is not None and outcome.revision >= revision:
+            return outcome
+        return self._compile(revision)
+
+    def save_from_browser(self, text: str, base_revision: int | None = None) -> int:
+        """Save the editor's text atomically; the revision that now holds it.
 
         With `base_revision` (the revision the editor's text started from), a text that changed
         since raises `EditConflict` instead of being overwritten; an external save not yet seen
@@ -151,23 +164,18 @@ class ProgramSession:
                 if disk != self.text:
                     external = self._accept_text(disk)
             stale = base_revision is not None and base_revision != self.revision
-            if stale and text != self.text:
-                conflict = EditConflict(self.revision, self.text)
-            else:
-                conflict = None
-                if text == self.text and self.outcome is not None and external is None:
-                    return self.outcome
-                if text != self.text:
-                    write_atomically(self.path, text)
-                    self._disk_text = text
-                    revision = self._accept_text(text)
-                else:
-                    revision = self.revision
+            conflict = EditConflict(self.revision, self.text) if stale and text != self.text \
+                else None
+            if conflict is None and text != self.text:
+                write_atomically(self.path, text)
+                self._disk_text = text
+                self._accept_text(text)
+            revision = self.revision
+        if external is not None:
+            self._compile(external)
         if conflict is not None:
-            if external is not None:
-                self._compile(external)
             raise conflict
-        return self._compile(revision)
+        return revision
 
     def reload_from_disk(self) -> CompileOutcome | None:
         """Re-read the file after an external save; None if its text did not change."""

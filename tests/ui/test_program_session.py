@@ -99,8 +99,10 @@ def test_an_external_save_the_watcher_has_not_delivered_yet_is_not_overwritten(
 
 
 def test_an_edit_equal_to_the_newer_text_is_no_conflict(tmp_path: Path) -> None:
-    session, _, path = make_session(tmp_path)
+    session, loaded, path = make_session(tmp_path)
     session.compile_now()
-    session.edit_from_browser(GOOD + "# same\n", base_revision=0)
-    outcome = session.edit_from_browser(GOOD + "# same\n", base_revision=0)
-    assert outcome.ok and session.revision == 1 and path.read_text() == GOOD + "# same\n"
+    first = session.edit_from_browser(GOOD + "# same\n", base_revision=0)
+    again = session.edit_from_browser(GOOD + "# same\n", base_revision=0)
+    assert again is first and again.ok  # not compiled again: no robot reloaded for nothing
+    assert session.revision == 1 and path.read_text() == GOOD + "# same\n"
+    assert [p.text for p in loaded] == [GOOD, GOOD + "# same\n"]

@@ -10,7 +10,9 @@
 // IDE's cookie with it), one JSON request -> one JSON reply, matched by id:
 //   {op: "state"}   -> {code: 200, revision, filename, status, diagnostics_revision, diagnostics}
 //   {op: "source"}  -> {code: 200, revision, text}
-//   {op: "save", text, base_revision} -> state, or {code: 409, revision, text} when the file
+//   {op: "save", text, base_revision} -> state + saved_revision (the revision holding this text;
+//                                        state.revision may already be newer), or
+//                                        {code: 409, revision, text} when the file
 //                                        changed since base_revision (another tab, another editor)
 //   {op: "compile"} -> state
 // A poll of "state" brings in external edits (the file watcher bumps the revision) and the
@@ -254,7 +256,7 @@ async function uploadNow(baseRevision = localRevision) {
     if (reply.code === 409) {
       showConflict(reply);
     } else if (reply.code === 200) {
-      localRevision = reply.revision;
+      localRevision = reply.saved_revision;  // a newer revision, if any, comes with the next poll
       applyState(reply);
     } else {
       statusBox.className = "status-error";
@@ -383,10 +385,8 @@ document.getElementById("take-disk").addEventListener("click", takeDiskVersion);
 document.getElementById("overwrite").addEventListener("click", overwriteWithMine);
 window.addEventListener("resize", render);
 
-(async () => {
-  connect();
-  lastState = await call("state");
-  localRevision = -1;
-  await loadSource();
-  setInterval(poll, POLL_MS);
-})();
+// The first poll finds revision >= 0 > localRevision and loads the text; polls go on through
+// lost connections (call() waits for the reconnected socket).
+connect();
+poll();
+setInterval(poll, POLL_MS);
