@@ -13,8 +13,10 @@ Jupyter's; each request (every HTTP route and every websocket handshake) passes 
    `http://<Host>`. Browsers send `Origin` on every websocket handshake and every request that
    writes, so another site's page (or another port on 127.0.0.1) is refused.
 3. **Sec-Fetch-Site**: when present, `same-origin` or `none` (the user opened the address
-   themselves). It refuses the reads `Origin` does not cover: a `<script src>` or `<img src>`
-   from another port of the same machine, which is "same-site" and would carry the cookie.
+   themselves), or a top-level navigation (a link followed to the IDE: the page that had the
+   link is gone and cannot read anything). It refuses the reads `Origin` does not cover: a
+   `<script src>`, `<img src>` or `<iframe>` from another port of the same machine, which is
+   "same-site" and would carry the cookie.
 4. **Token**: the request carries the launch's secret, as `?token=` in the address (the link
    printed in the terminal), as the `bbzide-token-<port>` cookie that the first answer to such a
    link sets (HttpOnly, SameSite=Strict: pages never read it and other sites never send it), or
@@ -135,7 +137,9 @@ def check_request(
     if origin is not None and origin.lower() != f"http://{host.lower()}":
         return Verdict(HTTPStatus.FORBIDDEN, f"requests from {origin!r} are not allowed")
     fetch_site = headers.get("Sec-Fetch-Site")
-    if fetch_site is not None and fetch_site.lower() not in OWN_FETCH_SITES:
+    navigation = (headers.get("Sec-Fetch-Mode") == "navigate"
+                  and headers.get("Sec-Fetch-Dest") == "document")
+    if fetch_site is not None and fetch_site.lower() not in OWN_FETCH_SITES and not navigation:
         return Verdict(HTTPStatus.FORBIDDEN, f"{fetch_site} requests are not allowed")
     query = parse_qs(path.partition("?")[2])
     if any(_same(value, policy.token) for value in query.get("token", [])):

@@ -54,7 +54,8 @@ SocketHandler = Callable[[ServerConnection], Awaitable[None]]
 #: viser's hook and handler, as `websockets.serve` receives them.
 ProcessRequest = Callable[[ServerConnection, Request], Response | None]
 #: The headers `check_request` reads; each may appear once.
-CHECKED_HEADERS = ("Host", "Origin", "Sec-Fetch-Site", "Cookie", "Authorization")
+CHECKED_HEADERS = ("Host", "Origin", "Sec-Fetch-Site", "Sec-Fetch-Mode", "Sec-Fetch-Dest",
+                   "Cookie", "Authorization")
 #: Sent with every page: no other site may show the IDE in a frame (clickjacking).
 FRAME_POLICY = "frame-ancestors 'self'"
 

@@ -67,6 +67,14 @@ def test_a_same_site_or_cross_site_fetch_is_refused_even_with_the_cookie() -> No
     assert verdict(Sec_Fetch_Site="cross-site", **COOKIE) == HTTPStatus.FORBIDDEN
     assert verdict(Sec_Fetch_Site="same-origin", **COOKIE) is None
     assert verdict(Sec_Fetch_Site="none", **COOKIE) is None
+    framed = {"Sec_Fetch_Mode": "navigate", "Sec_Fetch_Dest": "iframe"}
+    assert verdict(Sec_Fetch_Site="same-site", **framed, **COOKIE) == HTTPStatus.FORBIDDEN
+
+
+def test_a_link_followed_to_the_ide_is_a_navigation_and_passes_with_the_token() -> None:
+    link = {"Sec_Fetch_Mode": "navigate", "Sec_Fetch_Dest": "document"}
+    assert verdict(f"/?token={TOKEN}", Sec_Fetch_Site="cross-site", **link) is None
+    assert verdict("/", Sec_Fetch_Site="cross-site", **link) == HTTPStatus.FORBIDDEN  # no token
 
 
 def test_a_rebound_domain_name_or_a_wrong_port_in_host_is_refused() -> None:
