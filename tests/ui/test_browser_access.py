@@ -27,9 +27,16 @@ from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_
 from doubles import FakeBackend
 from ide_harness import SCREENSHOT_DIR, IdeSession
 
+from bbzide.recording.reader import read_recording
+from bbzide.recording.rebuild import RobotRebuilder
+from bbzide.recording.recorder import MissionRecorder
 from bbzide.ui.access import cookie_name
 from bbzide.ui.app import IdeApp
+from bbzide.ui.replay_app import ReplayApp
+from bbzide.ui.replay_session import ReplaySession
 from bbzide.ui.run_controller import RunSettings
+from tests.recording.doubles import ToyRobot
+from tests.recording.test_recording import toy_swarm
 
 SCRIPT = "# guarded\nfunction init() {\n  x = 1\n}\n\nfunction step() {\n  x = x + 1\n}\n"
 VISER_PROTOCOL = "viser-v1.1.1"  # the subprotocol viser's own client asks for
@@ -312,3 +319,27 @@ class _At:
     def __init__(self, app: IdeApp, url: str) -> None:
         self.server = app.server
         self.url = url
+
+
+def test_the_replay_is_guarded_the_same_way(tmp_path: Path) -> None:
+    """`bbzide replay` stands on the same server: no token, a forged host, another origin: 403."""
+    path = tmp_path / "toy.rrd"
+    sim, recordable = toy_swarm()
+    with MissionRecorder(path, sim, recordable) as recorder:
+        for _ in range(5):
+            sim.step()
+            recorder.record_step()
+    recording = read_recording(path)
+    session = ReplaySession(recording, RobotRebuilder(recording, build=ToyRobot))
+    app = ReplayApp(session, port=free_port()).start()
+    try:
+        port = app.server.get_port()
+        assert plain_get(port, "/")[0] == 403
+        assert handshake(port, "/") == "403"
+        assert plain_get(port, f"/?token={app.token}", Host=f"evil.example:{port}")[0] == 403
+        assert handshake(port, "/", Origin="http://127.0.0.5:8000",
+                         Authorization=f"token {app.token}") == "403"
+        assert plain_get(port, f"/?token={app.token}")[0] == 200
+        assert handshake(port, "/", Authorization=f"token {app.token}") == "open"
+    finally:
+        app.stop()
