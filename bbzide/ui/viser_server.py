@@ -134,7 +134,7 @@ class Gate:
             except Exception as error:  # noqa: BLE001 - one line, never a traceback
                 print(f"bbzide: error answering {request.path[:80]!r}: "
                       f"{type(error).__name__}: {error}", file=sys.stderr)
-                return connection.respond(HTTPStatus.INTERNAL_SERVER_ERROR, "internal error\n")
+                return _text(connection, HTTPStatus.INTERNAL_SERVER_ERROR, "internal error")
 
         return route, admit
 
@@ -148,14 +148,14 @@ class Gate:
         for name in CHECKED_HEADERS:
             values = request.headers.get_all(name)
             if len(values) > 1:  # which one would count? (a smuggling attempt, or a broken client)
-                return connection.respond(HTTPStatus.BAD_REQUEST, f"duplicate {name} header\n")
+                return _text(connection, HTTPStatus.BAD_REQUEST, f"duplicate {name} header")
             if values:
                 headers[name] = values[0]
         verdict = check_request(self.policy, request.path, headers, connection.local_address[:2])
         if not verdict.allowed:
             assert verdict.status is not None
-            return connection.respond(verdict.status, verdict.reason + "\n")
-        if request.headers.get("Upgrade", "").lower() == "websocket":
+            return _text(connection, verdict.status, verdict.reason)
+        if any(value.lower() == "websocket" for value in request.headers.get_all("Upgrade")):
             return None  # the handshake goes on: `route` picks the handler
         page = self.routes.pages.get(request.path.partition("?")[0])
         if page is not None:
@@ -168,17 +168,26 @@ class Gate:
             response = process_request(connection, request)
             if response is not None and response.status_code >= 400 and not response.body:
                 status = HTTPStatus(response.status_code)  # viser's 404 has no text: give one
-                response = connection.respond(status, status.phrase.lower() + "\n")
+                response = _text(connection, status, status.phrase.lower())
         else:
-            response = connection.respond(HTTPStatus.NOT_FOUND, "not found\n")
+            response = _text(connection, HTTPStatus.NOT_FOUND, "not found")
         if response is not None:
             self._decorate(response, verdict, connection.local_address[1])
         return response
 
     def _decorate(self, response: Response, verdict: Verdict, port: int) -> None:
         response.headers["Content-Security-Policy"] = FRAME_POLICY
+        response.headers["X-Content-Type-Options"] = "nosniff"
         if verdict.set_cookie:
             response.headers["Set-Cookie"] = self.policy.cookie_header(port)
+
+
+def _text(connection: ServerConnection, status: HTTPStatus, reason: str) -> Response:
+    """A one-line plain-text answer; it may quote the request (a host name), so the browser is
+    told never to read it as anything but text."""
+    response = connection.respond(status, reason + "\n")
+    response.headers["X-Content-Type-Options"] = "nosniff"
+    return response
 
 
 @contextlib.contextmanager
