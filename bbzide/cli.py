@@ -6,6 +6,7 @@
     bbzide bo2bbo X.bo          compiler room
     bbzide run X.bzz|X.bbo --platform P ...   one robot on the VM model (bbzide.vm.commands)
     bbzide run X.bzz --world W --robots N ... a swarm in a world (bbzide.worlds.commands)
+    bbzide run S.toml [--steps S] [--seed K]  a scenario file's swarm (bbzide.worlds.commands)
     bbzide ide [X.bzz] ...      the browser IDE (bbzide.ui.commands)
     bbzide replay X.rrd         the browser IDE in replay mode (bbzide.ui.commands)
 
@@ -14,7 +15,8 @@ Each room's `commands` module exposes `register(subparsers)`; rooms are imported
 here: `bbzide.vm.commands.add_run_arguments(parser)` adds the single-robot options (the corpus
 harness's: --platform, --robot, --reg, --inject, --loop, --seed, --dump, ...) and
 `bbzide.worlds.commands.add_world_run_arguments(parser)` the swarm options (--world, --robots, ...);
-with `--world` the worlds room runs it (`run_world(args)`), otherwise the VM room
+with `--world` or a scenario file (`.toml`) the worlds room runs it (`run_world(args)`,
+`run_scenario(args)`), otherwise the VM room
 (`run_single_robot(args)`); with `--record` (options from
 `bbzide.recording.commands.add_record_arguments`) the recording room runs it
 (`run_recorded(args)`, above the worlds, which never import it). This file only routes and
@@ -100,6 +102,12 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
             raise UserError(f"{script} is bytecode for the reference Buzz VM; the BittyBuzz model "
                             f"runs a .bbo: bbzide bo2bbo {script}, then run "
                             f"{script.with_suffix('.bbo')} (or run the .bzz)")
+        if script.suffix == ".toml":
+            if world_commands is None:
+                raise UserError("scenario files need the worlds, not in this build")
+            if getattr(args, "record", None):
+                raise UserError("--record takes a script and --world, not a scenario file yet")
+            return int(world_commands.run_scenario(args) or 0)
         if getattr(args, "record", None):
             if record_commands is None:
                 raise UserError("recording is not available in this build")
@@ -112,7 +120,8 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
             raise UserError("give --world: single-robot runs are not available in this build")
         return int(vm_commands.run_single_robot(args) or 0)
 
-    run.set_defaults(handler=dispatch)
+    # --seed not given: None (a scenario's own seed stands; both rooms read None as 0)
+    run.set_defaults(handler=dispatch, seed=None)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
