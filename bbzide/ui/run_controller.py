@@ -44,6 +44,9 @@ class RunSettings:
     seed: int
     steps_per_second: float = 0.0  # 0 = as fast as the machine goes
     keep_state_on_reload: bool = True  # a new program keeps poses (True) or resets the world
+    #: A scenario (bbzide.worlds.scenario.Scenario) pinning the world's options and the robots;
+    #: dropped when the world or the robot count changes (the seed is taken from `seed`).
+    scenario: Any = None
 
 
 @dataclass
@@ -217,6 +220,8 @@ class RunController:
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
+            if old.world != self.settings.world or old.robots != self.settings.robots:
+                self.settings = replace(self.settings, scenario=None)
             if old.world != self.settings.world:
                 # The program was compiled for the old world's host-function ids: the new world
                 # waits for the one compiled for it (`load_program`); none runs meanwhile.
@@ -234,7 +239,9 @@ class RunController:
             return
         settings = self.settings
         self._stop_recording()  # a rebuilt world starts a new timeline at step 0
-        sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed)
+        pinned = {} if settings.scenario is None else {"scenario": settings.scenario}
+        sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed,
+                                  **pinned)
         with self._sim_lock:
             self._sim = sim
         self.status.error = None

@@ -124,11 +124,19 @@ class WorldsBackend:
         )
         return compiled, compiled.to_bbo()
 
-    def create(self, world: str, program: Any, robots: int, seed: int) -> WorldsSimulation:
+    def create(self, world: str, program: Any, robots: int, seed: int,
+               scenario: Any = None) -> WorldsSimulation:
+        """A swarm of `robots` running `program`; with a `scenario` (same world and robot
+        count), its world options, positions, labels and watches too, every group with a
+        script running `program` (the IDE edits one script)."""
         recordable = self._recording.Recordable(instruction_budget=IDE_INSTRUCTION_BUDGET)
-        simulation = self._engine.Simulation(
-            world, program, robots=robots, seed=seed, robot_factory=recordable.factory
-        )
+        if scenario is not None and scenario.world == world and scenario.robots == robots:
+            simulation = scenario.with_seed(seed).simulation(
+                dict.fromkeys(scenario.scripts(), program), robot_factory=recordable.factory)
+        else:
+            simulation = self._engine.Simulation(
+                world, program, robots=robots, seed=seed, robot_factory=recordable.factory
+            )
         return WorldsSimulation(simulation, program, self.platform(world), recordable,
                                 self._recording)
 
