@@ -9,6 +9,7 @@
     bbzide run S.toml [--steps S] [--seed K]  a scenario file's swarm (bbzide.worlds.commands)
     bbzide ide [X.bzz] ...      the browser IDE (bbzide.ui.commands)
     bbzide replay X.rrd         the browser IDE in replay mode (bbzide.ui.commands)
+    bbzide lesson [N] [--check [FILE] | --reset]  the teaching track (bbzide.ui.lesson_commands)
 
 Each room's `commands` module exposes `register(subparsers)`; rooms are imported lazily so that
 `bbzide compile` never pays for importing viser. `run` is shared by two rooms, so it is defined
@@ -49,6 +50,7 @@ COMMAND_MODULES = (
     "bbzide.vm.commands",
     "bbzide.worlds.commands",
     "bbzide.ui.commands",
+    "bbzide.ui.lesson_commands",
 )
 
 
