@@ -67,7 +67,8 @@ BUILTINS: tuple[ReferenceEntry, ...] = (
     ReferenceEntry("neighbors.get", "neighbors.get(robot)", "The data of neighbour `robot`: a "
                    "table {distance, azimuth, elevation}, or nil. Kilobots measure distance in "
                    "millimetres and have no bearing (azimuth and elevation are 0).",
-                   "a new table of 3 entries: one object and one segment, plus its values", NEIGHBORS),
+                   "a new table of 3 entries: one object and one segment, plus its values",
+                   NEIGHBORS),
     ReferenceEntry("neighbors.foreach", "neighbors.foreach(function(robot, data) { ... })",
                    "Call the function once per neighbour with its id and its data table.",
                    "on a Kilobot, a temporary data table per neighbour (freed by the next "
