@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 from bbzide.diagnostics import UserError
@@ -128,6 +129,17 @@ class RunController:
     def update_settings(self, **changes: Any) -> None:
         """Change world/robots/seed (rebuilds the world) or speed/keep_state (takes effect now)."""
         self._send("settings", changes)
+
+    def save_setup(self, path: Path, script: Path, pin_positions: bool = False) -> Path:
+        """Save the running set-up (world, options, robots, seed, `script`) as a scenario file
+        at `path`; with `pin_positions`, where the robots stand now too. Needs a backend with
+        scenarios (`WorldsBackend`); a bad path is a `UserError`."""
+        settings = self.settings
+        with self._sim_lock:
+            scenario = self.backend.setup_scenario(  # type: ignore[attr-defined]
+                settings.world, settings.robots, settings.seed, script, settings.scenario,
+                self._sim if pin_positions else None)
+        return self.backend.save_scenario(scenario, path)  # type: ignore[attr-defined]
 
     @contextlib.contextmanager
     def locked(self, timeout: float | None = None) -> Iterator[SimulationHandle | None]:

@@ -141,6 +141,31 @@ class WorldsBackend:
                                 self._recording)
 
 
+    # ---- scenarios -------------------------------------------------------------------------------
+    def setup_scenario(self, world: str, robots: int, seed: int, script: Path,
+                       scenario: Any = None, simulation: WorldsSimulation | None = None) -> Any:
+        """The set-up the IDE runs, as a scenario (bbzide.worlds.scenario): the one it was
+        opened with (same world and robot count) with `script` as every group's script, else
+        one group of `robots` running `script`; with `simulation`, the robots' positions and
+        headings now are pinned in it."""
+        from dataclasses import replace
+
+        module = _import("bbzide.worlds.scenario")
+        if scenario is not None and scenario.world == world and scenario.robots == robots:
+            current = replace(scenario.with_seed(seed), groups=tuple(
+                g if g.script is None else replace(g, script=Path(script).resolve())
+                for g in scenario.groups))
+        else:
+            current = module.single_script_scenario(world, script, robots, seed)
+        if simulation is not None:
+            current = module.pin_positions(current, simulation.sim)
+        return current
+
+    def save_scenario(self, scenario: Any, path: Path) -> Path:
+        """Write `scenario` to `path` (read back and checked before this returns)."""
+        return _import("bbzide.worlds.scenario").save_scenario(scenario, path)
+
+
 class WorldsSimulation:
     """A `bbzide.worlds.engine.Simulation` behind the UI's `SimulationHandle` interface."""
 

@@ -12,8 +12,9 @@ from bbzide.cli import main
 from bbzide.ui import commands
 from bbzide.ui.run_controller import RunController, RunSettings
 from bbzide.ui.world_adapter import WorldsBackend
-from bbzide.worlds.scenario import load_scenario
+from bbzide.worlds.scenario import ScenarioError, load_scenario
 from tests.ui.browser import free_port, wait_until
+from tests.worlds.fingerprint import fingerprint
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -100,3 +101,48 @@ def test_ide_refuses_a_scenario_with_two_scripts(scenario_file: Path, capsys) ->
                              'script = "a.bzz"\n[[robots]]\ncount = 1\nscript = "b.bzz"\n')
     assert main(["ide", str(scenario_file), "--no-browser"]) == 1
     assert "the IDE edits one script and this scenario runs 2" in capsys.readouterr().err
+
+
+def controller_running(scenario_file: Path, scenario=None, robots: int = 3) -> RunController:
+    """A controller with the real backend and a.bzz loaded, driven without its thread."""
+    backend = WorldsBackend()
+    script = scenario_file.parent / "a.bzz"
+    _, program = backend.compile(script.read_text(), script, "kilobot")
+    controller = RunController(backend, RunSettings("kilobot", robots, 4, 0.0,
+                                                    scenario=scenario))
+    controller.load_program(program)
+    controller._apply_commands()  # noqa: SLF001 - the loop's own step, without its thread
+    return controller
+
+
+def test_saving_the_running_setup_keeps_the_scenario_and_the_run(scenario_file: Path,
+                                                                 tmp_path: Path) -> None:
+    scenario = load_scenario(scenario_file)
+    controller = controller_running(scenario_file, scenario)
+    controller.update_settings(seed=8)
+    controller._apply_commands()  # noqa: SLF001
+    saved = load_scenario(controller.save_setup(tmp_path / "saved.toml",
+                                                scenario_file.parent / "a.bzz"))
+    assert saved == scenario.with_seed(8)          # options, positions, labels, watch, new seed
+    assert fingerprint(saved.simulation(), 5) == fingerprint(scenario.with_seed(8).simulation(),
+                                                             5)
+
+
+def test_saving_a_plain_setup_with_pinned_positions(scenario_file: Path, tmp_path: Path) -> None:
+    controller = controller_running(scenario_file, robots=4)
+    with controller.locked() as handle:
+        handle.step()
+        where = handle.sim.positions.copy()
+    saved = load_scenario(controller.save_setup(tmp_path / "here.toml",
+                                                scenario_file.parent / "a.bzz",
+                                                pin_positions=True))
+    assert (saved.world, saved.robots, saved.seed) == ("kilobot", 4, 4)
+    assert saved.world_options == {} and saved.scripts() == [
+        (scenario_file.parent / "a.bzz").resolve()]
+    assert np.array_equal(np.array(saved.groups[0].positions), where)
+
+
+def test_saving_to_a_name_that_is_not_toml_is_refused(scenario_file: Path, tmp_path: Path) -> None:
+    controller = controller_running(scenario_file, robots=2)
+    with pytest.raises(ScenarioError, match="a scenario file ends in .toml"):
+        controller.save_setup(tmp_path / "x.txt", scenario_file.parent / "a.bzz")
