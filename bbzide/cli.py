@@ -104,16 +104,14 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
             raise UserError(f"{script} is bytecode for the reference Buzz VM; the BittyBuzz model "
                             f"runs a .bbo: bbzide bo2bbo {script}, then run "
                             f"{script.with_suffix('.bbo')} (or run the .bzz)")
-        if script.suffix == ".toml":
-            if world_commands is None:
-                raise UserError("scenario files need the worlds, not in this build")
-            if getattr(args, "record", None):
-                raise UserError("--record takes a script and --world, not a scenario file yet")
-            return int(world_commands.run_scenario(args) or 0)
+        if script.suffix == ".toml" and world_commands is None:
+            raise UserError("scenario files need the worlds, not in this build")
         if getattr(args, "record", None):
             if record_commands is None:
                 raise UserError("recording is not available in this build")
             return int(record_commands.run_recorded(args) or 0)
+        if script.suffix == ".toml":
+            return int(world_commands.run_scenario(args) or 0)
         if getattr(args, "world", None):
             if world_commands is None:
                 raise UserError("worlds are not available in this build")

@@ -35,6 +35,8 @@ def run_recorded(args: argparse.Namespace) -> int:
     from bbzide.worlds.radio import WorldConfigError
     from bbzide.worlds.registry import world_spec
 
+    if Path(args.script).suffix == ".toml":
+        return _run_recorded_scenario(args)
     if not getattr(args, "world", None):
         raise RecordingError("--record needs --world: recordings are of swarms in a world")
     path = check_output_path(Path(args.record), bool(args.force))
@@ -77,8 +79,41 @@ def run_recorded(args: argparse.Namespace) -> int:
         recorder.close()
     finished = time.perf_counter()
     print(world_commands.summary(sim, steps, booted - started, finished - booted))
-    run_seconds = finished - booted
+    _print_recording(path, recorder, sim, finished - booted)
+    return 0
+
+
+def _run_recorded_scenario(args: argparse.Namespace) -> int:
+    """`bbzide run S.toml --record FILE.rrd`: the scenario's swarm, recorded (each robot's
+    source is its group's script)."""
+    from bbzide.recording.recorder import MissionRecorder, Recordable
+    from bbzide.worlds import commands as world_commands
+
+    scenario, steps, vm_options, programs = world_commands.prepare_scenario(args)
+    path = check_output_path(Path(args.record), bool(args.force))
+    sources = {id(program): script.read_text(encoding="utf-8", errors="replace")
+               for script, program in programs.items() if script.suffix == ".bzz"}
+    started = time.perf_counter()
+    recordable = Recordable(loop=vm_options.get("loop", "pop"),
+                            instruction_budget=vm_options.get("instruction_budget"))
+    sim = scenario.simulation(programs, robot_factory=recordable.factory)
+    booted = time.perf_counter()
+    recorder = MissionRecorder(path, sim, recordable, force=bool(args.force),
+                               keyframe_every=int(args.keyframe_every),
+                               source_of=lambda program: sources.get(id(program)))
+    try:
+        for _ in range(steps):
+            sim.step()
+            recorder.record_step()
+    finally:
+        recorder.close()
+    finished = time.perf_counter()
+    print(world_commands.summary(sim, steps, booted - started, finished - booted))
+    _print_recording(path, recorder, sim, finished - booted)
+    return 0
+
+
+def _print_recording(path: Path, recorder: Any, sim: Any, run_seconds: float) -> None:
     share = 100 * recorder.seconds_spent / run_seconds if run_seconds > 0 else 0.0
     print(f"recording: {path} ({path.stat().st_size / 1e6:.2f} MB, steps "
           f"{recorder.start_step}..{sim.step_count}; recording took {share:.1f} % of the run)")
-    return 0

@@ -120,8 +120,10 @@ SCENARIO_PINNED = (("world", "--world", None), ("robots", "--robots", None),
                    ("asynchronous", "--asynchronous", False), ("world_options", "--set", []))
 
 
-def run_scenario(args: argparse.Namespace) -> int:
-    """`bbzide run S.toml`: the scenario's swarm, `--steps`/`--seed` overriding the file's."""
+def prepare_scenario(args: argparse.Namespace) -> tuple[Any, int, dict[str, Any],
+                                                      dict[Path, Any]]:
+    """The scenario file `args.script` for a run: (scenario with --seed applied, steps,
+    --budget/--loop engine options, compiled programs). Options the file pins are refused."""
     from bbzide.worlds.scenario import load_scenario
 
     for dest, option, unset in SCENARIO_PINNED:
@@ -136,6 +138,12 @@ def run_scenario(args: argparse.Namespace) -> int:
         scenario = scenario.with_seed(seed_of(args))
     engine_options = vm_options_for_world(args)
     programs = scenario.programs(list(getattr(args, "include", []) or []))
+    return scenario, steps, engine_options, programs
+
+
+def run_scenario(args: argparse.Namespace) -> int:
+    """`bbzide run S.toml`: the scenario's swarm, `--steps`/`--seed` overriding the file's."""
+    scenario, steps, engine_options, programs = prepare_scenario(args)
     started = time.perf_counter()
     sim = scenario.simulation(programs, **engine_options)
     booted = time.perf_counter()
