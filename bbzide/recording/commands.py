@@ -1,4 +1,5 @@
-"""`bbzide run X.bzz --world W --record mission.rrd [--force] [--keyframe-every K]`.
+"""`bbzide run X.bzz --world W --record mission.rrd [--force] [--keyframe-every K]`, and
+`bbzide run S.toml --record mission.rrd` (a scenario file's swarm, bbzide/worlds/scenario.py).
 
 The recording room sits above the worlds room, so the worlds' `run` command knows nothing of
 recording: `bbzide/cli.py` adds these options to the shared `run` parser and, when `--record`

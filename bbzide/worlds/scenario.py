@@ -173,7 +173,8 @@ class KeyLines:
     """
 
     _HEADER = re.compile(r"\s*(\[\[?)\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
-    _KEY = re.compile(r"\s*([A-Za-z0-9_-]+|\"[^\"]*\"|'[^']*')\s*=")
+    _PART = r"(?:[A-Za-z0-9_-]+|\"[^\"]*\"|'[^']*')"
+    _KEY = re.compile(rf"\s*({_PART}(?:\s*\.\s*{_PART})*)\s*=")
 
     def __init__(self, text: str) -> None:
         self.lines: dict[KeyPath, int] = {}

@@ -164,6 +164,9 @@ def test_key_lines_skip_multi_line_arrays_and_strings():
     assert ("not",) not in lines.lines and ("t", "d") not in lines.lines
     assert lines.line_of(("r", 0, "e")) == 12 and lines.line_of(("r", 1, "e")) == 15
     assert lines.line_of(("r", 1, "missing")) == 13       # falls back to its table
+    dotted = KeyLines('version = 1\nworld_options.spacing = 0.07\n"a b".c = 2\n')
+    assert dotted.line_of(("world_options", "spacing")) == 2
+    assert dotted.line_of(("a b", "c")) == 3
 
 
 def test_bbzide_run_takes_a_scenario_and_prints_the_watched_globals(capsys):
