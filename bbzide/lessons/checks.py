@@ -12,7 +12,6 @@ with the error and its source line (the same text `bbzide run` prints).
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -23,7 +22,7 @@ import numpy as np
 from bbzide.diagnostics import UserError
 from bbzide.lessons.catalog import Lesson
 from bbzide.worlds.commands import describe_failure
-from bbzide.worlds.radio import pairs_within_range
+from bbzide.worlds.radio import hop_counts, pairs_within_range
 from bbzide.worlds.scenario import Scenario
 
 #: How many robots a failed check names before "and N more": enough to see the pattern,
@@ -49,10 +48,7 @@ class Verdict:
 
 def lesson_scenario(chosen: Lesson, script: Path) -> Scenario:
     """The lesson's scenario with every robot group running `script`."""
-    scenario = chosen.scenario()
-    return replace(scenario, groups=tuple(
-        g if g.script is None else replace(g, script=script.resolve())
-        for g in scenario.groups))
+    return chosen.scenario().with_script(script)
 
 
 def run_check(chosen: Lesson, script: Path) -> Verdict:
@@ -98,21 +94,6 @@ def mismatches(sim: Any, name: str, expected: list[Any]) -> list[str]:
     if len(wrong) > SHOWN_ROBOTS:
         wrong = wrong[:SHOWN_ROBOTS] + [f"... and {len(wrong) - SHOWN_ROBOTS} more"]
     return wrong
-
-
-def hop_counts(positions: np.ndarray, comm_range: float, source: int = 0) -> list[int]:
-    """Hops from robot `source` over the links within `comm_range` (-1: not connected)."""
-    links = pairs_within_range(positions, comm_range)
-    hops = [-1] * len(positions)
-    hops[source] = 0
-    queue = deque([source])
-    while queue:
-        a = queue.popleft()
-        for b in links.receivers[links.senders == a].tolist():
-            if hops[b] < 0:
-                hops[b] = hops[a] + 1
-                queue.append(b)
-    return hops
 
 
 def run_until(sim: Any, steps: int, done: Callable[[], bool]) -> bool:

@@ -30,7 +30,7 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_recorded(args: argparse.Namespace) -> int:
-    from bbzide.recording.recorder import MissionRecorder, Recordable
+    from bbzide.recording.recorder import Recordable
     from bbzide.worlds import commands as world_commands
     from bbzide.worlds.engine import Simulation
     from bbzide.worlds.radio import WorldConfigError
@@ -68,26 +68,14 @@ def run_recorded(args: argparse.Namespace) -> int:
                      world_options=world_commands.parse_world_options(args.world_options),
                      radio=radio, robot_factory=recordable.factory,
                      asynchronous=bool(getattr(args, "asynchronous", False)))
-    booted = time.perf_counter()
-    recorder = MissionRecorder(path, sim, recordable, force=bool(args.force),
-                               keyframe_every=int(args.keyframe_every),
-                               source_of=lambda _program: source)
-    try:
-        for _ in range(steps):
-            sim.step()
-            recorder.record_step()
-    finally:
-        recorder.close()
-    finished = time.perf_counter()
-    print(world_commands.summary(sim, steps, booted - started, finished - booted))
-    _print_recording(path, recorder, sim, finished - booted)
-    return 0
+    return _record_run(args, path, sim, recordable, steps, lambda _program: source,
+                       booted_in=time.perf_counter() - started)
 
 
 def _run_recorded_scenario(args: argparse.Namespace) -> int:
     """`bbzide run S.toml --record FILE.rrd`: the scenario's swarm, recorded (each robot's
     source is its group's script)."""
-    from bbzide.recording.recorder import MissionRecorder, Recordable
+    from bbzide.recording.recorder import Recordable
     from bbzide.worlds import commands as world_commands
 
     scenario, steps, vm_options, programs = world_commands.prepare_scenario(args)
@@ -98,23 +86,30 @@ def _run_recorded_scenario(args: argparse.Namespace) -> int:
     recordable = Recordable(loop=vm_options.get("loop", "pop"),
                             instruction_budget=vm_options.get("instruction_budget"))
     sim = scenario.simulation(programs, robot_factory=recordable.factory)
+    return _record_run(args, path, sim, recordable, steps,
+                       lambda program: sources.get(id(program)),
+                       booted_in=time.perf_counter() - started)
+
+
+def _record_run(args: argparse.Namespace, path: Path, sim: Any, recordable: Any, steps: int,
+                source_of: Any, booted_in: float) -> int:
+    """Run `steps` steps of the booted `sim`, recording each into `path`; print the worlds'
+    summary and the recording's figures."""
+    from bbzide.recording.recorder import MissionRecorder
+    from bbzide.worlds import commands as world_commands
+
     booted = time.perf_counter()
     recorder = MissionRecorder(path, sim, recordable, force=bool(args.force),
-                               keyframe_every=int(args.keyframe_every),
-                               source_of=lambda program: sources.get(id(program)))
+                               keyframe_every=int(args.keyframe_every), source_of=source_of)
     try:
         for _ in range(steps):
             sim.step()
             recorder.record_step()
     finally:
         recorder.close()
-    finished = time.perf_counter()
-    print(world_commands.summary(sim, steps, booted - started, finished - booted))
-    _print_recording(path, recorder, sim, finished - booted)
-    return 0
-
-
-def _print_recording(path: Path, recorder: Any, sim: Any, run_seconds: float) -> None:
+    run_seconds = time.perf_counter() - booted
+    print(world_commands.summary(sim, steps, booted_in, run_seconds))
     share = 100 * recorder.seconds_spent / run_seconds if run_seconds > 0 else 0.0
     print(f"recording: {path} ({path.stat().st_size / 1e6:.2f} MB, steps "
           f"{recorder.start_step}..{sim.step_count}; recording took {share:.1f} % of the run)")
+    return 0

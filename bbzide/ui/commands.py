@@ -129,8 +129,6 @@ DEFAULT_SEED = 1
 def ide_scenario(path: Path, args: argparse.Namespace, script: Path | None = None) -> Any:
     """The scenario at `path` for the IDE: options it pins refused, --seed applied, and every
     robot group's script replaced by `script` when given (a lesson's saved work)."""
-    from dataclasses import replace
-
     from bbzide.worlds.scenario import load_scenario
 
     for option, value in (("--world", args.world), ("--robots", args.robots)):
@@ -142,9 +140,7 @@ def ide_scenario(path: Path, args: argparse.Namespace, script: Path | None = Non
         raise IdeError(f"{path}: the IDE edits one script and this scenario runs "
                        f"{len(scripts) or 'no'} script(s): run it with bbzide run {path}")
     if script is not None:
-        scenario = replace(scenario, groups=tuple(
-            g if g.script is None else replace(g, script=script.resolve())
-            for g in scenario.groups))
+        scenario = scenario.with_script(script)
     if args.seed is not None:
         scenario = scenario.with_seed(args.seed)
     return scenario

@@ -148,13 +148,9 @@ class WorldsBackend:
         opened with (same world and robot count) with `script` as every group's script, else
         one group of `robots` running `script`; with `simulation`, the robots' positions and
         headings now are pinned in it."""
-        from dataclasses import replace
-
         module = _import("bbzide.worlds.scenario")
         if scenario is not None and scenario.world == world and scenario.robots == robots:
-            current = replace(scenario.with_seed(seed), groups=tuple(
-                g if g.script is None else replace(g, script=Path(script).resolve())
-                for g in scenario.groups))
+            current = scenario.with_seed(seed).with_script(script)
         else:
             current = module.single_script_scenario(world, script, robots, seed)
         if simulation is not None:

@@ -111,6 +111,13 @@ class Scenario:
     def with_seed(self, seed: int) -> Scenario:
         return replace(self, seed=seed)
 
+    def with_script(self, script: Path) -> Scenario:
+        """Every group that runs a script runs `script` instead (a lesson's work copy, the
+        file the IDE edits); passive bodies stay passive."""
+        path = Path(script).resolve()
+        return replace(self, groups=tuple(g if g.script is None else replace(g, script=path)
+                                          for g in self.groups))
+
     def radio_overrides(self) -> dict[str, Any]:
         """The `radio` table as `Simulation(radio=...)` overrides."""
         overrides: dict[str, Any] = {}
