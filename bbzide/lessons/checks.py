@@ -227,6 +227,26 @@ def check_pitfalls(sim: Any, scenario: Scenario) -> Verdict:
     return Verdict(True, "flying, on time and seeing the wall: all three pitfalls avoided")
 
 
+def check_shared_choice(sim: Any, scenario: Scenario) -> Verdict:
+    sim.run(scenario.steps)
+    bids = globals_of(sim, "bid")
+    if not all(isinstance(b, int) for b in bids):
+        return Verdict(False, "every drone needs a whole-number bid", tuple(
+            f"robot {s.robot_id}: bid is {b}" for s, b in zip(sim.robots, bids, strict=True)))
+    lowest = min(bids)
+    wrong = mismatches(sim, "best", [lowest] * sim.count)
+    for state, bid in zip(sim.robots, bids, strict=True):
+        flying = bool(state.labels.get("flying"))
+        if flying != (bid == lowest):
+            wrong.append(f"robot {state.robot_id} (bid {bid}) is "
+                         f"{'flying' if flying else 'on the floor'}; only the drone with bid "
+                         f"{lowest} should fly")
+    if wrong:
+        return Verdict(False, f"the swarm has not settled on the lowest bid ({lowest}) after "
+                              f"{scenario.steps} steps", tuple(wrong))
+    return Verdict(True, f"all drones agree on bid {lowest}, and only its drone flies")
+
+
 #: Lesson slug -> its check.
 CHECKS: dict[str, Callable[[Any, Scenario], Verdict]] = {
     "first-light": check_first_light,
@@ -237,4 +257,5 @@ CHECKS: dict[str, Callable[[Any, Scenario], Verdict]] = {
     "memory": check_memory,
     "first-flight": check_first_flight,
     "pitfalls": check_pitfalls,
+    "shared-choice": check_shared_choice,
 }
