@@ -49,6 +49,9 @@ def test_every_example_ships_a_scenario_that_runs_it(script):
     assert scenario.scripts() == [script.resolve()]
     assert scenario.world == script.parent.name or script.parent.name == "sar"
     assert scenario.steps > 0 and scenario.title
+    sim = scenario.simulation()
+    sim.run(min(scenario.steps, 10))                # it compiles, boots and runs cleanly
+    assert sim.failures == [] and sim.count == scenario.robots
 
 
 def write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:
