@@ -80,9 +80,6 @@ class RobotGroupSpec:
     headings: tuple[float, ...] | None = None
     labels: Mapping[str, Any] = field(default_factory=dict)
 
-    def __hash__(self) -> int:  # labels is a dict: hash the rest (equality compares all)
-        return hash((self.count, self.script, self.positions, self.headings))
-
 
 @dataclass(frozen=True)
 class Scenario:
