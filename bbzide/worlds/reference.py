@@ -98,6 +98,14 @@ def entries_for(world: str | None) -> tuple[ReferenceEntry, ...]:
     return BUILTINS + (HOST_FUNCTIONS.get(world, ()) if world else ())
 
 
+def completion_items(world: str | None) -> list[dict[str, str]]:
+    """`entries_for(world)` as plain data (JSON-ready), for an editor's completion and hover:
+    label (what is typed after a dot), name, signature, doc, memory, group."""
+    return [{"label": e.completion, "name": e.name, "signature": e.signature or e.name,
+             "doc": e.doc, "memory": e.memory, "group": e.group}
+            for e in entries_for(world)]
+
+
 def _entry_markdown(entry: ReferenceEntry) -> list[str]:
     call = entry.signature or entry.name
     lines = [f"- `{call}`: {entry.doc}"]

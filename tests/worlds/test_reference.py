@@ -12,7 +12,12 @@ import pytest
 from bbzide.compiler.reference import BUILTINS
 from bbzide.compiler.string_table import BITTYBUZZ_BASE_STRINGS
 from bbzide.worlds.engine import Simulation
-from bbzide.worlds.reference import HOST_FUNCTIONS, entries_for, reference_markdown
+from bbzide.worlds.reference import (
+    HOST_FUNCTIONS,
+    completion_items,
+    entries_for,
+    reference_markdown,
+)
 from bbzide.worlds.registry import WORLDS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -51,3 +56,14 @@ def test_the_generator_script_checks_the_page():
     done = subprocess.run([sys.executable, str(REPO / "scripts" / "buzz_reference.py"),
                            "--check"], capture_output=True, text=True, cwd=REPO)
     assert done.returncode == 0, done.stderr
+
+
+def test_completion_items_offer_the_worlds_own_host_functions_as_json():
+    import json
+
+    kilobot = {item["label"]: item for item in json.loads(json.dumps(completion_items("kilobot")))}
+    assert kilobot["set_motor"]["signature"] == "set_motor(left, right)"
+    assert kilobot["broadcast"]["name"] == "neighbors.broadcast" and kilobot["broadcast"]["memory"]
+    assert "takeoff" not in kilobot                                  # another world's
+    assert "takeoff" in {item["label"] for item in completion_items("crazyflie")}
+    assert {item["label"] for item in completion_items(None)} == {e.completion for e in BUILTINS}
