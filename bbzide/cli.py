@@ -6,15 +6,18 @@
     bbzide bo2bbo X.bo          compiler room
     bbzide run X.bzz|X.bbo --platform P ...   one robot on the VM model (bbzide.vm.commands)
     bbzide run X.bzz --world W --robots N ... a swarm in a world (bbzide.worlds.commands)
+    bbzide run S.toml [--steps S] [--seed K]  a scenario file's swarm (bbzide.worlds.commands)
     bbzide ide [X.bzz] ...      the browser IDE (bbzide.ui.commands)
     bbzide replay X.rrd         the browser IDE in replay mode (bbzide.ui.commands)
+    bbzide lesson [N] [--check [FILE] | --reset]  the teaching track (bbzide.ui.lesson_commands)
 
 Each room's `commands` module exposes `register(subparsers)`; rooms are imported lazily so that
 `bbzide compile` never pays for importing viser. `run` is shared by two rooms, so it is defined
 here: `bbzide.vm.commands.add_run_arguments(parser)` adds the single-robot options (the corpus
 harness's: --platform, --robot, --reg, --inject, --loop, --seed, --dump, ...) and
 `bbzide.worlds.commands.add_world_run_arguments(parser)` the swarm options (--world, --robots, ...);
-with `--world` the worlds room runs it (`run_world(args)`), otherwise the VM room
+with `--world` or a scenario file (`.toml`) the worlds room runs it (`run_world(args)`,
+`run_scenario(args)`), otherwise the VM room
 (`run_single_robot(args)`); with `--record` (options from
 `bbzide.recording.commands.add_record_arguments`) the recording room runs it
 (`run_recorded(args)`, above the worlds, which never import it). This file only routes and
@@ -47,6 +50,7 @@ COMMAND_MODULES = (
     "bbzide.vm.commands",
     "bbzide.worlds.commands",
     "bbzide.ui.commands",
+    "bbzide.ui.lesson_commands",
 )
 
 
@@ -100,10 +104,14 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
             raise UserError(f"{script} is bytecode for the reference Buzz VM; the BittyBuzz model "
                             f"runs a .bbo: bbzide bo2bbo {script}, then run "
                             f"{script.with_suffix('.bbo')} (or run the .bzz)")
+        if script.suffix == ".toml" and world_commands is None:
+            raise UserError("scenario files need the worlds, not in this build")
         if getattr(args, "record", None):
             if record_commands is None:
                 raise UserError("recording is not available in this build")
             return int(record_commands.run_recorded(args) or 0)
+        if script.suffix == ".toml":
+            return int(world_commands.run_scenario(args) or 0)
         if getattr(args, "world", None):
             if world_commands is None:
                 raise UserError("worlds are not available in this build")
@@ -112,7 +120,8 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
             raise UserError("give --world: single-robot runs are not available in this build")
         return int(vm_commands.run_single_robot(args) or 0)
 
-    run.set_defaults(handler=dispatch)
+    # --seed not given: None (a scenario's own seed stands; both rooms read None as 0)
+    run.set_defaults(handler=dispatch, seed=None)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,4 +1,5 @@
-"""`bbzide run X.bzz --world W --record mission.rrd [--force] [--keyframe-every K]`.
+"""`bbzide run X.bzz --world W --record mission.rrd [--force] [--keyframe-every K]`, and
+`bbzide run S.toml --record mission.rrd` (a scenario file's swarm, bbzide/worlds/scenario.py).
 
 The recording room sits above the worlds room, so the worlds' `run` command knows nothing of
 recording: `bbzide/cli.py` adds these options to the shared `run` parser and, when `--record`
@@ -29,12 +30,14 @@ def add_record_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_recorded(args: argparse.Namespace) -> int:
-    from bbzide.recording.recorder import MissionRecorder, Recordable
+    from bbzide.recording.recorder import Recordable
     from bbzide.worlds import commands as world_commands
     from bbzide.worlds.engine import Simulation
     from bbzide.worlds.radio import WorldConfigError
     from bbzide.worlds.registry import world_spec
 
+    if Path(args.script).suffix == ".toml":
+        return _run_recorded_scenario(args)
     if not getattr(args, "world", None):
         raise RecordingError("--record needs --world: recordings are of swarms in a world")
     path = check_output_path(Path(args.record), bool(args.force))
@@ -65,19 +68,47 @@ def run_recorded(args: argparse.Namespace) -> int:
                      world_options=world_commands.parse_world_options(args.world_options),
                      radio=radio, robot_factory=recordable.factory,
                      asynchronous=bool(getattr(args, "asynchronous", False)))
+    return _record_run(args, path, sim, recordable, steps, lambda _program: source,
+                       booted_in=time.perf_counter() - started)
+
+
+def _run_recorded_scenario(args: argparse.Namespace) -> int:
+    """`bbzide run S.toml --record FILE.rrd`: the scenario's swarm, recorded (each robot's
+    source is its group's script)."""
+    from bbzide.recording.recorder import Recordable
+    from bbzide.worlds import commands as world_commands
+
+    scenario, steps, vm_options, programs = world_commands.prepare_scenario(args)
+    path = check_output_path(Path(args.record), bool(args.force))
+    sources = {id(program): script.read_text(encoding="utf-8", errors="replace")
+               for script, program in programs.items() if script.suffix == ".bzz"}
+    started = time.perf_counter()
+    recordable = Recordable(loop=vm_options.get("loop", "pop"),
+                            instruction_budget=vm_options.get("instruction_budget"))
+    sim = scenario.simulation(programs, robot_factory=recordable.factory)
+    return _record_run(args, path, sim, recordable, steps,
+                       lambda program: sources.get(id(program)),
+                       booted_in=time.perf_counter() - started)
+
+
+def _record_run(args: argparse.Namespace, path: Path, sim: Any, recordable: Any, steps: int,
+                source_of: Any, booted_in: float) -> int:
+    """Run `steps` steps of the booted `sim`, recording each into `path`; print the worlds'
+    summary and the recording's figures."""
+    from bbzide.recording.recorder import MissionRecorder
+    from bbzide.worlds import commands as world_commands
+
     booted = time.perf_counter()
     recorder = MissionRecorder(path, sim, recordable, force=bool(args.force),
-                               keyframe_every=int(args.keyframe_every),
-                               source_of=lambda _program: source)
+                               keyframe_every=int(args.keyframe_every), source_of=source_of)
     try:
         for _ in range(steps):
             sim.step()
             recorder.record_step()
     finally:
         recorder.close()
-    finished = time.perf_counter()
-    print(world_commands.summary(sim, steps, booted - started, finished - booted))
-    run_seconds = finished - booted
+    run_seconds = time.perf_counter() - booted
+    print(world_commands.summary(sim, steps, booted_in, run_seconds))
     share = 100 * recorder.seconds_spent / run_seconds if run_seconds > 0 else 0.0
     print(f"recording: {path} ({path.stat().st_size / 1e6:.2f} MB, steps "
           f"{recorder.start_step}..{sim.step_count}; recording took {share:.1f} % of the run)")

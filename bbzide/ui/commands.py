@@ -2,6 +2,7 @@
 
     bbzide ide [X.bzz] [--world W] [--robots N] [--seed K] [--host H] [--port P] [--token T]
                [--no-browser]
+    bbzide ide S.toml [--seed K] ...   a scenario file: its world, options, robots and script
     bbzide replay X.rrd [--host H] [--port P] [--token T] [--no-browser]
 
 Without a script the IDE opens the world's example. The example is copied once to a scratch
@@ -10,6 +11,11 @@ every change and the shipped example must stay as it is. The server listens on 1
 `--host` says otherwise, prints its URL and, unless `--no-browser`, opens it. Everything that
 can be wrong with the arguments (address, seed, a script that is a folder or not UTF-8) is an
 `IdeError` raised before a server starts.
+
+A scenario file (bbzide/worlds/scenario.py) pins the world, its options, the robots (count,
+positions, labels) and the script the editor opens; the IDE edits one script, so a scenario
+whose groups run different scripts is refused (run it with `bbzide run`). Changing the world or
+the robot count in the IDE leaves the scenario behind (the world's defaults apply again).
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import socket
 import time
 import webbrowser
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from bbzide.diagnostics import UserError
 from bbzide.ui.access import TOKEN_ENV, TokenError, choose_token
@@ -46,7 +52,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ide.add_argument("script", nargs="?", type=Path, help="Buzz script to edit and run (.bzz)")
     ide.add_argument("--world", help="world to open (default: the Kilobot table)")
     ide.add_argument("--robots", type=int, help="number of robots (default: the world's)")
-    ide.add_argument("--seed", type=int, default=1, help="world seed (default 1)")
+    ide.add_argument("--seed", type=int, default=None,
+                     help="world seed (default: the scenario's, else 1)")
     ide.add_argument(
         "--speed",
         type=float,
@@ -63,7 +70,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         script=None,
         world=None,
         robots=None,
-        seed=1,
+        seed=None,
         speed=30.0,
         host="127.0.0.1",
         port=DEFAULT_PORT,
@@ -138,15 +145,53 @@ def run_replay(args: argparse.Namespace) -> int:
     return serve_until_interrupted(app, open_browser=not args.no_browser)
 
 
+#: The seed of an IDE world when neither --seed nor a scenario gives one.
+DEFAULT_SEED = 1
+
+
+def ide_scenario(path: Path, args: argparse.Namespace, script: Path | None = None) -> Any:
+    """The scenario at `path` for the IDE: options it pins refused, --seed applied, and every
+    robot group's script replaced by `script` when given (a lesson's saved work)."""
+    from bbzide.worlds.scenario import load_scenario
+
+    for option, value in (("--world", args.world), ("--robots", args.robots)):
+        if value is not None:
+            raise IdeError(f"{option} cannot be combined with a scenario file: edit {path}")
+    scenario = load_scenario(path)
+    scripts = scenario.scripts()
+    if len(scripts) != 1:
+        raise IdeError(f"{path}: the IDE edits one script and this scenario runs "
+                       f"{len(scripts) or 'no'} script(s): run it with bbzide run {path}")
+    if script is not None:
+        scenario = scenario.with_script(script)
+    if args.seed is not None:
+        scenario = scenario.with_seed(args.seed)
+    return scenario
+
+
 def run_ide(args: argparse.Namespace) -> int:
+    scenario = None
+    if args.script is not None and args.script.suffix == ".toml":
+        check_listen_address(args.host, args.port)
+        scenario = ide_scenario(args.script, args)
+    return open_ide(args, scenario)
+
+
+def open_ide(args: argparse.Namespace, scenario: Any = None, banner: str = "") -> int:
+    """Start the IDE on `args.script` (or `scenario`'s script) and serve until Ctrl-C."""
     from bbzide.ui.app import IdeApp
     from bbzide.ui.run_controller import RunSettings
     from bbzide.ui.world_adapter import WorldsBackend
 
     check_listen_address(args.host, args.port)
     token = launch_token(args)
-    if args.seed < 0:  # numpy's seed sequences take non-negative integers only
-        raise IdeError(f"--seed must be >= 0, got {args.seed}")
+    seed = args.seed if args.seed is not None else DEFAULT_SEED
+    if scenario is not None:
+        args.script, args.world, args.robots = scenario.scripts()[0], scenario.world, \
+            scenario.robots
+        seed = scenario.seed
+    if seed < 0:  # numpy's seed sequences take non-negative integers only
+        raise IdeError(f"--seed must be >= 0, got {seed}")
     if args.script is not None:
         resolve_script(args.script, None)  # a bad path fails before any room is loaded
     backend = WorldsBackend()
@@ -163,10 +208,13 @@ def run_ide(args: argparse.Namespace) -> int:
                        "(larger swarms: bbzide run --world)")
     script = resolve_script(args.script, backend.example_path(world))
     settings = RunSettings(
-        world=world, robots=robots, seed=args.seed, steps_per_second=max(0.0, args.speed)
+        world=world, robots=robots, seed=seed, steps_per_second=max(0.0, args.speed),
+        scenario=scenario,
     )
     app = IdeApp(script, backend, settings, host=args.host, port=args.port, token=token)
     app.start(run=not args.paused)
+    if banner:
+        print(banner, flush=True)
     print(f"bbzide IDE: {app.url}  (editing {script}; Ctrl-C to stop)", flush=True)
     return serve_until_interrupted(app, open_browser=not args.no_browser)
 

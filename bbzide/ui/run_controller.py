@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any
 
 from bbzide.diagnostics import UserError
@@ -44,6 +45,9 @@ class RunSettings:
     seed: int
     steps_per_second: float = 0.0  # 0 = as fast as the machine goes
     keep_state_on_reload: bool = True  # a new program keeps poses (True) or resets the world
+    #: A scenario (bbzide.worlds.scenario.Scenario) pinning the world's options and the robots;
+    #: dropped when the world or the robot count changes (the seed is taken from `seed`).
+    scenario: Any = None
 
 
 @dataclass
@@ -125,6 +129,17 @@ class RunController:
     def update_settings(self, **changes: Any) -> None:
         """Change world/robots/seed (rebuilds the world) or speed/keep_state (takes effect now)."""
         self._send("settings", changes)
+
+    def save_setup(self, path: Path, script: Path, pin_positions: bool = False) -> Path:
+        """Save the running set-up (world, options, robots, seed, `script`) as a scenario file
+        at `path`; with `pin_positions`, where the robots stand now too. Needs a backend with
+        scenarios (`WorldsBackend`); a bad path is a `UserError`."""
+        settings = self.settings
+        with self._sim_lock:
+            scenario = self.backend.setup_scenario(  # type: ignore[attr-defined]
+                settings.world, settings.robots, settings.seed, script, settings.scenario,
+                self._sim if pin_positions else None)
+        return self.backend.save_scenario(scenario, path)  # type: ignore[attr-defined]
 
     @contextlib.contextmanager
     def locked(self, timeout: float | None = None) -> Iterator[SimulationHandle | None]:
@@ -217,6 +232,8 @@ class RunController:
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
+            if old.world != self.settings.world or old.robots != self.settings.robots:
+                self.settings = replace(self.settings, scenario=None)
             if old.world != self.settings.world:
                 # The program was compiled for the old world's host-function ids: the new world
                 # waits for the one compiled for it (`load_program`); none runs meanwhile.
@@ -234,7 +251,9 @@ class RunController:
             return
         settings = self.settings
         self._stop_recording()  # a rebuilt world starts a new timeline at step 0
-        sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed)
+        pinned = {} if settings.scenario is None else {"scenario": settings.scenario}
+        sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed,
+                                  **pinned)
         with self._sim_lock:
             self._sim = sim
         self.status.error = None

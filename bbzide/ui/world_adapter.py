@@ -124,13 +124,42 @@ class WorldsBackend:
         )
         return compiled, compiled.to_bbo()
 
-    def create(self, world: str, program: Any, robots: int, seed: int) -> WorldsSimulation:
+    def create(self, world: str, program: Any, robots: int, seed: int,
+               scenario: Any = None) -> WorldsSimulation:
+        """A swarm of `robots` running `program`; with a `scenario` (same world and robot
+        count), its world options, positions, labels and watches too, every group with a
+        script running `program` (the IDE edits one script)."""
         recordable = self._recording.Recordable(instruction_budget=IDE_INSTRUCTION_BUDGET)
-        simulation = self._engine.Simulation(
-            world, program, robots=robots, seed=seed, robot_factory=recordable.factory
-        )
+        if scenario is not None and scenario.world == world and scenario.robots == robots:
+            simulation = scenario.with_seed(seed).simulation(
+                dict.fromkeys(scenario.scripts(), program), robot_factory=recordable.factory)
+        else:
+            simulation = self._engine.Simulation(
+                world, program, robots=robots, seed=seed, robot_factory=recordable.factory
+            )
         return WorldsSimulation(simulation, program, self.platform(world), recordable,
                                 self._recording)
+
+
+    # ---- scenarios -------------------------------------------------------------------------------
+    def setup_scenario(self, world: str, robots: int, seed: int, script: Path,
+                       scenario: Any = None, simulation: WorldsSimulation | None = None) -> Any:
+        """The set-up the IDE runs, as a scenario (bbzide.worlds.scenario): the one it was
+        opened with (same world and robot count) with `script` as every group's script, else
+        one group of `robots` running `script`; with `simulation`, the robots' positions and
+        headings now are pinned in it."""
+        module = _import("bbzide.worlds.scenario")
+        if scenario is not None and scenario.world == world and scenario.robots == robots:
+            current = scenario.with_seed(seed).with_script(script)
+        else:
+            current = module.single_script_scenario(world, script, robots, seed)
+        if simulation is not None:
+            current = module.pin_positions(current, simulation.sim)
+        return current
+
+    def save_scenario(self, scenario: Any, path: Path) -> Path:
+        """Write `scenario` to `path` (read back and checked before this returns)."""
+        return _import("bbzide.worlds.scenario").save_scenario(scenario, path)
 
 
 class WorldsSimulation:

@@ -2,6 +2,7 @@
 
     bbzide run X.bzz|X.bbo --world kilobot|crazyflie|... [--robots N] [--steps S] [--seed K]
                [--comm-range M] [--loss P] [--set KEY=VALUE]... [--asynchronous] [-I DIR]...
+    bbzide run S.toml [--steps S] [--seed K]    a scenario file (bbzide/worlds/scenario.py)
     bbzide worlds               list the worlds, their platform, host functions and example
 
 `run` is shared with the VM room (single robot): `bbzide/cli.py` builds one parser from both
@@ -9,6 +10,9 @@ rooms' options, so `add_world_run_arguments` adds only the options the VM room h
 already (`--steps`, `--seed`, the script argument). The script is compiled for the world's
 platform (BittyBuzz base strings + the world's host names); the run prints one summary: speed,
 radio traffic and every robot error with its source line. Every problem is a `UserError`.
+A scenario file pins the world, its options, the robots and their scripts: with one, only
+`--steps` and `--seed` may be given (they override the file's); options the file pins are
+refused rather than silently ignored. Watched globals are printed after the summary.
 """
 
 from __future__ import annotations
@@ -108,6 +112,54 @@ def check_string_table(path: Path, found: list[str], host_names: tuple[str, ...]
                     "P")
     raise WorldConfigError(f"{path}: {why}: compile it with --platform {platform}, or run the "
                            ".bzz")
+
+
+#: `run` options a scenario file pins: (argparse dest, option, value when not given).
+SCENARIO_PINNED = (("world", "--world", None), ("robots", "--robots", None),
+                   ("comm_range", "--comm-range", None), ("loss", "--loss", None),
+                   ("asynchronous", "--asynchronous", False), ("world_options", "--set", []))
+
+
+def prepare_scenario(args: argparse.Namespace) -> tuple[Any, int, dict[str, Any],
+                                                      dict[Path, Any]]:
+    """The scenario file `args.script` for a run: (scenario with --seed applied, steps,
+    --budget/--loop engine options, compiled programs). Options the file pins are refused."""
+    from bbzide.worlds.scenario import load_scenario
+
+    for dest, option, unset in SCENARIO_PINNED:
+        if getattr(args, dest, unset) not in (unset, None):
+            raise WorldConfigError(f"{option} cannot be combined with a scenario file (it pins "
+                                   f"the world and the robots): edit {args.script}")
+    scenario = load_scenario(Path(args.script))
+    steps = scenario.steps if args.steps is None else int(args.steps)
+    if steps < 0:
+        raise WorldConfigError(f"--steps must be >= 0, got {steps}")
+    if getattr(args, "seed", None) is not None:
+        scenario = scenario.with_seed(seed_of(args))
+    engine_options = vm_options_for_world(args)
+    programs = scenario.programs(list(getattr(args, "include", []) or []))
+    return scenario, steps, engine_options, programs
+
+
+def run_scenario(args: argparse.Namespace) -> int:
+    """`bbzide run S.toml`: the scenario's swarm, `--steps`/`--seed` overriding the file's."""
+    scenario, steps, engine_options, programs = prepare_scenario(args)
+    started = time.perf_counter()
+    sim = scenario.simulation(programs, **engine_options)
+    booted = time.perf_counter()
+    sim.run(steps)
+    finished = time.perf_counter()
+    print(summary(sim, steps, booted - started, finished - booted))
+    for name in scenario.watch:
+        print(watched_line(sim, name))
+    return 0
+
+
+def watched_line(sim: Any, name: str) -> str:
+    """`gradient: 0 1 1 2 ...` (robot-id order; `-` where the global is nil)."""
+    values = [state.global_value(name) for state in sim.robots]
+    shown = " ".join("-" if value is None else str(value) for value in values)
+    return f"watch {name}: {shown}"
 
 
 def run_world(args: argparse.Namespace) -> int:

@@ -117,6 +117,22 @@ def pairs_within_range(positions: np.ndarray, comm_range: float) -> RadioLinks:
                       np.concatenate(distances))
 
 
+def hop_counts(positions: np.ndarray, comm_range: float, source: int = 0) -> list[int]:
+    """Hops from robot `source` to every robot over the links within `comm_range` (-1: not
+    connected): what a hop-count gradient converges to on a still swarm."""
+    links = pairs_within_range(positions, comm_range)
+    hops = [-1] * len(positions)
+    hops[source] = 0
+    queue = deque([source])
+    while queue:
+        sender = queue.popleft()
+        for receiver in links.receivers[links.senders == sender].tolist():
+            if hops[receiver] < 0:
+                hops[receiver] = hops[sender] + 1
+                queue.append(receiver)
+    return hops
+
+
 def _pairs_in_adjacent_cells(points: np.ndarray, cells: np.ndarray,
                              comm_range: float) -> RadioLinks:
     """`pairs_within_range` for a small swarm: every ordered pair at once, kept by the

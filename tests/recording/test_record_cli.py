@@ -86,3 +86,18 @@ def test_recorded_run_applies_budget_and_loop(tmp_path: Path,
                  "--loop", "robot", "--record", str(path)]) == 0
     assert "STACK" in capsys.readouterr().out  # the firmware keeps step's return value
     assert read_recording(path).meta["loop"] == "robot"
+
+
+@pytest.mark.skipif(not HAS_ROBOT, reason="needs the VM room's Robot")
+def test_a_scenario_run_can_be_recorded_with_its_script_source(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture
+                                                              ) -> None:
+    scenario = REPO / "examples/kilobot/leader.toml"
+    path = tmp_path / "leader.rrd"
+    assert main(["run", str(scenario), "--steps", "4", "--record", str(path)]) == 0
+    assert "6 robots, 4 steps" in capsys.readouterr().out
+    recording = read_recording(path)
+    assert recording.robot_count == 6 and recording.last_step == 4
+    assert recording.meta["watch"] == ["leader"] and recording.meta["seed"] == 2
+    sources = [program["source"] for program in recording.programs.values()]
+    assert sources == [(REPO / "examples/kilobot/leader.bzz").read_text()]

@@ -5,7 +5,6 @@ Small swarms and few steps (the VM model is slow); each test says what it checks
 
 from __future__ import annotations
 
-from collections import deque
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +13,7 @@ import pytest
 from bbzide.vm.robot import Robot
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
-from bbzide.worlds.radio import pairs_within_range
+from bbzide.worlds.radio import hop_counts
 from bbzide.worlds.registry import WORLDS
 
 REPO = Path(__file__).resolve().parents[2]
@@ -35,20 +34,6 @@ def program(world: str, name: str, constants: dict[str, int] | None = None, tmp=
 
 def values(sim: Simulation, name: str) -> list:
     return [state.global_value(name) for state in sim.robots]
-
-
-def hop_counts(positions: np.ndarray, comm_range: float) -> list[int]:
-    links = pairs_within_range(positions, comm_range)
-    hops = [-1] * len(positions)
-    hops[0] = 0
-    queue = deque([0])
-    while queue:
-        a = queue.popleft()
-        for b in links.receivers[links.senders == a].tolist():
-            if hops[b] < 0:
-                hops[b] = hops[a] + 1
-                queue.append(b)
-    return hops
 
 
 def no_failures(sim: Simulation) -> None:
