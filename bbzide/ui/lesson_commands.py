@@ -19,7 +19,13 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from bbzide.ui.commands import DEFAULT_PORT, IdeError, ide_scenario, open_ide
+from bbzide.ui.commands import (
+    DEFAULT_PORT,
+    IdeError,
+    add_token_argument,
+    ide_scenario,
+    open_ide,
+)
 
 if TYPE_CHECKING:  # the lessons room is imported when a lesson command runs
     from bbzide.lessons.catalog import Lesson
@@ -38,6 +44,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     lesson.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (default 8080)")
     lesson.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     lesson.add_argument("--paused", action="store_true", help="start paused")
+    add_token_argument(lesson)
     lesson.set_defaults(handler=run_lesson)
 
 
@@ -59,7 +66,7 @@ def run_lesson(args: argparse.Namespace) -> int:
     work = catalog.work_file(chosen)
     ide_args = argparse.Namespace(script=None, world=None, robots=None, seed=None, speed=30.0,
                                   host=args.host, port=args.port, no_browser=args.no_browser,
-                                  paused=args.paused)
+                                  paused=args.paused, token=args.token)
     scenario = ide_scenario(chosen.scenario_path, ide_args, script=work)
     print(chosen.text.rstrip())
     banner = (f"\nlesson {chosen.number}: your work is {work}\n"
