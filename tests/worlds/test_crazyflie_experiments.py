@@ -1,0 +1,44 @@
+"""The Crazyflie experiment scripts of chapter 4: the exploration plot (Fig. 4.9) draws real
+flights, and the consensus script reports each reader's delay within one control step."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+from pathlib import Path
+
+import pytest
+
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
+
+
+@pytest.fixture(scope="module")
+def experiments():  # noqa: ANN201 - a loader of experiment modules
+    sys.path.insert(0, str(EXPERIMENTS))
+    try:
+        yield importlib.import_module
+    finally:
+        sys.path.remove(str(EXPERIMENTS))
+
+
+def test_exploration_plot_draws_two_flights(experiments, tmp_path) -> None:  # noqa: ANN001
+    plot = experiments("crazyflie_exploration_plot")
+    path, sim = plot.trajectories(steps=80, seed=3)
+    assert path.shape == (81, 2, 3)
+    assert (path[-1, :, 2] > 0.5).all()                 # both took off toward 0.8 m
+    travelled = abs(path[-1, :, :2] - path[0, :, :2]).sum(axis=1)
+    assert (travelled > 0.2).all()                      # and flew somewhere
+    out = tmp_path / "fig.png"
+    plot.plot(path, sim, str(out))
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_consensus_reader_delays_are_within_one_step(experiments) -> None:  # noqa: ANN001
+    consensus = experiments("crazyflie_consensus")
+    from common import compile_example
+
+    program = compile_example("crazyflie", "examples/crazyflie/consensus.bzz")
+    delays = consensus.reader_delays("circle", seed=1, program=program)
+    assert len(delays) == consensus.DRONES - 1
+    assert all(0 <= d <= 1 for d in delays)
+    assert consensus.consensus_time("circle", 1, program) == max(delays)
