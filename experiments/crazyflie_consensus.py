@@ -10,7 +10,11 @@ reader's own delay: the paper's 17 ms minimum cannot be a "last of 9 readers" ti
 independent phases (all nine would have to step within 17 ms of the write: (17/50)^9 ≈ 6e-5),
 so Fig. 4.7 is read as per-drone delays as well.
 
-    PYTHONPATH=. python experiments/crazyflie_consensus.py [runs, default 20]
+    PYTHONPATH=. python experiments/crazyflie_consensus.py [runs, default 20] [spread ms]
+
+With a spread (ms), the drones step nearly together (phases within that spread), as drones
+started by one command and run by the same FreeRTOS period would: see the README for what
+this shows about the paper's second mode.
 """
 
 from __future__ import annotations
@@ -19,7 +23,10 @@ import math
 import sys
 from collections import Counter
 
+import numpy as np
 from common import compile_example, globals_of, mean_sd, run, table
+
+from bbzide.worlds.engine import Simulation
 
 WRITE_STEP = 5
 DRONES = 10
@@ -31,14 +38,30 @@ def consensus_time(formation: str, seed: int, program: object) -> float:
     return -1.0 if any(d < 0 for d in delays) else max(delays)
 
 
-def reader_delays(formation: str, seed: int, program: object) -> list[float]:
-    """Each reader's steps (phases included) from the write to its first read; -1: never."""
-    def everyone_agrees(sim: object) -> bool:
-        return sim.step_count > WRITE_STEP and all(
-            a is not None and a >= 0 for a in globals_of(sim, "agreed"))
+def everyone_agrees(sim: Simulation) -> bool:
+    return sim.step_count > WRITE_STEP and all(
+        a is not None and a >= 0 for a in globals_of(sim, "agreed"))
 
-    sim = run("crazyflie", program, DRONES, seed, WRITE_STEP + 40, {"formation": formation},
-              until=everyone_agrees)
+
+def reader_delays(formation: str, seed: int, program: object,
+                  spread: float | None = None) -> list[float]:
+    """Each reader's steps (phases included) from the write to its first read; -1: never.
+
+    `spread` None: independent phases, uniform over the step (the default model). A number:
+    drones started together, every phase within `spread` steps of the middle of the step
+    (uniform), the jitter of their FreeRTOS loops."""
+    if spread is None:
+        sim = run("crazyflie", program, DRONES, seed, WRITE_STEP + 40,
+                  {"formation": formation}, until=everyone_agrees)
+    else:
+        sim = Simulation("crazyflie", program, robots=DRONES, seed=seed,
+                         world_options={"formation": formation}, watch=(), asynchronous=True)
+        jitter = np.random.default_rng(seed).uniform(-spread / 2, spread / 2, DRONES)
+        sim.phases[:] = 0.5 + jitter
+        for _ in range(WRITE_STEP + 40):
+            sim.step()
+            if everyone_agrees(sim):
+                break
     agreed = globals_of(sim, "agreed")
     phases = sim.phases
     return [-1.0 if a is None or a < 0 else a + phases[i] - (WRITE_STEP + phases[0])
@@ -47,12 +70,13 @@ def reader_delays(formation: str, seed: int, program: object) -> list[float]:
 
 def main() -> None:
     runs = int(sys.argv[1]) if len(sys.argv) > 1 else 20
+    spread = float(sys.argv[2]) / 50 if len(sys.argv) > 2 else None
     program = compile_example("crazyflie", "examples/crazyflie/consensus.bzz")
     results: dict[str, list[float]] = {"chain": [], "circle": []}
     per_drone: list[float] = []
     for k in range(runs):
         formation = ("chain", "circle")[k % 2]
-        delays = reader_delays(formation, seed=k, program=program)
+        delays = reader_delays(formation, seed=k, program=program, spread=spread)
         per_drone += [d for d in delays if d >= 0]
         results[formation].append(-1.0 if any(d < 0 for d in delays) else max(delays))
     results["both"] = results["chain"] + results["circle"]

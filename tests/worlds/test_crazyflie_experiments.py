@@ -42,3 +42,18 @@ def test_consensus_reader_delays_are_within_one_step(experiments) -> None:  # no
     assert len(delays) == consensus.DRONES - 1
     assert all(0 <= d <= 1 for d in delays)
     assert consensus.consensus_time("circle", 1, program) == max(delays)
+
+
+def test_synchronized_drones_split_into_two_modes_with_a_gap(experiments) -> None:  # noqa: ANN001
+    consensus = experiments("crazyflie_consensus")
+    from common import compile_example
+
+    program = compile_example("crazyflie", "examples/crazyflie/consensus.bzz")
+    spread = 0.4   # 20 ms of a 50 ms step
+    delays = [d for seed in range(3)
+              for d in consensus.reader_delays("circle", seed, program, spread=spread)]
+    assert all(d >= 0 for d in delays)
+    # A reader stepping after the writer reads within the spread, one stepping before it
+    # waits almost a full step: nothing in between.
+    assert all(d <= spread or d >= 1 - spread for d in delays)
+    assert any(d <= spread for d in delays) and any(d >= 1 - spread for d in delays)
