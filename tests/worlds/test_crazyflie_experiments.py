@@ -57,3 +57,14 @@ def test_synchronized_drones_split_into_two_modes_with_a_gap(experiments) -> Non
     # waits almost a full step: nothing in between.
     assert all(d <= spread or d >= 1 - spread for d in delays)
     assert any(d <= spread for d in delays) and any(d >= 1 - spread for d in delays)
+
+
+def test_bidding_loss_lengthens_auctions_and_keeps_one_winner(experiments) -> None:  # noqa: ANN001
+    bidding = experiments("crazyflie_bidding")
+    from common import compile_example
+
+    program = compile_example("crazyflie", "examples/crazyflie/bidding.bzz", {"N": 4})
+    clean = [bidding.auction_time(4, seed, program) for seed in range(4)]
+    lossy = [bidding.auction_time(4, seed, program, loss=0.3) for seed in range(4)]
+    assert all(t >= 0 and same for t, same in clean + lossy)
+    assert sum(t for t, _ in lossy) > sum(t for t, _ in clean)
