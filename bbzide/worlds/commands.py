@@ -2,6 +2,7 @@
 
     bbzide run X.bzz|X.bbo --world kilobot|crazyflie|... [--robots N] [--steps S] [--seed K]
                [--comm-range M] [--loss P] [--set KEY=VALUE]... [--asynchronous] [-I DIR]...
+               [--steptime]   (estimated step time per platform: bbzide.worlds.steptime)
     bbzide run S.toml [--steps S] [--seed K]    a scenario file (bbzide/worlds/scenario.py)
     bbzide worlds               list the worlds, their platform, host functions and example
 
@@ -59,6 +60,9 @@ def add_world_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="message loss probability (replaces the world's loss model)")
     group.add_argument("--asynchronous", action="store_true",
                        help="robots step at their own phase within the step (not in lockstep)")
+    group.add_argument("--steptime", action="store_true",
+                       help="estimate each control step's duration on the platforms with a "
+                            "cost model (Kilobot measured, Crazyflie scaled): min/mean/max ms")
     group.add_argument("--set", dest="world_options", action="append", default=[],
                        metavar="KEY=VALUE", help="world option, e.g. width=2.0 (repeatable)")
     if not _has_option(parser, "-I"):
@@ -185,9 +189,20 @@ def run_world(args: argparse.Namespace) -> int:
                      world_options=parse_world_options(args.world_options), radio=radio,
                      asynchronous=bool(args.asynchronous), **engine_options)
     booted = time.perf_counter()
-    sim.run(steps)
+    meter = None
+    if getattr(args, "steptime", False):
+        from bbzide.worlds.steptime import StepTimeMeter
+
+        meter = StepTimeMeter(sim)
+        meter.run(steps)
+    else:
+        sim.run(steps)
     finished = time.perf_counter()
     print(summary(sim, steps, booted - started, finished - booted))
+    if meter is not None:
+        from bbzide.worlds.steptime import report
+
+        print(report(meter))
     return 0
 
 
