@@ -168,3 +168,36 @@ def test_bst_with_host_or_a_non_bittybuzz_bst_with_platform_is_refused(tmp_path,
     assert f"--bst {plain} with --platform kilobot: it is not BittyBuzz's string table" in err
     assert "Traceback" not in err
     assert main(["compile", str(script), "--bst", str(plain), "-o", str(tmp_path / "p.bo")]) == 0
+
+
+def _compile_error(tmp_path: Path, source: bytes, capsys) -> str:
+    script = tmp_path / "bad.bzz"
+    script.write_bytes(source)
+    assert main(["compile", str(script)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and ".bo" not in err  # about the script, not a file we made
+    return err
+
+
+def test_a_string_the_bytecode_cannot_store_is_an_error_at_the_string(tmp_path, capsys):
+    for source in (b'var s = "a\\nb"\nlog(s)\n', b'var s = "a\nb"\nlog(s)\n'):
+        err = _compile_error(tmp_path, source, capsys)
+        assert "bad.bzz:1:8: error: Syntax error: a string cannot hold a line break" in err
+    err = _compile_error(tmp_path, b'var s = "a\0b"\nlog(s)\n', capsys)
+    assert "bad.bzz:1:8: error: Syntax error: a string cannot hold a NUL byte" in err
+    assert "\0" not in err  # the line with the raw NUL is not echoed to the terminal
+    # the same script as `run` compiles it
+    script = tmp_path / "bad.bzz"
+    script.write_bytes(b'var s = "a\\nb"\nlog(s)\n')
+    assert main(["run", str(script)]) == 1
+    assert "bad.bzz:1:8: error: Syntax error: a string cannot hold a line break" in (
+        capsys.readouterr().err)
+
+
+def test_a_binary_file_is_named_as_one_and_its_bytes_are_not_printed(tmp_path, capsys):
+    binary = bytes(range(256)) * 4  # control bytes, NUL and bytes that are not UTF-8
+    for data in (binary, b"\x9f\xff" + binary):
+        err = _compile_error(tmp_path, data, capsys)
+        assert "unknown character" in err and "the file is not text: is it a Buzz script?" in err
+        assert len(err.splitlines()) == 1
+        assert all(ch.isprintable() for ch in err.rstrip("\n"))
