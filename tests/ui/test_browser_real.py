@@ -149,9 +149,15 @@ def test_infinite_loop_keeps_controls_responsive(ide: IdeSession) -> None:
     app = ide.app
     original = app.session.text
     source = ide.editor.locator("#source")
+    status = app.controller.status
+    generation = status.program_generation
     source.fill(original + "\nfunction spin() {\n  while (1) { }\n}\nspin()\n")
     wait_until(lambda: "spin()" in app.session.text, UI_WAIT_S, message="loop uploaded")
-    time.sleep(2)
+    wait_until(lambda: status.program_generation > generation, UI_WAIT_S,
+               message="the robots to load the loop")
+    step = status.step
+    wait_until(lambda: status.step_started_at is not None or status.step > step, UI_WAIT_S,
+               message="a step of the loop")
     clicked = time.monotonic()
     ide.page.get_by_role("button", name="Pause").click()
     wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="pause honoured")
