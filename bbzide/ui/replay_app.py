@@ -28,7 +28,7 @@ from bbzide.ui.viser_server import open_server, page_url
 
 _JUMP_LABELS = dict(JUMP_KINDS)
 
-#: Playback speeds offered, as multiples of the mission's real time (the issue: 0.25x-16x).
+#: Playback speeds offered, as multiples of the mission's real time (0.25x to 16x).
 SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0, "8×": 8.0, "16×": 16.0}
 #: The player redraws at most this often: smooth enough, and a seek's inspector rebuild fits.
 FRAME_HZ = 30.0

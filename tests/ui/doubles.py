@@ -166,7 +166,7 @@ class FakeBackend:
 
 class FrontEndBackend(FakeBackend):
     """The double world, but the text goes through the real Buzz compiler front end, so the
-    editor shows the real compiler's errors (until the full compiler and VM are merged)."""
+    editor shows the real compiler's errors without running a VM."""
 
     def compile(self, text: str, path: Path, world: str) -> tuple[FakeCompiled, FakeProgram]:
         from bbzide.compiler.frontend import compile_to_basm
