@@ -50,7 +50,9 @@ lint: setup
 test: setup browser lint
 	$(PY) -m pytest $(PYTEST_ARGS)
 
-# Regenerate the lock after a change of pyproject.toml's dependencies, then `make setup`.
+# Regenerate the lock after a change of pyproject.toml's dependencies, then `make setup`. uv keeps
+# the lock's present versions where pyproject.toml allows them (a new dependency brings only its
+# own); delete requirements.lock first to move every package to its newest version.
 lock:
 	$(LOCK_VENV)/bin/uv --version 2>/dev/null | grep -qF 'uv $(UV_VERSION) ' || { $(PYTHON) -m venv $(LOCK_VENV) && \
 		$(LOCK_VENV)/bin/pip install $(PIP_QUIET) uv==$(UV_VERSION); }
