@@ -1,18 +1,37 @@
 # bbzide: two commands on a fresh machine.
 #   make run    set up (venv, pinned deps) and open the IDE on the default world
 #   make test   set up and run every test (lint, unit, corpus conformance, browser)
-# Also: make bench (benchmarks/*.py), make lint, make clean.
+# Also: make bench (benchmarks/*.py), make lint, make lock, make clean.
 
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup run test bench lint browser clean
+# The lock: every package of the whole transitive set (all extras, pip and setuptools too) at an
+# exact version with its sha256 hashes, so two fresh machines install the same files. `make lock`
+# regenerates it from pyproject.toml with uv (pinned below), chosen over pip-tools because its
+# --universal resolution writes one lock that holds on every platform and Python >= 3.11
+# (pip-compile resolves for the machine it runs on only) and needs no sdist builds to resolve.
+# Installing needs nothing but pip: --require-hashes refuses any file not in the lock.
+LOCK       := requirements.lock
+LOCK_VENV  := .venv-lock
+UV_VERSION := 0.13.8
+# setuptools builds bbzide itself (the editable install, without build isolation so that it is
+# the locked one): the same version as [build-system] requires in pyproject.toml.
+SETUPTOOLS_VERSION := 80.9.0
+PIP_QUIET := --disable-pip-version-check -q
 
-$(STAMP): pyproject.toml
+.PHONY: setup run test bench lint lock browser clean
+
+# A new lock or pyproject.toml rebuilds the venv from nothing, so that packages dropped from the
+# lock do not linger; scripts/check_lock.py then refuses a lock older than pyproject.toml's pins.
+$(STAMP): pyproject.toml $(LOCK)
+	rm -rf $(VENV)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --disable-pip-version-check -q -e '.[dev]'
+	$(PY) -m pip install $(PIP_QUIET) --require-hashes -r $(LOCK)
+	$(PY) -m pip install $(PIP_QUIET) --no-deps --no-build-isolation -e .
+	$(PY) scripts/check_lock.py
 	$(PY) scripts/warm_kernels.py
 	touch $(STAMP)
 
@@ -31,8 +50,18 @@ lint: setup
 test: setup browser lint
 	$(PY) -m pytest $(PYTEST_ARGS)
 
+# Regenerate the lock after a change of pyproject.toml's dependencies, then `make setup`. uv keeps
+# the lock's present versions where pyproject.toml allows them (a new dependency brings only its
+# own); delete requirements.lock first to move every package to its newest version.
+lock:
+	$(LOCK_VENV)/bin/uv --version 2>/dev/null | grep -qF 'uv $(UV_VERSION) ' || { $(PYTHON) -m venv $(LOCK_VENV) && \
+		$(LOCK_VENV)/bin/pip install $(PIP_QUIET) uv==$(UV_VERSION); }
+	printf 'pip\nsetuptools==$(SETUPTOOLS_VERSION)\n' | $(LOCK_VENV)/bin/uv pip compile \
+		pyproject.toml - --all-extras --universal --python-version 3.11 --generate-hashes \
+		--custom-compile-command 'make lock' --quiet -o $(LOCK)
+
 bench: setup
 	@set -e; for bench in benchmarks/*_bench.py; do echo "== $$bench"; $(PY) $$bench; done
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(LOCK_VENV) build *.egg-info .pytest_cache .ruff_cache

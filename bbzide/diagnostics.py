@@ -10,6 +10,7 @@ VM errors (pc -> source) all use it.
 
 from __future__ import annotations
 
+import unicodedata
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -56,6 +57,8 @@ class UserError(Exception):
         line = self.source_line
         if line is None:
             line = _read_line(self.location.file, self.location.line)
+        if line is not None and not _shows_as_text(line):
+            line = None  # control bytes or undecodable ones (a binary file): the position is enough
         if line is not None:
             line = line.rstrip("\r\n").replace("\t", " ")
             caret_col = max(0, min(self.location.col, len(line)))
@@ -69,6 +72,15 @@ class CompileError(UserError):
 
 class BytecodeError(UserError):
     """A `.bo`, `.bbo` or `.bdb` file that is truncated or malformed."""
+
+
+def _shows_as_text(line: str) -> bool:
+    """Whether a source line can be printed as it is: no control character but tab and line
+    ends (a NUL or an escape sequence would reach the terminal raw), no byte that did not
+    decode (shown as U+FFFD)."""
+    return not any(
+        (unicodedata.category(ch) == "Cc" and ch not in "\t\r\n") or ch == "\ufffd"
+        for ch in line)
 
 
 def _read_line(file: str, line: int) -> str | None:

@@ -1,6 +1,6 @@
 """External save -> recompiled: how long the IDE takes to pick up a save from another editor.
 
-Issue #5's goal: the IDE recompiles within ~0.5 s of a save made in any editor. This measures the
+The goal: the IDE recompiles within ~0.5 s of a save made in any editor. This measures the
 IDE's own path without a browser: the `FileWatcher` on the script's directory calls
 `ProgramSession.reload_from_disk`, which compiles the new text with the real compiler for the
 world (exactly how `IdeApp` wires them). For each of the three ways editors save (in place,

@@ -1,9 +1,9 @@
-"""Recording cost, file size and seek latency of mission recordings (issue #6 targets).
+"""Recording cost, file size and seek latency of mission recordings, against their goals.
 
     python benchmarks/record_bench.py [--robots 25] [--steps 1000] [--toy] [--world kilobot]
                                       [--script X.bzz] [--set KEY=VALUE]...
 
-The issue's reference mission (25 drones x 5,000 steps of search and rescue):
+The reference mission the goals are set for (25 drones x 5,000 steps of search and rescue):
 
     python benchmarks/record_bench.py --world m300 --script examples/sar/sar.bzz --steps 1000
 
@@ -39,7 +39,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-#: The issue's reference mission: 25 robots for 5,000 steps.
+#: The reference mission the goals are set for: 25 robots for 5,000 steps.
 TARGET_ROBOTS, TARGET_STEPS = 25, 5000
 #: Random seeks measured (each rebuilds the robot from its keyframe: no cache help).
 SEEKS = 40

@@ -1,6 +1,6 @@
 """Control steps per second of whole swarms, and where the time goes (VM, radio, physics).
 
-Cases (issue #4): the Kilobot table with 100 and 1,000 robots running the gradient example,
+Cases: the Kilobot table with 100 and 1,000 robots running the gradient example,
 the Crazyflie lab with 10 drones running the consensus example, and the M300 field with 25
 drones running the flocking example and the search-and-rescue mission (examples/sar/sar.bzz, a
 30 m arena: the thesis §5.4 sweep's middle size; its figure sets the sweep's wall time, see

@@ -2,10 +2,11 @@
 
 The fast VM mode runs its hot loops as numba kernels cached on disk (`cache=True`, next to
 their sources in bbzide/vm/__pycache__). Without a cache, the first control step of the first
-swarm compiles them all: ~30 s on an idle 2-core machine, ~65 s under load (measured in
-session 5) — long enough for a student running `make run` to think the IDE is broken. `make
+swarm compiles them all: ~30 s on an idle 2-core machine, ~65 s under load (measured on a
+2-core machine) — long enough for a student running `make run` to think the IDE is broken. `make
 setup` runs this once after installing: a few steps of each world's default example, which
 reaches every kernel a world run uses; later runs load the cached code in about a second.
+Without numba (an optional dependency) there is nothing to compile: it says so and stops.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from bbzide.vm import fastgc
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
@@ -25,6 +27,10 @@ ROBOTS = 4
 
 
 def main() -> None:
+    if not fastgc.COMPILED:
+        print("numba is not installed: the VM's kernels run as plain Python (slower); "
+              "nothing to compile", flush=True)
+        return
     started = time.perf_counter()
     print("compiling the VM's machine code once (numba cache; ~30-60 s the first time)...",
           flush=True)

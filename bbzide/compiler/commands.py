@@ -5,7 +5,9 @@
     bbzide disasm X.bo|X.bbo [--bdb F] [--source]
     bbzide bo2bbo X.bo [-o X.bbo]
 
-`--platform` without `--bst` compiles for BittyBuzz: the 46 base strings, then the host-function
+`--bst` gives the string table as it is (with `--platform` it must start with BittyBuzz's base
+strings; `--host` then has nothing to add and is refused). `--platform` without `--bst` compiles
+for BittyBuzz: the 46 base strings, then the host-function
 names (`--host`, repeatable; for `kilobot` the Kilobot firmware's `led set_motor delay abs` when
 no `--host` is given), so that string ids match what the firmware expects. Every error is a
 `UserError` (the router prints it and exits 1).
@@ -30,6 +32,7 @@ from bbzide.compiler.footprint import FLASH_BUDGETS, measure
 from bbzide.compiler.string_table import (
     BITTYBUZZ_BASE_STRINGS,
     KILOBOT_HOST_NAMES,
+    base_strings_mismatch,
     bittybuzz_string_table,
     read_bst,
 )
@@ -121,7 +124,8 @@ def check_outputs(inputs: list[Path], outputs: list[Path], force: bool) -> None:
 
 
 def include_path_from_environment() -> list[str]:
-    """The folders of `$BUZZ_INCLUDE_PATH` (colon-separated, as bzzparse reads it)."""
+    """The folders of `$BUZZ_INCLUDE_PATH` (colon-separated, as bzzparse reads it): searched
+    after the `-I` folders by `compile` and by `run` (one robot or a world)."""
     folders = os.environ.get("BUZZ_INCLUDE_PATH", "").split(os.pathsep)
     return [folder for folder in folders if folder]
 
@@ -132,8 +136,18 @@ def run_compile(args: argparse.Namespace) -> int:
         raise UserError(f"{script} is a folder, not a Buzz script")
     if not script.is_file():
         raise UserError(f"no such script: {script}")
+    if args.bst and args.host:
+        raise UserError("--bst gives the whole string table, host names included: "
+                        "--host would have no effect (give one or the other)")
     if args.bst:
         strings = read_bst(args.bst)
+        # With --platform the .bst must be a BittyBuzz table: the firmware's built-ins use the
+        # fixed ids of its base strings (a .bst without them compiles, but runs wrong).
+        why = base_strings_mismatch(strings) if args.platform else None
+        if why is not None:
+            why = why.replace("it was compiled without", "it is not").replace(
+                "its neighbors", "the script's neighbors")
+            raise UserError(f"--bst {args.bst} with --platform {args.platform}: {why}")
     elif args.platform or args.host:
         hosts = args.host or (list(KILOBOT_HOST_NAMES) if args.platform == "kilobot" else [])
         strings = bittybuzz_string_table(hosts)

@@ -11,8 +11,9 @@ it); the default mode is for users. Each row: reference behaviour -> default / r
 1. String escapes over-read (`"tab\\there"` becomes `tab<TAB>here"`, spec §A.2).
    default: decoded as written (`tab<TAB>here`) + warning "bzzc would compile this string as ...";
    reference: the over-read is reproduced.
-2. A `\\n` escape puts a raw newline into the `.basm` string table (bzzasm then rejects it).
-   default: kept (the string means a newline) + warning; reference: kept.
+2. A `\\n` escape (or a line break inside the quotes) puts a raw newline into the `.basm`
+   string table (bzzasm then rejects it, naming a line of the `.basm`).
+   default: CompileError at the string; reference: kept + warning.
 3. Any word starting with `include` is an include directive (`included_count = 1` fails).
    default: such a word is an identifier + warning that bzzc rejects it;
    reference: directive ("Syntax error: expected string after include").
@@ -44,6 +45,9 @@ it); the default mode is for users. Each row: reference behaviour -> default / r
 14. Not quirks but easy to trip on, kept in both modes as the reference: `0x1F` is `0` then
    `x1F`; `1.2.3` is a float; newlines and `;` are optional separators
    (`for (i = 0; ...)` fails with "expected ,").
+15. A NUL byte inside a string cuts it short in the `.bo` (strings end at NUL), so every later
+   string id is off and the bytecode reads as unknown opcodes.
+   default: CompileError at the string; reference: kept.
 """
 
 from __future__ import annotations

@@ -298,9 +298,10 @@ class Scanner:
                 return Token(CMP, c, line, col, f.path)
             if c in "'\"":
                 return self._string(f, pos, line, col)
-            shown = user_text(c) if ord(c) < 128 else f"\\x{ord(c):02x}"
+            shown = user_text(c) if ord(c) < 128 and c.isprintable() else f"\\x{ord(c):02x}"
             raise self._error(f, f"Syntax error: unknown character '{shown}' (octal: {ord(c):o}; "
-                                 f"hex: {ord(c):x})" + _unknown_char_hint(c), _lexer_col(col))
+                                 f"hex: {ord(c):x})" + _unknown_char_hint(c, f.text),
+                              _lexer_col(col))
         return EOF_TOKEN
 
     def _string(self, f: _OpenFile, start: int, line: int, col: int) -> Token:
@@ -333,7 +334,20 @@ class Scanner:
                     self.warn(f"{user_text(f.path)}:{line}:{col}: bzzc would compile this string "
                               f"as {user_text(quirky)!r} (its escape decoding reads past the "
                               f"closing quote); compiled as {user_text(value)!r}")
+        if not self.reference_quirks:
+            for character, why in _UNSTORABLE.items():
+                if character in value:
+                    raise self._error(f, f"Syntax error: a string cannot hold {why}", col, line)
         return Token(STRING, value, line, col, f.path)
+
+
+#: Characters the bytecode cannot store in a string (frontend quirk table, rows 2 and 15): the
+#: `.basm` string table is one string per line, and the `.bo` ends each string at a NUL byte.
+_UNSTORABLE = {
+    "\n": "a line break (the bytecode's string table keeps one string per line): "
+          "use two strings",
+    "\0": "a NUL byte (the bytecode ends each string at NUL)",
+}
 
 
 def decode_escapes(raw: str) -> str:
@@ -373,10 +387,24 @@ def _reference_decode(text: str, start: int, length: int) -> str:
     return result if nul < 0 else result[:nul]
 
 
-def _unknown_char_hint(c: str) -> str:
+def _unknown_char_hint(c: str, text: str) -> str:
     if c == "_":
         return " (Buzz identifiers must start with a letter)"
+    if _reads_as_binary(text):
+        return " (the file is not text: is it a Buzz script?)"
     return ""
+
+
+def _reads_as_binary(text: str) -> bool:
+    """A file (one character per byte) that holds a NUL byte or is not UTF-8: git's and
+    grep's test for a binary file, with UTF-8 as the only text encoding a script may use."""
+    if "\0" in text:
+        return True
+    try:
+        text.encode("latin-1").decode("utf-8")
+    except UnicodeDecodeError:
+        return True
+    return False
 
 
 def _lexer_col(col: int) -> int:

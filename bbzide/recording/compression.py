@@ -14,8 +14,8 @@ is pinned in pyproject.toml because we use it directly.
 Every blob carries zstd's content checksum (4 bytes: the low half of the XXH64 of its
 decompressed bytes), which the decompressor verifies on every read. Without it a flipped bit
 mostly decompressed to other bytes without a word: flipping the lowest bit of each byte of a
-481-byte frame, 458 of the 481 frames gave wrong bytes silently; with it every one was refused
-(session 7), so a damaged keyframe or input frame no longer rebuilds a different robot.
+481-byte frame, 458 of the 481 frames gave wrong bytes silently; with it every one was
+refused, so a damaged keyframe or input frame no longer rebuilds a different robot.
 Older recordings' blobs have none and still open (the frame header says whether one is there).
 
 A blob that does not decompress is a `CompressionError` (a corrupt recording). A recording

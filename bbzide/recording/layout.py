@@ -19,10 +19,10 @@ from bbzide.vm.input_log import LAYOUT_COMPACT, LAYOUT_FULL
 FORMAT = "bbzide-mission"
 #: Bumped when the layout changes; the reader refuses versions before `OLDEST_READABLE` or
 #: after this one. 2: input log in columns, keyframe deltas as changed blocks, zstd (version 1:
-#: packed messages, XOR deltas, zlib). 3 (session 5): a latched host function's happy-path
+#: packed messages, XOR deltas, zlib). 3: a latched host function's happy-path
 #: calls (a Kilobot's `led`: see `input_log.SwarmCapture.tap`) are not in the input log, the
-#: meta says which functions are latched (`latched`); version 2 files read as before. 4
-#: (session 6): keyframes hold flat snapshots (vm/snapshot_layout.py), which an older bbzide
+#: meta says which functions are latched (`latched`); version 2 files read as before. 4:
+#: keyframes hold flat snapshots (vm/snapshot_layout.py), which an older bbzide
 #: would try to unpickle; the input log's compact layout (`input_log.LAYOUT_COMPACT`: no
 #: lengths column when a step's payloads are all as long, no bearing columns when they are all
 #: zero, as for Kilobots), and one zstd frame for a flush's input blobs instead of one per step

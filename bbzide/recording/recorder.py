@@ -57,23 +57,23 @@ from bbzide.vm.vm import State
 KEYFRAME_EVERY = 150
 #: ...and sooner once its VM work since the last keyframe (receiving and control steps) took
 #: 30 ms of CPU time: a seek re-executes at most that much live VM time, which replays in up
-#: to ~2x as long (each step's inputs are decoded too; session 5: a drone's 40 steps at the
+#: to ~2x as long (each step's inputs are decoded too; measured: a drone's 40 steps at the
 #: budget replayed in 52 ms), so with restoring and the inspector (~5-10 ms) a seek stays
-#: under 100 ms whatever the script costs per step (the issue's seek goal; the machine's load
+#: under 100 ms whatever the script costs per step (the replay's seek goal; the machine's load
 #: adds to both). The step
 #: bound decides for cheap firmware; SAR drones reach the budget first on busy stretches
 #: (after ~40-85 steps at ~0.35 ms of VM time a step). A replay re-executes one robot at a
-#: time, without the live swarm's batched compiled step: measured in session 5, ~0.2 ms a
+#: time, without the live swarm's batched compiled step: measured, ~0.2 ms a
 #: step for a Kilobot and up to ~0.4 ms for a drone, two to four times its live VM time, so
-#: the step bound matters for seeks too. It was 100 until session 5: a Kilobot's keyframe
-#: (~0.2-0.4 ms) every 100 steps was a fifth of the recorder's time once the compiled swarm
-#: step made its simulation ~2 ms a step. 200 made the worst SAR seek 84-101 ms (drones that
+#: the step bound matters for seeks too. 100 would be too often: a Kilobot's keyframe
+#: (~0.2-0.4 ms) every 100 steps is a fifth of the recorder's time, the compiled swarm step
+#: making its simulation ~2 ms a step. 200 made the worst SAR seek 84-101 ms (drones that
 #: stay under the budget for 150-200 steps replay them in ~60 ms); 150: worst ~55-65 ms
 #: for both worlds (benchmarks/record_bench.py).
 #: A keyframe of an M300 drone costs ~0.4 ms (snapshot ~0.25, block delta ~0.1): keyframes
 #: are the recorder's largest cost, ~0.15 ms per SAR step (benchmarks/record_bench.py).
-#: Until session 5 the budget was 25 ms of control steps alone, the receiving not counted:
-#: about the same keyframe rate.
+#: (A budget of 25 ms of control steps alone, the receiving not counted, gives about the same
+#: keyframe rate.)
 KEYFRAME_BUDGET_SECONDS = 0.030
 #: Robots are not timed one by one (an engine steps them in one batch, and a wrapper that
 #: timed each would keep them off its compiled path): the engine's VM time of each step
@@ -87,7 +87,7 @@ KEYFRAME_BUDGET_SECONDS = 0.030
 #: ~20x more wall than CPU time) still keyframes.
 MIN_CPU_SHARE = 0.05
 #: The budget is looked at every 8th step (reading every robot's instruction counter and the
-#: arithmetic are ~0.05 ms; every 4th step until session 5, ~7 % of the recorder's time on
+#: arithmetic are ~0.05 ms; every 4th step would be ~7 % of the recorder's time on
 #: a Kilobot swarm): a keyframe comes at most 7 steps late, ~2.5 ms of one drone's VM time
 #: against a 30 ms budget.
 KEYFRAME_CHECK_EVERY = 8
@@ -98,9 +98,8 @@ KEYFRAME_COST_FACTOR = 12
 #: Columns are sent and flushed every 500 steps (50 s of Kilobot time, ~5 s of a 25-drone SAR
 #: swarm): each flush costs ~15 `send_columns` calls of Rerun's Python-side conversion and
 #: our own preparation of the columns, partly a fixed cost per flush, so fewer, larger chunks
-#: (session 5: 100 steps cost 0.15 ms per SAR step, 250 0.10; session 6, once the per-step
-#: costs had shrunk, 25 Kilobots: 500 steps 7.5-8.0 % of the simulation's CPU time against
-#: 8.0-8.3 % for 250, three runs each)...
+#: (measured: 100 steps cost 0.15 ms per SAR step, 250 0.10; with 25 Kilobots, 500 steps
+#: take 7.5-8.0 % of the simulation's CPU time against 8.0-8.3 % for 250, three runs each)...
 FLUSH_EVERY = 500
 #: ...or after 10 wall-clock seconds, so a slow swarm loses at most ~10 s if killed. (Each flush
 #: writes one chunk per entity, ~1.5 KB of Arrow framing each: flushing every step of a slow

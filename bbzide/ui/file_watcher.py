@@ -47,6 +47,22 @@ class FileWatcher(FileSystemEventHandler):
             if self._timer is not None:
                 self._timer.cancel()
 
+    def wait_quiet(self, timeout: float | None = None) -> bool:
+        """Wait until the callback of the burst in progress (if any) has run; False when
+        `timeout` passed first. Events that arrive meanwhile restart the burst and are waited
+        for too."""
+        while True:
+            with self._timer_lock:
+                timer = self._timer
+            if timer is None:
+                return True
+            timer.join(timeout)
+            if timer.is_alive():
+                return False
+            with self._timer_lock:
+                if self._timer is timer:
+                    return True
+
     def on_any_event(self, event: FileSystemEvent) -> None:
         if event.event_type == "opened":
             return

@@ -27,7 +27,9 @@ from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.viser_server import open_server, page_url
 
-#: Playback speeds offered, as multiples of the mission's real time (the issue: 0.25x-16x).
+_JUMP_LABELS = dict(JUMP_KINDS)
+
+#: Playback speeds offered, as multiples of the mission's real time (0.25x to 16x).
 SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0, "8×": 8.0, "16×": 16.0}
 #: The player redraws at most this often: smooth enough, and a seek's inspector rebuild fits.
 FRAME_HZ = 30.0
@@ -54,6 +56,11 @@ class ReplayApp:
         self.playing = False
         self.speed = 1.0
         self.last_seek_seconds = 0.0
+        #: what the status line adds until the next seek (a jump that found nothing says so)
+        self.note = ""
+        #: turns of the player thread, each a look at `playing` (a paused player is idle after
+        #: two: the turn in progress at the pause, then one that saw it)
+        self.player_turns = 0
         self._lock = threading.RLock()
         self._inspectors: dict[int, InspectorPanel] = {}
         self._stop = threading.Event()
@@ -157,6 +164,7 @@ class ReplayApp:
         started = time.perf_counter()
         with self._lock:
             self.step = step
+            self.note = ""
             frame = session.frame(step)
             self.scene.draw(frame)
             self.overlays.show(session.recording.overlays_at(step) or None,
@@ -174,9 +182,12 @@ class ReplayApp:
 
     def jump(self, kind: str, forward: bool) -> None:
         target = self.session.jump(kind, self.step, forward)
-        if target is not None:
-            self.playing = False
-            self.seek(target)
+        if target is None:
+            self.note = f"no {'later' if forward else 'earlier'} {_JUMP_LABELS[kind].lower()}"
+            self._refresh_status()
+            return
+        self.playing = False
+        self.seek(target)
 
     def play(self) -> None:
         if self.step >= self.session.last_step:
@@ -203,6 +214,7 @@ class ReplayApp:
         position = float(self.step)
         last = time.monotonic()
         while not self._stop.wait(1.0 / FRAME_HZ):
+            self.player_turns += 1
             now = time.monotonic()
             if not self.playing:
                 position, last = float(self.step), now
@@ -258,6 +270,8 @@ class ReplayApp:
                     counts[value] = counts.get(value, 0) + 1
             if counts:
                 parts.append(f"{name}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+        if self.note:
+            parts.append(self.note)
         text = " · ".join(parts)
         if self.status_line.content != text:
             self.status_line.content = text

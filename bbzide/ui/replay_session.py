@@ -102,7 +102,7 @@ class ReplaySession:
         * rebuild it once over its first keyframe's span. A replay receives and steps each
           robot on its own, through compiled VM functions the live swarm's batched step does
           not use; the first call of each in the process loads it from numba's cache (30-100
-          ms each, measured: the worst first seeks of session 5, 111-153 ms, were these).
+          ms each; measured, the worst first seeks, 111-153 ms, were these).
           Different robots' inputs take different ones, so every robot is re-executed once.
         """
         recording = self.recording

@@ -141,6 +141,14 @@ class RunController:
                 self._sim if pin_positions else None)
         return self.backend.save_scenario(scenario, path)  # type: ignore[attr-defined]
 
+    def flush(self, timeout: float | None = None) -> bool:
+        """Wait until the simulation thread has applied every command sent before this call
+        (False if `timeout` passed first): then the status shows what those commands did, and
+        after a pause or a single step no further step can start until the next command."""
+        applied = threading.Event()
+        self._send("flush", applied)
+        return applied.wait(timeout)
+
     @contextlib.contextmanager
     def locked(self, timeout: float | None = None) -> Iterator[SimulationHandle | None]:
         """The simulation between two steps (None before the first program arrives).
@@ -204,6 +212,8 @@ class RunController:
             self._pending_steps += 1
         elif command == "reset":
             self._rebuild()
+        elif command == "flush":
+            argument.set()
         elif command == "program":
             self._program = argument
             self.status.program_generation += 1

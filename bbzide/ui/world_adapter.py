@@ -35,8 +35,8 @@ from bbzide.ui.inspection import RobotInspection
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
-#: `bbzide` with no arguments opens this world with this many robots (the issue: "the Kilobot
-#: table with ~25 robots").
+#: `bbzide` with no arguments opens this world with this many robots: the Kilobot table with
+#: ~25 robots, a swarm a student can follow robot by robot.
 DEFAULT_WORLD_HINT = "kilobot"
 DEFAULT_ROBOTS = 25
 

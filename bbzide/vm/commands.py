@@ -91,6 +91,7 @@ def load(script: Path, registrations: list[Registration], include: list[str]):  
         compile_file,
         load_program,
     )
+    from bbzide.compiler.commands import include_path_from_environment
 
     if not script.exists():
         raise UserError(f"{script}: no such file")
@@ -103,7 +104,8 @@ def load(script: Path, registrations: list[Registration], include: list[str]):  
             raise UserError(f"{script}: {why}: compile it with --platform, or run the .bzz")
         return program
     table = bittybuzz_string_table(host_names(registrations))
-    return compile_file(script, include_path=include, string_table=table).to_bbo()
+    return compile_file(script, include_path=[*include, *include_path_from_environment()],
+                        string_table=table).to_bbo()
 
 
 def run_single_robot(args: argparse.Namespace) -> int:

@@ -3,9 +3,9 @@
 ``Robot.receive_all`` + ``Robot.control_step`` are four phases, each already compiled on
 its own (:mod:`fastreceive`, :mod:`fastinbox`, :mod:`fasthost`); called one by one from
 Python, with the queues packed and unpacked for each, the Python between them cost as much
-as the machine code (issue #4). :func:`robot_step` runs the whole control step of one robot
-in one call, on the robot's packed queues and ring (:mod:`packed_queues`, which stay packed
-between steps):
+as the machine code (benchmarks/world_bench.py). :func:`robot_step` runs the whole control
+step of one robot in one call, on the robot's packed queues and ring (:mod:`packed_queues`,
+which stay packed between steps):
 
 1. receive the robot's rows of the step's deliveries (XTREME/u8 profiles only, as
    :func:`fastreceive.receive_all`; the others receive through Python before the call);

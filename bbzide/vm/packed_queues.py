@@ -3,7 +3,7 @@
 The reference routines (:mod:`messages`, :mod:`neighbors`) keep a queue as a list of
 ``bytearray`` records and the neighbor ring as a list of ``NeighborEntry`` objects: easy to
 read, but a compiled routine cannot touch them, and packing them into arrays for every call
-and copying them back cost more than the machine code they fed (issue #4: ~30 µs of a
+and copying them back cost more than the machine code they fed (measured: ~30 µs of a
 Kilobot's ~160 µs VM step). :class:`PackedQueues` holds the same state as arrays that the
 compiled swarm step (:mod:`fastbatch`) works on in place, and **only one of the two forms
 holds the truth at a time**:

@@ -4,8 +4,8 @@ Design: a world engine steps every robot each control step — each robot takes 
 the radio delivered to it (`Robot.receive_all`), then runs its firmware loop once
 (`Robot.control_step`: in-queue, ``step``, out-queue) — and collects what they sent. Done
 robot by robot from Python, the calls around the VM cost more than the VM itself for a
-1,000-Kilobot table (issue #4), so the engine hands the whole step over in one call,
-`control_steps`, with the messages as columns instead of a tuple per message:
+1,000-Kilobot table (benchmarks/world_bench.py), so the engine hands the whole step over in
+one call, `control_steps`, with the messages as columns instead of a tuple per message:
 
 * `PackedMessages` — rows of (robot index, payload bytes, wire length), plus for deliveries
   the situated data of each row (distance, azimuth, elevation). The same type carries a

@@ -1453,7 +1453,7 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 #   (not before: a VM stopped between the two shows the unmarked object, as the
 #   firmware). A free slot the marker did reach may have been a stale *table* whose
 #   segments it walked: the leaf written over it changes that walk, so a collection runs
-#   (found by the hypothesis test; the rule skipped it until session 3).
+#   (a case the hypothesis test found: a rule without this check skipped it).
 # None of these changes how non-leaves are traversed, so ``gc_info`` stays true. Every
 # other instruction (pops, stores, calls, tables, lambdas) is followed by a collection.
 #

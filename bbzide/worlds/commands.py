@@ -91,6 +91,7 @@ def parse_world_options(items: list[str]) -> dict[str, Any]:
 def load_script(path: Path, host_names: tuple[str, ...], include: list[str]) -> Any:
     """Compile a `.bzz` for a world's string table (or load a `.bbo`): a BittyBuzzProgram."""
     from bbzide import compiler
+    from bbzide.compiler.commands import include_path_from_environment
 
     if not path.exists():
         raise UserError(f"no such script: {path}")
@@ -99,7 +100,7 @@ def load_script(path: Path, host_names: tuple[str, ...], include: list[str]) -> 
         program = compiler.load_program(path)
         check_string_table(path, program.strings, tuple(host_names))
         return program
-    include_path = (*include, str(path.parent))
+    include_path = (*include, *include_path_from_environment(), str(path.parent))
     return compiler.compile_file(str(path), include_path=include_path,
                                  string_table=strings).to_bbo()
 

@@ -83,6 +83,9 @@ class CrazyflieLab(World):
             raise WorldConfigError(f"unknown formation {formation!r}: grid, chain or circle")
         if step_seconds <= 0:
             raise WorldConfigError("the control period must be positive")
+        if spacing < 2 * CRAZYFLIE_RADIUS:
+            raise WorldConfigError(f"formation spacing {spacing} m is less than a Crazyflie "
+                                   f"({2 * CRAZYFLIE_RADIUS * 1000:.0f} mm)")
         self.step_seconds = step_seconds
         bounds = (-width / 2, -depth / 2, width / 2, depth / 2)
         radio = RadioSettings(

@@ -90,6 +90,11 @@ ARRIVAL_TOLERANCE = 0.3      # m: goto counts as reached within this distance
 DM = 10.0                    # decimetres per metre: the unit of the Buzz interface
 DEFAULT_COMM_RANGE = 10.0    # m: thesis §5.4.2
 DEFAULT_CELLS = 10           # belief raster cells per side (the SAR script's key table matches)
+#: The most belief cells per side: BittyBuzz's virtual stigmergy keys are strings and it cannot
+#: build one at run time, so the SAR script (examples/sar/belief_keys.bzz) names each cell's key
+#: in a table of 10 x 10 entries; past it, cells would share the key of a missing entry (nil)
+#: and the belief map would be silently wrong. tests/worlds/test_m300_world.py keeps the two equal.
+MAX_CELLS = 10
 LAUNCH_STRIP = 4.0           # m: drones start within this distance of the west edge
 HOT_SPOTS = 3                # Gaussian bumps of a generated belief map
 BELIEF_FLOOR = 0.05          # generated maps never say "impossible" (priors can be wrong)
@@ -158,7 +163,8 @@ def draw_targets(belief: np.ndarray, size: float, count: int, rng: np.random.Gen
     cell = size / cells
     weights = belief.ravel() * (belief.ravel() >= floor)
     if weights.sum() <= 0:
-        raise WorldConfigError(f"no belief cell reaches {floor:g}: nowhere to put a target")
+        raise WorldConfigError(f"no belief cell reaches {100 * floor:g} % (the search "
+                               "threshold): nowhere to put a target")
     weights = weights / weights.sum()
     targets: list[tuple[float, float]] = []
     for _ in range(10_000):          # far more tries than any sane field needs
@@ -241,6 +247,11 @@ class M300Field(World):
             raise WorldConfigError("a search run needs at least 1 search step")
         if not 0 <= loss <= 1:
             raise WorldConfigError(f"loss probability must be within [0, 1], got {loss}")
+        if not 0 <= threshold <= 100:
+            raise WorldConfigError(f"the search threshold is a percentage of belief: within "
+                                   f"0..100, got {threshold}")
+        if map_seed is not None and map_seed < 0:
+            raise WorldConfigError(f"map_seed must be >= 0, got {map_seed}")
         radio = RadioSettings(comm_range=comm_range, loss_probability=loss,
                               messages_per_step=10, send_queue_cap=10, has_bearing=True)
         super().__init__((0.0, 0.0, float(size), float(size)), radio)
@@ -258,6 +269,11 @@ class M300Field(World):
         self.cells = self._given_map.shape[0] if self._given_map is not None else int(cells)
         if self.cells < 1:
             raise WorldConfigError("the belief map needs at least 1 cell")
+        if self.cells > MAX_CELLS:
+            raise WorldConfigError(
+                f"the belief map has at most {MAX_CELLS} x {MAX_CELLS} cells, got {self.cells} "
+                f"per side: the SAR script names one stigmergy key per cell "
+                f"(examples/sar/belief_keys.bzz holds {MAX_CELLS * MAX_CELLS})")
         if isinstance(targets, str):          # `--set targets=26:24,10:5` (x:y metres)
             targets = parse_targets(targets)
         if isinstance(targets, int):

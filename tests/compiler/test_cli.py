@@ -133,55 +133,71 @@ def test_compile_searches_buzz_include_path(tmp_path, monkeypatch):
     assert main(["compile", str(script), "--platform", "pc"]) == 1
 
 
-SCRIPT = "function init() {\n  x = 1\n}\n"
+def test_run_searches_buzz_include_path_too(tmp_path, monkeypatch, capsys):
+    """`run` (one robot, and a swarm in a world) finds includes where `compile` does."""
+    library = tmp_path / "lib"
+    library.mkdir()
+    (library / "helpers.bzz").write_text("function twice(x) { return 2 * x }\n")
+    script = tmp_path / "main.bzz"
+    script.write_text('include "helpers.bzz"\nfunction init() {\n  log(twice(21))\n}\n'
+                      "function step() {}\n")
+    monkeypatch.chdir(tmp_path)
+    one_robot = ["run", str(script), "--steps", "1"]
+    in_a_world = ["run", str(script), "--world", "kilobot", "--robots", "1", "--steps", "1"]
+    for command in (one_robot, in_a_world):
+        monkeypatch.setenv("BUZZ_INCLUDE_PATH", "")
+        assert main(command) == 1
+        assert "Can't read 'helpers.bzz'" in capsys.readouterr().err
+        monkeypatch.setenv("BUZZ_INCLUDE_PATH", str(library))
+        assert main(command) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    assert main(one_robot) == 0
+    assert capsys.readouterr().out.splitlines()[0] == "42"
 
 
-def _script(tmp_path: Path, name: str = "mine.bzz") -> Path:
-    script = tmp_path / name
-    script.write_text(SCRIPT)
-    return script
+def test_bst_with_host_or_a_non_bittybuzz_bst_with_platform_is_refused(tmp_path, capsys):
+    script = _copy("arith16", BBZ_DIR, tmp_path)
+    bst = str(tmp_path / "arith16.bst")
+    assert main(["compile", str(script), "--bst", bst, "--host", "led"]) == 1
+    err = capsys.readouterr().err
+    assert "--bst gives the whole string table, host names included: --host" in err
+    plain = tmp_path / "plain.bst"
+    plain.write_text("log\ninit\n")
+    assert main(["compile", str(script), "--bst", str(plain), "--platform", "kilobot"]) == 1
+    err = capsys.readouterr().err
+    assert f"--bst {plain} with --platform kilobot: it is not BittyBuzz's string table" in err
+    assert "Traceback" not in err
+    assert main(["compile", str(script), "--bst", str(plain), "-o", str(tmp_path / "p.bo")]) == 0
 
 
-def test_an_output_onto_the_script_itself_is_refused_and_the_script_kept(tmp_path, capsys):
-    script = _script(tmp_path)
-    for option in ("-o", "--bbo", "--basm", "--bdb"):
-        for force in ([], ["--force"]):
-            assert main(["compile", str(script), option, str(script), *force]) == 1
-            err = capsys.readouterr().err
-            assert "is the input" in err and "Traceback" not in err
-            assert script.read_text() == SCRIPT
+def _compile_error(tmp_path: Path, source: bytes, capsys) -> str:
+    script = tmp_path / "bad.bzz"
+    script.write_bytes(source)
+    assert main(["compile", str(script)]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and ".bo" not in err  # about the script, not a file we made
+    return err
 
 
-def test_an_output_onto_another_buzz_source_needs_force(tmp_path, capsys):
-    script = _script(tmp_path)
-    other = _script(tmp_path, "other.bzz")
-    assert main(["compile", str(script), "--basm", str(other)]) == 1
-    assert "--force" in capsys.readouterr().err
-    assert other.read_text() == SCRIPT
-    assert main(["compile", str(script), "--basm", str(other), "--force"]) == 0
-    assert other.read_text().startswith("!")     # the .basm's string section
+def test_a_string_the_bytecode_cannot_store_is_an_error_at_the_string(tmp_path, capsys):
+    for source in (b'var s = "a\\nb"\nlog(s)\n', b'var s = "a\nb"\nlog(s)\n'):
+        err = _compile_error(tmp_path, source, capsys)
+        assert "bad.bzz:1:8: error: Syntax error: a string cannot hold a line break" in err
+    err = _compile_error(tmp_path, b'var s = "a\0b"\nlog(s)\n', capsys)
+    assert "bad.bzz:1:8: error: Syntax error: a string cannot hold a NUL byte" in err
+    assert "\0" not in err  # the line with the raw NUL is not echoed to the terminal
+    # the same script as `run` compiles it
+    script = tmp_path / "bad.bzz"
+    script.write_bytes(b'var s = "a\\nb"\nlog(s)\n')
+    assert main(["run", str(script)]) == 1
+    assert "bad.bzz:1:8: error: Syntax error: a string cannot hold a line break" in (
+        capsys.readouterr().err)
 
 
-def test_two_outputs_on_one_path_are_refused(tmp_path, capsys):
-    script = _script(tmp_path)
-    assert main(["compile", str(script), "-o", str(tmp_path / "x.bin"),
-                 "--bbo", str(tmp_path / "x.bin")]) == 1
-    assert "both name" in capsys.readouterr().err
-    assert not (tmp_path / "x.bin").exists()
-
-
-def test_bo2bbo_onto_its_own_bo_is_refused(tmp_path, capsys):
-    script = _script(tmp_path)
-    assert main(["compile", str(script)]) == 0
-    bo = script.with_suffix(".bo")
-    before = bo.read_bytes()
-    assert main(["bo2bbo", str(bo), "-o", str(bo)]) == 1
-    assert "is the input" in capsys.readouterr().err
-    assert bo.read_bytes() == before
-
-
-def test_compiling_a_folder_says_it_is_a_folder(tmp_path, capsys):
-    folder = tmp_path / "lesson.bzz"
-    folder.mkdir()
-    assert main(["compile", str(folder)]) == 1
-    assert "is a folder" in capsys.readouterr().err
+def test_a_binary_file_is_named_as_one_and_its_bytes_are_not_printed(tmp_path, capsys):
+    binary = bytes(range(256)) * 4  # control bytes, NUL and bytes that are not UTF-8
+    for data in (binary, b"\x9f\xff" + binary):
+        err = _compile_error(tmp_path, data, capsys)
+        assert "unknown character" in err and "the file is not text: is it a Buzz script?" in err
+        assert len(err.splitlines()) == 1
+        assert all(ch.isprintable() for ch in err.rstrip("\n"))

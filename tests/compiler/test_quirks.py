@@ -102,8 +102,12 @@ def test_end_of_file_error_has_a_position(tmp_path, quirks):
     assert (info.value.location.line, info.value.location.col) == (1, 6)
 
 
-def test_newline_escape_warns(tmp_path):
-    result = compile_text(tmp_path, 'log("a\\nb")\n')
+def test_newline_escape_is_an_error_by_default_and_kept_with_a_warning_as_the_reference(
+        tmp_path):
+    with pytest.raises(CompileError, match="a string cannot hold a line break") as info:
+        compile_text(tmp_path, 'log("a\\nb")\n')
+    assert (info.value.location.line, info.value.location.col) == (1, 4)
+    result = compile_text(tmp_path, 'log("a\\nb")\n', reference_quirks=True)
     assert "a\nb" in result.basm and any("newline" in w for w in result.warnings)
 
 

@@ -1,7 +1,7 @@
 """A recording cut at any byte (a killed writer) opens up to its last complete step, or is refused.
 
-Issue #6: "A recording cut off by killing the process mid-run is readable up to its last flushed
-step". The writer can die anywhere: inside a data message, inside Rerun's end-of-stream message
+A recording cut off by killing the process mid-run must be readable up to its last flushed
+step. The writer can die anywhere: inside a data message, inside Rerun's end-of-stream message
 (which carries the footer's index) or inside the footer itself. We cut one finished recording at
 every few per cent and around every message boundary, and each cut must either open marked
 truncated, with the full file's frames and rebuilt robots at every step it holds, or (only when

@@ -3,14 +3,12 @@
 A Kilobot swarm runs the shipped examples on the real compiler, VM and world while being
 recorded; the recording must show the live poses and heap figures at sampled steps, and a robot
 rebuilt at random steps (keyframe + re-executed inputs) must equal the live robot byte for byte:
-its `snapshot()`, its heap bytes, ROP, LSP, stack and pc. Skipped only while the VM room's
-`bbzide/vm/robot.py` is not merged into the branch under test.
+its `snapshot()`, its heap bytes, ROP, LSP, stack and pc.
 """
 
 from __future__ import annotations
 
 import gc
-import importlib.util
 import random
 import zlib
 from pathlib import Path
@@ -28,9 +26,6 @@ from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
 from tests.recording.test_recording import record_steps
-
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("bbzide.vm.robot") is None,
-                                reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
 
 REPO = Path(__file__).resolve().parents[2]
 ROBOTS = 9

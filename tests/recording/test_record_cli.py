@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import pytest
@@ -12,7 +11,6 @@ from bbzide.recording.reader import read_recording
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = str(REPO / "examples/kilobot/gradient.bzz")
-HAS_ROBOT = importlib.util.find_spec("bbzide.vm.robot") is not None
 
 
 def test_existing_file_is_kept_without_force(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
@@ -32,7 +30,6 @@ def test_record_needs_a_world_and_an_rrd_name(tmp_path: Path,
     assert ".rrd" in capsys.readouterr().err
 
 
-@pytest.mark.skipif(not HAS_ROBOT, reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
 def test_recorded_run_replays(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     path = tmp_path / "mission.rrd"
     path.write_bytes(b"old")
@@ -67,7 +64,6 @@ LOOP_1000 = ("function init() {}\nfunction step() {\n  var i = 0\n"
 RETURNS = "function init() {}\nfunction step() {\n  return 1\n}\n"
 
 
-@pytest.mark.skipif(not HAS_ROBOT, reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
 def test_recorded_run_applies_budget_and_loop(tmp_path: Path,
                                               capsys: pytest.CaptureFixture) -> None:
     """As `run --world` does: every robot gets --budget and --loop, and the recording keeps
@@ -88,7 +84,6 @@ def test_recorded_run_applies_budget_and_loop(tmp_path: Path,
     assert read_recording(path).meta["loop"] == "robot"
 
 
-@pytest.mark.skipif(not HAS_ROBOT, reason="needs the VM room's Robot")
 def test_a_scenario_run_can_be_recorded_with_its_script_source(tmp_path: Path,
                                                               capsys: pytest.CaptureFixture
                                                               ) -> None:

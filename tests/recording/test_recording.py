@@ -3,7 +3,7 @@
 The firmware is `doubles.ToyRobot`, whose state depends on every outside input (messages with
 situated data, host-function results and failures), so these tests pin the recorder's
 mechanics: what a replay shows equals the live run, the rebuilt robot equals the live one
-byte for byte, and damaged, foreign or existing files are handled as the issue asks.
+byte for byte, and damaged, foreign or existing files are refused or kept, never misread.
 """
 
 from __future__ import annotations

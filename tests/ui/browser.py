@@ -30,7 +30,7 @@ CHROMIUM_ARGS = [
 FIRST_RENDER_TIMEOUT_MS = 60_000
 #: How long a UI reaction (a save, a compile, a robots' reload, an error marker, a pause) may
 #: take before a test calls it hung. It bounds liveness, not speed: during a full-suite run on
-#: the 2 shared cores a reload took over 15 s (session 5); speed figures live in benchmarks/.
+#: the 2 shared cores a reload took over 15 s; speed figures live in benchmarks/.
 UI_WAIT_S = 60.0
 UI_WAIT_MS = int(UI_WAIT_S * 1000)
 

@@ -9,6 +9,7 @@ use the real compiler, VM and worlds instead.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,6 +20,9 @@ from bbzide.diagnostics import CompileError, SourceLocation
 from bbzide.ui.inspection import HeapBlock, RobotInspection
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 
+#: the longest a released stuck step waits for its event: a test that forgets it fails, not hangs
+STUCK_LIMIT_SECONDS = 30.0
+
 
 @dataclass
 class FakeProgram:
@@ -26,6 +30,8 @@ class FakeProgram:
     bbo: bytes
     strings: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: when set, a "while(1)" step lasts until the test sets this event (instead of 1.5 s)
+    release: threading.Event | None = None
 
 
 @dataclass
@@ -52,7 +58,10 @@ class FakeSimulation:
 
     def step(self) -> None:
         if "while(1)" in self.program.text.replace(" ", ""):
-            time.sleep(1.5)  # what a script stuck in a loop feels like to the run thread
+            if self.program.release is not None:
+                self.program.release.wait(STUCK_LIMIT_SECONDS)
+            else:
+                time.sleep(1.5)  # what a script stuck in a loop feels like to the run thread
         self.headings += 0.05
         self.positions += 0.002 * np.stack([np.cos(self.headings), np.sin(self.headings)], axis=1)
         self.step_count += 1
@@ -157,7 +166,7 @@ class FakeBackend:
 
 class FrontEndBackend(FakeBackend):
     """The double world, but the text goes through the real Buzz compiler front end, so the
-    editor shows the real compiler's errors (until the full compiler and VM are merged)."""
+    editor shows the real compiler's errors without running a VM."""
 
     def compile(self, text: str, path: Path, world: str) -> tuple[FakeCompiled, FakeProgram]:
         from bbzide.compiler.frontend import compile_to_basm

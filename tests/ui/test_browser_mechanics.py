@@ -222,7 +222,7 @@ def test_tab_enter_and_shift_tab_indent_like_an_editor(ide: IdeSession) -> None:
     wait_until(lambda: app.session.text == SCRIPT, UI_WAIT_S, message="script restored")
 
 
-def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
+def test_a_300_line_script_loads_numbers_its_lines_and_saves_typing(ide: IdeSession) -> None:
     app = ide.app
     body = "".join(
         f"function f{i}(a, b) {{\n  var s = a * {i} + b  # comment {i}\n  return s\n}}\n"
@@ -233,14 +233,7 @@ def test_a_300_line_script_stays_comfortable(ide: IdeSession) -> None:
     source = ide.editor.locator("#source")
     wait_until(lambda: source.input_value() == body, UI_WAIT_S, message="300 lines in the editor")
     assert ide.editor.locator("#gutter div").count() == 301
-    frame = ide.page.frame(url=ide.app.editor_url)
-    assert frame is not None
-    render_ms = frame.evaluate(
-        "() => { const t = performance.now(); for (let i = 0; i < 20; i++) render();"
-        " return (performance.now() - t) / 20; }"
-    )
-    print(f"re-highlighting 300 lines: {render_ms:.2f} ms per keystroke")
-    assert render_ms < 50, "typing would lag"
+    # how fast re-highlighting is (goal: <= 50 ms per keystroke) is editor_render_bench's figure
     source.click()
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("# end\n")

@@ -3,8 +3,7 @@
 The flows of test_browser_mechanics.py, this time with real Buzz: the world's example runs,
 a real CompileError marks its line, the fix reloads every robot with the new .bbo, an external
 save reloads, `while (1) {}` in a robot leaves the controls answering, and the inspector's ROP
-and LSP for a clicked robot equal that robot's VM. Skipped (with the reason) only while the
-lower rooms are not merged into the branch under test.
+and LSP for a clicked robot equal that robot's VM.
 """
 
 from __future__ import annotations
@@ -19,20 +18,13 @@ from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from ide_harness import IdeSession, running_ide
 
 from bbzide.ui.program_session import write_atomically
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-    MISSING = ""
-except MissingRoomError as error:
-    BACKEND, MISSING = None, error.message
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason=f"lower rooms not merged: {MISSING}")
+BACKEND = WorldsBackend()
 
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     world = BACKEND.default_world()
     example = BACKEND.example_path(world)
     assert example is not None and example.is_file(), f"{world} has no example script"
@@ -149,9 +141,15 @@ def test_infinite_loop_keeps_controls_responsive(ide: IdeSession) -> None:
     app = ide.app
     original = app.session.text
     source = ide.editor.locator("#source")
+    status = app.controller.status
+    generation = status.program_generation
     source.fill(original + "\nfunction spin() {\n  while (1) { }\n}\nspin()\n")
     wait_until(lambda: "spin()" in app.session.text, UI_WAIT_S, message="loop uploaded")
-    time.sleep(2)
+    wait_until(lambda: status.program_generation > generation, UI_WAIT_S,
+               message="the robots to load the loop")
+    step = status.step
+    wait_until(lambda: status.step_started_at is not None or status.step > step, UI_WAIT_S,
+               message="a step of the loop")
     clicked = time.monotonic()
     ide.page.get_by_role("button", name="Pause").click()
     wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="pause honoured")

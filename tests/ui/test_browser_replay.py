@@ -9,7 +9,6 @@ recording (the same checks on a real Buzz recording are in tests/recording/test_
 from __future__ import annotations
 
 import re
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -48,8 +47,19 @@ def replay(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ReplayApp
         app.stop()
 
 
+def status_text(page: object) -> str:
+    return page.locator("text=/of \\d+\\.\\.\\d+/").first.inner_text()  # type: ignore[attr-defined]
+
+
+def player_idle(app: object) -> None:
+    """Wait two turns of the replay's player thread: a paused player has then stopped."""
+    turns = app.player_turns  # type: ignore[attr-defined]
+    wait_until(lambda: app.player_turns >= turns + 2, UI_WAIT_S,  # type: ignore[attr-defined]
+               message="two turns of the player")
+
+
 def shown_step(page: object) -> int:
-    text = page.locator("text=/of \\d+\\.\\.\\d+/").first.inner_text()  # type: ignore[attr-defined]
+    text = status_text(page)
     match = re.search(r"step (\d+)", text)
     assert match, text
     return int(match.group(1))
@@ -102,8 +112,9 @@ def test_step_buttons_play_and_jumps(replay: tuple) -> None:
     wait_until(lambda: shown_step(page) > 60, UI_WAIT_S, message="playing")
     page.get_by_role("button", name="❚❚ Pause").click()
     wait_until(lambda: not app.playing, UI_WAIT_S, message="paused")
+    player_idle(app)  # a seek in flight at the pause has landed
     paused = app.step
-    time.sleep(0.5)
+    player_idle(app)
     assert app.step == paused
 
 
@@ -118,16 +129,18 @@ def test_jump_to_the_robot_error(replay: tuple) -> None:
     wait_until(lambda: shown_step(page) == errors[0], UI_WAIT_S, message="jump to the error")
     assert "1 in error" in page.locator("text=/of \\d+\\.\\.\\d+/").first.inner_text()
     page.get_by_role("button", name="◀ previous").nth(kinds.index("error")).click()
-    time.sleep(0.5)
+    wait_until(lambda: "no earlier robot error" in status_text(page), UI_WAIT_S,
+               message="the status line to say there is no earlier error")
     assert app.step == errors[0]  # no earlier error: stays
 
 
-def test_seek_latency_is_recorded(replay: tuple) -> None:
+def test_every_seek_shows_its_step_and_records_its_latency(replay: tuple) -> None:
+    """How fast a seek is (the goal: well under a second) is record_bench's figure."""
     app, _ = replay
     for step in (5, 140, 77, 3, 149):
         app.seek(step)
-        assert app.last_seek_seconds < 1.0  # generous: the figure itself is in the benchmark
-    assert_scene_shows(app, 149)
+        assert app.step == step and app.last_seek_seconds > 0
+        assert_scene_shows(app, step)
 
 
 def test_replay_command_rejects_foreign_files(tmp_path: Path) -> None:

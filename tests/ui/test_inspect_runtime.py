@@ -11,16 +11,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 SCRIPT = """
 got = 0
@@ -36,7 +30,6 @@ function step() {
 
 
 def run(tmp_path: Path, value: str, robots: int = 4) -> object:
-    assert BACKEND is not None
     path = tmp_path / "probe.bzz"
     text = SCRIPT.replace("TABLE", value)
     path.write_text(text)

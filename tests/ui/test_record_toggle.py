@@ -7,7 +7,6 @@ the IDE uses; only the Buzz VM is replaced.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +46,7 @@ def test_toggle_records_from_the_current_step_until_switched_off(tmp_path: Path)
         controller.play()
         wait_until(lambda: controller.status.step > 40, 20, message="running")
         controller.pause()
-        time.sleep(0.2)
+        assert controller.flush(10)
         controller.set_recording(None)
         wait_until(lambda: controller.status.recording is None, 10, message="stopped")
         stopped_at = controller.status.step

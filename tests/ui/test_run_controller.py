@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import time
+import threading
 
 from browser import wait_until
 from doubles import FakeBackend, FakeProgram
@@ -23,15 +23,16 @@ def test_play_pause_step_reset() -> None:
     try:
         assert controller.status.step == 0
         controller.single_step()
-        wait_until(lambda: controller.status.step == 1, 5, message="one step")
-        time.sleep(0.2)
+        assert controller.flush(5)
+        assert controller.status.step == 1 and not controller.status.running
+        assert controller.flush(5)  # another turn of the simulation thread: still one step
         assert controller.status.step == 1  # paused after a single step
         controller.play()
         wait_until(lambda: controller.status.step > 20, 5, message="running")
         controller.pause()
-        time.sleep(0.2)
+        assert controller.flush(5)
         paused_at = controller.status.step
-        time.sleep(0.3)
+        assert controller.flush(5)
         assert controller.status.step == paused_at
         controller.reset()
         wait_until(lambda: controller.status.step == 0, 5, message="reset")
@@ -95,14 +96,17 @@ def test_settings_rebuild_with_new_robot_count() -> None:
 
 def test_a_stuck_step_leaves_commands_and_status_working() -> None:
     controller, backend = make_controller()
+    release = threading.Event()
     try:
-        controller.load_program(FakeProgram("while(1){}", b"loop"))
+        controller.load_program(FakeProgram("while(1){}", b"loop", release=release))
         controller.play()
         wait_until(lambda: controller.status.step_started_at is not None, 5, message="step begins")
-        started = time.monotonic()
         controller.pause()  # returns at once: only queued
         controller.load_program(FakeProgram("step", b"ok"))
-        assert time.monotonic() - started < 0.5  # queued, not waiting out the 1.5 s step
+        # both calls returned while the step is still stuck (it ends only when released)
+        assert not release.is_set() and controller.status.step_started_at is not None
+        assert controller.status.program_generation == 2
+        release.set()
         wait_until(
             lambda: controller.status.program_generation == 3, 5, message="reloaded after the step"
         )
@@ -119,8 +123,9 @@ def test_a_new_world_waits_for_the_program_compiled_for_it() -> None:
     try:
         controller.play()
         controller.update_settings(world="fake-lab")
-        wait_until(lambda: controller.settings.world == "fake-lab", 5, message="switch")
-        time.sleep(0.2)
+        assert controller.flush(5)
+        assert controller.settings.world == "fake-lab"
+        assert controller.flush(5)  # another turn: the old program still does not run
         assert all(sim.world != "fake-lab" for sim in backend.created)
         assert not controller.has_program
         controller.load_program(FakeProgram("lab", b"l"))

@@ -1,7 +1,7 @@
 """The engine's lockstep step written the slow, readable way: a test oracle.
 
 Design: `ReferenceSimulation` is a `Simulation` whose `step` is the per-robot loop the engine
-had before it handed the VM phase to `swarm_batch.control_steps` (issue #4) — each robot's
+had before it handed the VM phase to `swarm_batch.control_steps` — each robot's
 deliveries as tuples, `receive_all` (or `receive` one by one), `world.is_asleep` and
 `control_step` robot by robot, counters added robot by robot — over the tuple radio of
 `reference_radio.py`. `test_determinism.py` requires the real engine to decide every run the

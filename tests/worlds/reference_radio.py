@@ -1,7 +1,7 @@
 """The engine's synchronous radio written the slow, readable way: a test oracle.
 
 Design: this is `bbzide/worlds/radio.py`'s `Radio` as it was before its send queues and
-deliveries became numpy columns (`PackedMessages`, issue #4): a deque of bytes per sender and
+deliveries became numpy columns (`PackedMessages`): a deque of bytes per sender and
 a tuple per delivery, built row by row. `test_packed_radio.py` drives it and the packed
 `Radio` with the same traffic and the same seeds and requires the same deliveries (receiver,
 sender, message order, situated data), counters, links and random draws.

@@ -1,6 +1,7 @@
 """M300 field: flight model, camera, belief map and targets, doze, relay check, bad options,
 and the flocking example on real VMs."""
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.m300 import (
     BELIEF_FLOOR,
+    MAX_CELLS,
     M300Field,
     draw_targets,
     generate_belief_map,
@@ -120,10 +122,29 @@ def test_load_belief_map(tmp_path):
     ({"targets": [(50.0, 1.0)]}, "inside the field"),
     ({"speed": 0.0}, "positive"),
     ({"targets": "26,24"}, "x:y positions"),
+    ({"map_seed": -1}, "map_seed must be >= 0"),
+    ({"threshold": 1000}, "within 0..100, got 1000"),
+    ({"threshold": -5}, "within 0..100, got -5"),
+    ({"cells": MAX_CELLS + 1}, f"at most {MAX_CELLS} x {MAX_CELLS} cells"),
+    ({"belief_map": [[0.5] * 12] * 12}, "got 12 per side"),
 ])
 def test_bad_options_are_user_errors(options, words):
     with pytest.raises(WorldConfigError, match=words):
         M300Field(**options)
+
+
+def test_max_cells_is_the_sar_scripts_key_table():
+    """Each belief cell needs its own stigmergy key in the SAR script: the world refuses more
+    cells than the table names (they would all read and write one missing key)."""
+    table = (ROOT / "examples" / "sar" / "belief_keys.bzz").read_text()
+    keys = re.findall(r'^BK\[(\d+)\] = "c(\d+)"$', table, flags=re.MULTILINE)
+    assert [(int(k), int(v)) for k, v in keys] == [(k, k) for k in range(MAX_CELLS ** 2)]
+    M300Field(cells=MAX_CELLS)
+
+
+def test_a_threshold_no_cell_reaches_names_the_threshold():
+    with pytest.raises(WorldConfigError, match="no belief cell reaches 50 % "):
+        one_drone({}, belief_map=[[0.1, 0.1], [0.1, 0.1]], threshold=50)
 
 
 def test_doze_skips_steps_until_the_drone_changes_cell():

@@ -31,6 +31,10 @@ GRADIENT = REPO / "examples" / "kilobot" / "gradient.bzz"
     # a list-valued option cannot be given as KEY=VALUE
     (["--world", "crazyflie", "--set", "obstacles=3"], "obstacles cannot be set"),
     (["--world", "kilobot", "--seed", "-1"], "--seed must be >= 0"),
+    (["--world", "m300", "--set", "map_seed=-1"], "map_seed must be >= 0, got -1"),
+    (["--world", "m300", "--set", "cells=20"], "at most 10 x 10 cells, got 20"),
+    (["--world", "m300", "--set", "threshold=1000"], "within 0..100, got 1000"),
+    (["--world", "crazyflie", "--set", "spacing=-1"], "spacing -1 m is less than a Crazyflie"),
 ])
 def test_bad_parameters(extra, words, capsys):
     assert main(["run", str(GRADIENT), *extra]) == 1
