@@ -59,7 +59,10 @@ ints; 1 dm is finer than the drones' GPS needs and an int16 holds 3.2 km.
 Sightings are the world's: a target counts as found (`found_step`) the first step a flying
 drone has it in its camera footprint, whatever the script does with it. `role_steps` counts, per
 drone and role, the steps spent in each role (the relay formation time is the root's auctioneer
-steps, thesis §5.4.2).
+steps, thesis §5.4.2). The world also counts, per drone, what the search pattern of §5.3 is
+made of, from the roles the script sets and the drones' positions: `rendezvous_returns` (a
+drone in the rendezvous role reached the meeting point), `root_elections` (a root candidate
+became the root) and `auctions` (the root opened an auction: root -> auctioneer).
 """
 
 from __future__ import annotations
@@ -88,13 +91,16 @@ DEFAULT_ALTITUDE = 5.0       # m: low enough that the camera resolves a person o
 CAMERA_FOV = math.radians(45.0)  # full field of view of the downward camera
 ARRIVAL_TOLERANCE = 0.3      # m: goto counts as reached within this distance
 DM = 10.0                    # decimetres per metre: the unit of the Buzz interface
+INT16_MAX = 32767            # BittyBuzz ints: the largest position a script can hold, in dm
 DEFAULT_COMM_RANGE = 10.0    # m: thesis §5.4.2
 DEFAULT_CELLS = 10           # belief raster cells per side (the SAR script's key table matches)
 LAUNCH_STRIP = 4.0           # m: drones start within this distance of the west edge
 HOT_SPOTS = 3                # Gaussian bumps of a generated belief map
 BELIEF_FLOOR = 0.05          # generated maps never say "impossible" (priors can be wrong)
 TARGET_SEPARATION = 4.0      # m: generated targets at least this far apart (distinct finds)
-DEFAULT_SEARCH_STEPS = 20    # goals per search run between two rendezvous (thesis §5.4.2)
+#: Search steps per search run between two rendezvous (thesis §5.4.2: 20). A search step is
+#: one wake of a flying searcher, 1 s (examples/sar/sar.bzz SEARCH_STEP): a run lasts 20 s.
+DEFAULT_SEARCH_STEPS = 20
 DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
 #: Where generated targets may lie, in proportion to the prior: "likely" (the default: only in
 #: cells the prior puts at or above the search threshold: the authorities' prior is right) or
@@ -230,6 +236,10 @@ class M300Field(World):
             raise WorldConfigError(
                 f"a {size:g} m field is smaller than the {comm_range:g} m communication range: "
                 "every drone would always hear every other and there is nothing to search for")
+        if size * DM > INT16_MAX:
+            raise WorldConfigError(
+                f"a {size:g} m field is too large: positions reach scripts as int16 decimetres "
+                f"(at most {INT16_MAX / DM:g} m)")
         if speed <= 0 or altitude <= 0:
             raise WorldConfigError("speed and altitude must be positive")
         if search not in ("belief", "random"):
@@ -310,6 +320,10 @@ class M300Field(World):
         self.known_targets: list[list[tuple[float, float]]] = [[] for _ in range(count)]
         self.parents = np.full(count, -1, dtype=np.int64)
         self.role_steps = np.zeros((count, len(ROLE_NAMES)), dtype=np.int64)
+        self.rendezvous_returns = np.zeros(count, dtype=np.int64)
+        self.root_elections = np.zeros(count, dtype=np.int64)
+        self.auctions = np.zeros(count, dtype=np.int64)
+        self.at_rendezvous = np.zeros(count, dtype=bool)
         self.asleep_until = np.zeros(count, dtype=np.int64)
         self.cells_now = np.array([self.cell_of(x, y) for x, y, _ in sim.positions])
         self.was_seeing = np.zeros(count, dtype=bool)
@@ -423,6 +437,7 @@ class M300Field(World):
                 call.fail("TYPE")
                 return
             name = ROLE_NAMES[code]
+            world.count_transition(index, world.roles[index], name)
             world.roles[index] = name
             world.role_codes[index] = code
             sim.robots[index].set_label("role", name)
@@ -471,6 +486,13 @@ class M300Field(World):
                 "mission": mission, "set_role": set_role, "know_target": know_target,
                 "relay_link": relay_link, "missed": missed, "rand": random_byte,
                 "clock": clock, "doze": doze}
+
+    def count_transition(self, index: int, before: str, after: str) -> None:
+        """Count the role changes that are events of the search pattern (§5.3.1)."""
+        if before == "root_candidate" and after == "root":
+            self.root_elections[index] += 1
+        elif before == "root" and after == "auctioneer":
+            self.auctions[index] += 1
 
     # ---- sensors and physics ------------------------------------------------------------------
     def seen_target(self, sim: Simulation, index: int) -> int:
@@ -528,6 +550,13 @@ class M300Field(World):
         wake = ((cells != self.cells_now) | (sees & ~self.was_seeing)
                 | (arrived & ~self.was_arrived))
         self.cells_now, self.was_seeing, self.was_arrived = cells, sees, arrived
+        # A return: a drone in the rendezvous role comes within the arrival tolerance of the
+        # meeting point (counted once per stay).
+        near = np.hypot(positions[:, 0] - self.rendezvous[0],
+                        positions[:, 1] - self.rendezvous[1]) <= ARRIVAL_TOLERANCE
+        returning = self.role_codes == ROLE_NAMES.index("rendezvous")
+        self.rendezvous_returns[returning & near & ~self.at_rendezvous] += 1
+        self.at_rendezvous = returning & near
         self.asleep_until[wake] = 0
 
     # ---- what the UI and the experiments read -------------------------------------------------

@@ -16,8 +16,10 @@ A run ends when every target has been seen and the relay tree is complete (`M300
 relay_complete`, checked every CHECK_PERIOD steps), or after `max_steps` (a timeout, reported).
 Measured per run (thesis §5.4.2): the step at which the last target was first seen ("timesteps
 to find all targets"), the steps the root spent as auctioneer ("relay formation time"), the
-step at which the tree was complete, messages and bytes sent per drone, and the bytes each
-drone sent per simulated second (the bandwidth plot, Fig. 5.12).
+step at which the tree was complete, messages and bytes sent per drone, the bytes each
+drone sent per simulated second (the bandwidth plot, Fig. 5.12), and the events of the search
+pattern (§5.3), summed over the drones: returns to the rendezvous point, root elections and
+auctions opened.
 
 Recording: `runs.csv` gives, per run, the `bbzide run` command that replays it step for step
 (`reproduce_command`: same program, seed and world options, `--steps` = the run's length);
@@ -142,6 +144,13 @@ def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
     if small:
         raise UserError(f"arena {small[0]:g} m is smaller than the {comm_range:g} m "
                         "communication range: the swarm would never be sparse")
+    coarse = [a for a in settings.arenas if 4 * packing_unit_dm(a) > comm_range * 10]
+    if coarse:
+        raise UserError(
+            f"arena {coarse[0]:g} m is too large for a {comm_range:g} m range: the script sends "
+            f"positions in one int16 at {packing_unit_dm(coarse[0]) / 10:g} m resolution and "
+            f"its relay spacing would lose over half the range (largest arena "
+            f"{largest_arena(comm_range):g} m)")
     unknown = [s for s in settings.searches if s not in SEARCHES]
     if unknown:
         raise UserError(f"unknown search {unknown[0]!r}; choose from {', '.join(SEARCHES)}")
@@ -155,6 +164,18 @@ def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
         raise UserError(f"--seed must be >= 0, got {settings.seed}")
     if settings.out.exists() and not settings.out.is_dir():
         raise UserError(f"--out {settings.out} is not a folder (a file of that name exists)")
+
+
+def packing_unit_dm(arena: float) -> int:
+    """The resolution (dm) at which examples/sar/sar.bzz packs a position into one int16 on
+    an `arena` m field: Q = size / 128 + 1 (its `pack`), so x/Q and y/Q stay under 128."""
+    return int(round(arena * 10)) // 128 + 1
+
+
+def largest_arena(comm_range: float) -> float:
+    """The largest arena (m) whose packing unit is at most a quarter of the range: the
+    script's relay nodes are then spaced at least half a range apart (range - 2 Q)."""
+    return (int(comm_range * 10 // 4) * 128 - 1) / 10
 
 
 def run_seed(seed: int, drones: int, arena: float, trial: int) -> int:
@@ -247,6 +268,9 @@ def run_one(spec: RunSpec) -> dict[str, Any]:
         "steps": sim.step_count,
         "networkers": sum(r == "networker" for r in world.roles),
         "roots": sum(r in ("root", "auctioneer") for r in world.roles),
+        "rendezvous_returns": int(world.rendezvous_returns.sum()),
+        "root_elections": int(world.root_elections.sum()),
+        "auctions": int(world.auctions.sum()),
         "messages_per_drone": float(sent.mean()),
         "bytes_per_drone": float(sent_bytes.mean()),
         "errors": len(sim.failures),
@@ -296,7 +320,8 @@ def _check_same_sweep(previous: dict[str, Any], spec: RunSpec, out: Path) -> Non
 
 CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
               "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
-              "steps", "max_steps", "networkers", "roots", "messages_per_drone",
+              "steps", "max_steps", "networkers", "roots", "rendezvous_returns",
+              "root_elections", "auctions", "messages_per_drone",
               "bytes_per_drone", "errors", "wall_seconds", "command")
 
 
