@@ -61,8 +61,11 @@ drone has it in its camera footprint, whatever the script does with it. `role_st
 drone and role, the steps spent in each role (the relay formation time is the root's auctioneer
 steps, thesis §5.4.2). The world also counts, per drone, what the search pattern of §5.3 is
 made of, from the roles the script sets and the drones' positions: `rendezvous_returns` (a
-drone in the rendezvous role reached the meeting point), `root_elections` (a root candidate
-became the root) and `auctions` (the root opened an auction: root -> auctioneer).
+searcher's run ended and it turned back to the meeting point: searcher -> rendezvous),
+`rendezvous_arrivals` (a drone in the rendezvous role reached the meeting point; a returning
+drone that a call for bids recruits on the way, in range of the root, never arrives),
+`root_elections` (a root candidate became the root) and `auctions` (the root opened an
+auction: root -> auctioneer).
 """
 
 from __future__ import annotations
@@ -321,6 +324,7 @@ class M300Field(World):
         self.parents = np.full(count, -1, dtype=np.int64)
         self.role_steps = np.zeros((count, len(ROLE_NAMES)), dtype=np.int64)
         self.rendezvous_returns = np.zeros(count, dtype=np.int64)
+        self.rendezvous_arrivals = np.zeros(count, dtype=np.int64)
         self.root_elections = np.zeros(count, dtype=np.int64)
         self.auctions = np.zeros(count, dtype=np.int64)
         self.at_rendezvous = np.zeros(count, dtype=bool)
@@ -489,7 +493,9 @@ class M300Field(World):
 
     def count_transition(self, index: int, before: str, after: str) -> None:
         """Count the role changes that are events of the search pattern (§5.3.1)."""
-        if before == "root_candidate" and after == "root":
+        if before == "searcher" and after == "rendezvous":
+            self.rendezvous_returns[index] += 1
+        elif before == "root_candidate" and after == "root":
             self.root_elections[index] += 1
         elif before == "root" and after == "auctioneer":
             self.auctions[index] += 1
@@ -550,12 +556,12 @@ class M300Field(World):
         wake = ((cells != self.cells_now) | (sees & ~self.was_seeing)
                 | (arrived & ~self.was_arrived))
         self.cells_now, self.was_seeing, self.was_arrived = cells, sees, arrived
-        # A return: a drone in the rendezvous role comes within the arrival tolerance of the
+        # An arrival: a drone in the rendezvous role comes within the arrival tolerance of the
         # meeting point (counted once per stay).
         near = np.hypot(positions[:, 0] - self.rendezvous[0],
                         positions[:, 1] - self.rendezvous[1]) <= ARRIVAL_TOLERANCE
         returning = self.role_codes == ROLE_NAMES.index("rendezvous")
-        self.rendezvous_returns[returning & near & ~self.at_rendezvous] += 1
+        self.rendezvous_arrivals[returning & near & ~self.at_rendezvous] += 1
         self.at_rendezvous = returning & near
         self.asleep_until[wake] = 0
 

@@ -18,8 +18,8 @@ Measured per run (thesis §5.4.2): the step at which the last target was first s
 to find all targets"), the steps the root spent as auctioneer ("relay formation time"), the
 step at which the tree was complete, messages and bytes sent per drone, the bytes each
 drone sent per simulated second (the bandwidth plot, Fig. 5.12), and the events of the search
-pattern (§5.3), summed over the drones: returns to the rendezvous point, root elections and
-auctions opened.
+pattern (§5.3), summed over the drones: returns to the rendezvous point (runs ended) and
+arrivals there, root elections and auctions opened.
 
 Recording: `runs.csv` gives, per run, the `bbzide run` command that replays it step for step
 (`reproduce_command`: same program, seed and world options, `--steps` = the run's length);
@@ -269,6 +269,7 @@ def run_one(spec: RunSpec) -> dict[str, Any]:
         "networkers": sum(r == "networker" for r in world.roles),
         "roots": sum(r in ("root", "auctioneer") for r in world.roles),
         "rendezvous_returns": int(world.rendezvous_returns.sum()),
+        "rendezvous_arrivals": int(world.rendezvous_arrivals.sum()),
         "root_elections": int(world.root_elections.sum()),
         "auctions": int(world.auctions.sum()),
         "messages_per_drone": float(sent.mean()),
@@ -321,7 +322,7 @@ def _check_same_sweep(previous: dict[str, Any], spec: RunSpec, out: Path) -> Non
 CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
               "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
               "steps", "max_steps", "networkers", "roots", "rendezvous_returns",
-              "root_elections", "auctions", "messages_per_drone",
+              "rendezvous_arrivals", "root_elections", "auctions", "messages_per_drone",
               "bytes_per_drone", "errors", "wall_seconds", "command")
 
 

@@ -1,0 +1,124 @@
+"""The search pattern of thesis §5.3 as it runs: search runs of a fixed duration with returns to
+the rendezvous point between them, exactly one root (re-elected when two were proclaimed), and
+positions that survive the int16 packing of messages on large fields. Real VMs on the M300
+field (examples/sar/sar.bzz), measured through the world's counters and the sweep's CSV."""
+
+import csv
+import dataclasses
+
+import numpy as np
+import pytest
+
+from bbzide.diagnostics import UserError
+from bbzide.worlds import sar_experiment as sx
+from bbzide.worlds.engine import Simulation
+from bbzide.worlds.radio import WorldConfigError
+
+
+def roots_of(world) -> list[int]:
+    return [i for i, r in enumerate(world.roles) if r in ("root", "auctioneer")]
+
+
+def test_a_lone_searcher_flies_runs_of_20_search_steps_and_returns_between_them():
+    """One drone, no target: after takeoff (50 steps of climb) each run lasts 20 search steps of
+    1 s, then the drone turns back to the meeting point, reaches it, waits, and starts again."""
+    spec = sx.RunSpec(drones=1, arena=40.0, search="random", trial=0, seed=4, targets=0)
+    sim = Simulation("m300", sx._program(), robots=1, seed=4, world_options=spec.world_options())
+    world = sim.world
+    turned: list[int] = []
+    while sim.step_count < 1500:
+        before = world.roles[0]
+        sim.step()
+        if before == "searcher" and world.roles[0] == "rendezvous":
+            turned.append(sim.step_count)
+    assert world.rendezvous_returns[0] == len(turned) >= 2
+    assert world.rendezvous_arrivals[0] >= 2
+    # The first run starts at mission altitude (5 m at 1 m/s: step 50) and lasts 200 steps;
+    # the drone notices the end at its next wake (at most one search step later).
+    assert 250 <= turned[0] <= 261
+    # The next run starts after the flight back and the wait at the meeting point: runs and
+    # returns alternate, the gap being more than the run itself.
+    assert turned[1] - turned[0] > 200
+
+
+def test_a_small_sweep_returns_to_the_rendezvous_and_elects_one_root_in_every_run(tmp_path):
+    """15 drones, 20 and 40 m arenas, both searches: every run has at least one return (a run
+    ends in 20 s + the climb, before any mission of these arenas is done), one election, one
+    root at the end and an auction per relay node; the CSV has the counts per run."""
+    settings = sx.SweepSettings(drones=[15], arenas=[20.0, 40.0], searches=["random", "belief"],
+                                trials=1, seed=2026, jobs=1, out=tmp_path / "out")
+    results = sx.run_sweep(settings)
+    rows = list(csv.DictReader((tmp_path / "out" / "runs.csv").open()))
+    assert len(rows) == len(results) == 4
+    for row in rows:
+        assert int(row["complete_step"]) > 0, row["run_id"]
+        assert int(row["rendezvous_returns"]) >= 1, row["run_id"]
+        assert int(row["roots"]) == 1, row["run_id"]
+        assert int(row["root_elections"]) >= 1, row["run_id"]
+        assert int(row["auctions"]) >= int(row["networkers"]) >= 1, row["run_id"]
+    assert sum(int(r["rendezvous_arrivals"]) for r in rows) >= 1
+
+
+@pytest.mark.parametrize("sweep_seed, drones, trial", [(2026, 20, 21), (7, 25, 5)],
+                         ids=["d20_a20_random_t021", "d25_a20_random_t005"])
+def test_the_runs_that_ended_with_two_roots_now_elect_one(sweep_seed, drones, trial):
+    spec = sx.RunSpec(drones=drones, arena=20.0, search="random", trial=trial,
+                      seed=sx.run_seed(sweep_seed, drones, 20.0, trial))
+    result = sx.run_one(spec)
+    assert result["complete_step"] > 0
+    assert result["roots"] == 1
+    assert result["errors"] == 0
+
+
+def test_two_roots_proclaimed_out_of_radio_contact_re_elect_one_that_keeps_every_target():
+    """The radio loses everything until two drones have proclaimed themselves root at the
+    meeting point (as when a candidate misses the root's beacons); once they hear each other,
+    one steps down and hands over its targets: one root, which knows all of them."""
+    spec = sx.RunSpec(drones=3, arena=20.0, search="belief", trial=0, seed=1,
+                      targets=((8.0, 6.0), (8.0, 14.0)))
+    sim = Simulation("m300", sx._program(), robots=3, seed=1, world_options=spec.world_options())
+    world = sim.world
+    sim.radio.settings = dataclasses.replace(sim.radio.settings, loss_probability=1.0)
+    while sim.step_count < 3000 and len(roots_of(world)) < 2:
+        sim.step()
+    both = roots_of(world)
+    assert len(both) == 2
+    knew = {i: list(world.known_targets[i]) for i in both}
+    sim.radio.settings = dataclasses.replace(sim.radio.settings, loss_probability=0.0)
+    sim.run(100)
+    (root,) = roots_of(world)
+    assert root in both
+    known = np.array(world.known_targets[root])
+    for i in both:
+        for x, y in knew[i]:
+            assert np.hypot(known[:, 0] - x, known[:, 1] - y).min() < 1.0
+    assert not sim.failures
+
+
+def test_positions_beyond_64_m_reach_the_root_and_the_relay_forms():
+    """An 80 m field (int16 packing at 0.5 m broke from 64 m: y / 5 dm overflowed into x): a
+    target at y = 66 m is known at its place by the root and the relay reaches it."""
+    target = (20.0, 66.0)
+    spec = sx.RunSpec(drones=6, arena=80.0, search="random", trial=0, seed=2,
+                      targets=(target,), comm_range=30.0)
+    sim = Simulation("m300", sx._program(), robots=6, seed=2, world_options=spec.world_options())
+    world = sim.world
+    while sim.step_count < 4000 and not (
+            sim.step_count % 10 == 0 and (world.found_step >= 0).all()
+            and world.relay_complete(sim)):
+        sim.step()
+    assert world.relay_complete(sim) and not sim.failures
+    (root,) = roots_of(world)
+    (known,) = world.known_targets[root]
+    assert np.hypot(known[0] - target[0], known[1] - target[1]) <= world.camera_radius
+
+
+def test_fields_too_large_for_the_packing_are_refused_with_a_message(tmp_path):
+    with pytest.raises(WorldConfigError, match="int16 decimetres"):
+        Simulation("m300", sx._program(), robots=1, seed=0, world_options={"size": 3300})
+    settings = sx.SweepSettings(drones=[3], arenas=[400.0], searches=["random"], trials=1,
+                                seed=0, jobs=1, out=tmp_path / "out")
+    with pytest.raises(UserError, match="largest arena 319.9 m"):
+        sx.validate(settings)
+    settings.arenas = [319.9]
+    sx.validate(settings)
