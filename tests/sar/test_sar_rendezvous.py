@@ -122,3 +122,21 @@ def test_fields_too_large_for_the_packing_are_refused_with_a_message(tmp_path):
         sx.validate(settings)
     settings.arenas = [319.9]
     sx.validate(settings)
+
+
+def test_the_m300_queues_hold_a_full_step_of_the_largest_swarm_and_index_right():
+    """25 drones in range send up to 24 x 10 messages in a step; full Buzz keeps and processes
+    them all. The rings hold that many and their u8 index wrap is exact (slots divide 256)."""
+    from bbzide.vm.messages import RingBuffer
+    from bbzide.vm.profiles import M300
+
+    sim = Simulation("m300", sx._program(), robots=1, seed=0)
+    arrivals = 24 * sim.world.radio.messages_per_step
+    assert M300.in_queue_cap >= arrivals and M300.msg_in_proc_max == M300.in_queue_cap
+    assert M300.out_queue_cap >= arrivals
+    for cap in (M300.in_queue_cap, M300.out_queue_cap):
+        ring = RingBuffer(list(range(cap + 2)), cap + 1)
+        for start in range(cap + 1):
+            ring.start = start
+            assert [ring.index_at(i) for i in range(cap + 1)] == [
+                (start + i) % (cap + 1) for i in range(cap + 1)]
