@@ -22,8 +22,9 @@ drawn from it in proportion to the belief: by default (`targets_where=likely`) o
 the prior puts at or above the search threshold (the paper's premise: a prior "from the
 authorities, such as the last known locations of the targets", where red cells mean "a
 probability close to 0"; our generator's 5 % floor is ours), or with `targets_where=anywhere`
-in every cell, floor included. The same seed gives the same map and targets whatever the
-search method (the pairs of the experiments).
+in every cell, floor included; `targets_where=uniform` ignores the prior and spreads them
+evenly over the field (§5.4.1: "randomly spawned"). The same seed gives the same map and
+targets whatever the search method (the pairs of the experiments).
 
 Host functions (Buzz names). Positions and distances a script sees are integer DECIMETRES in
 the field frame: BittyBuzz compares floats by their raw 16-bit payloads (a wrong order for
@@ -105,10 +106,12 @@ TARGET_SEPARATION = 4.0      # m: generated targets at least this far apart (dis
 #: one wake of a flying searcher, 1 s (examples/sar/sar.bzz SEARCH_STEP): a run lasts 20 s.
 DEFAULT_SEARCH_STEPS = 20
 DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
-#: Where generated targets may lie, in proportion to the prior: "likely" (the default: only in
-#: cells the prior puts at or above the search threshold: the authorities' prior is right) or
-#: "anywhere" (floor included: ~21 % of a generated map's mass is under the threshold).
-TARGETS_WHERE = ("likely", "anywhere")
+#: Where generated targets lie: "likely" (the default: in proportion to the prior, only in
+#: cells it puts at or above the search threshold: the authorities' prior is right),
+#: "anywhere" (in proportion to the prior, floor included: ~21 % of a generated map's mass is
+#: under the threshold) or "uniform" (thesis §5.4.1 taken literally: targets "randomly
+#: spawned" anywhere in the search area, whatever the prior says).
+TARGETS_WHERE = ("likely", "anywhere", "uniform")
 
 #: Role codes of `set_role` -> names the UI shows; LED colours per role.
 ROLE_NAMES = ("searcher", "root_candidate", "root", "auctioneer", "networker_bidder",
@@ -311,7 +314,9 @@ class M300Field(World):
         self.belief = (self._given_map if self._given_map is not None
                        else generate_belief_map(self.cells, rng))
         self.targets = (self._given_targets if self._given_targets is not None
-                        else draw_targets(self.belief, self.field_size, self._target_count, rng,
+                        else draw_targets(np.ones_like(self.belief)
+                                          if self.targets_where == "uniform" else self.belief,
+                                          self.field_size, self._target_count, rng,
                                           keep_out=LAUNCH_STRIP + 1.0,
                                           floor=(self.threshold / 100
                                                  if self.targets_where == "likely" else 0.0)))

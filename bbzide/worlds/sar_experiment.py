@@ -533,9 +533,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
-    parser.add_argument("--targets-where", choices=["likely", "anywhere"], default="likely",
+    parser.add_argument("--targets-where", choices=["likely", "anywhere", "uniform"],
+                        default="likely",
                         help="generated targets, in proportion to the prior belief: only where "
-                             "it reaches the search threshold (default) or anywhere")
+                             "it reaches the search threshold (default) or anywhere; or "
+                             "uniform: anywhere in the field whatever the prior (thesis §5.4.1: "
+                             "randomly spawned)")
     parser.add_argument("--preset", choices=["field"], default=None,
                         help="field: the paper's field test (36 m, 3 drones, 1 target, "
                              "fixed belief map; 3 trials unless --trials is given)")

@@ -140,3 +140,34 @@ def test_the_m300_queues_hold_a_full_step_of_the_largest_swarm_and_index_right()
             ring.start = start
             assert [ring.index_at(i) for i in range(cap + 1)] == [
                 (start + i) % (cap + 1) for i in range(cap + 1)]
+
+
+def test_uniform_targets_ignore_the_prior_and_share_the_map_of_the_other_placements():
+    """`targets_where=uniform` (§5.4.1: "randomly spawned"): over many seeds the share of
+    targets in cells under the search threshold is the share of the field's area under it
+    (about a binomial spread), while `likely` never puts one there; the belief map is the same
+    for every placement of a seed (the pairs and placements compare on one map)."""
+    under_area, under_targets, likely_under, n = 0.0, 0, 0, 0
+    for seed in range(60):
+        worlds = {}
+        for where in ("uniform", "likely"):
+            sim = Simulation("m300", sx._program(), robots=1, seed=seed,
+                             world_options={"size": 20, "targets_where": where})
+            worlds[where] = sim.world
+        uniform, likely = worlds["uniform"], worlds["likely"]
+        assert np.array_equal(uniform.belief, likely.belief)
+        prior_at = [uniform.belief.ravel()[uniform.cell_of(x, y)] for x, y in uniform.targets]
+        under_targets += sum(p < 0.2 for p in prior_at)
+        likely_under += sum(likely.belief.ravel()[likely.cell_of(x, y)] < 0.2
+                            for x, y in likely.targets)
+        # the area east of the launch strip keep-out (x >= 5 m: columns 3..9 of 2 m cells, the
+        # column from 4 to 6 m half in)
+        east = uniform.belief[:, 3:].copy()
+        weights = np.ones_like(east)
+        weights[:, 0] = 0.5
+        under_area += float((weights * (east < 0.2)).sum() / weights.sum())
+        n += len(prior_at)
+    expected = under_area / 60 * n
+    assert likely_under == 0
+    assert abs(under_targets - expected) < 4 * np.sqrt(expected) + 1
+    assert under_targets > 0.3 * n        # generated maps are mostly under the threshold
