@@ -30,9 +30,10 @@ DEFAULT_STEPS = 100
 def register(subparsers: argparse._SubParsersAction) -> None:
     worlds = subparsers.add_parser("worlds", help="list the simulated worlds")
     worlds.set_defaults(handler=run_list_worlds)
-    from bbzide.worlds import sar_experiment  # `bbzide experiment sar` (thesis §5.4)
+    from bbzide.worlds import memory, sar_experiment
 
-    sar_experiment.register(subparsers)
+    sar_experiment.register(subparsers)      # `bbzide experiment sar` (thesis §5.4)
+    memory.register(subparsers)              # `bbzide memory` (thesis Table 4.2)
 
 
 def _has_option(parser: argparse.ArgumentParser, option: str) -> bool:
