@@ -1,4 +1,5 @@
-"""`bbzide memory SCRIPT --platform P`: how much RAM a script needs on a platform (thesis
+"""How much RAM a script needs on a platform (`bbzide memory SCRIPT --platform P`, whose
+command line is in bbzide/worlds/commands.py): how much RAM a script needs on a platform (thesis
 Table 4.2: the memory footprint of three BittyBuzz scripts on the Crazyflie).
 
 Design: the script runs as a swarm in the platform's world (or in `--world W` with the
@@ -19,7 +20,6 @@ ring, registers). A script that fails at the platform's own sizes is reported as
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -123,55 +123,3 @@ def measure(script: Path, program: Any, world: str, platform: str, robots: int, 
         dataclasses.replace(base, stack_size=n))[0] is None)
     return MemoryReport(str(script), platform, world, robots, steps, seed, base.heap_size,
                         base.stack_size, peak, min_heap, min_stack)
-
-
-# ---- command line ------------------------------------------------------------------------------
-def register(subparsers: argparse._SubParsersAction) -> None:
-    from bbzide.vm.profiles import PROFILES
-
-    parser = subparsers.add_parser(
-        "memory", help="how much RAM a script needs on a platform (peak heap, smallest heap "
-                       "and stack)")
-    parser.add_argument("script", help="the .bzz file")
-    parser.add_argument("--platform", default="crazyflie", choices=sorted(PROFILES),
-                        help="VM profile (default crazyflie)")
-    parser.add_argument("--world", default=None,
-                        help="world to run the swarm in (default: the platform's own)")
-    parser.add_argument("--robots", type=int, default=None,
-                        help="robots (default: the world's default)")
-    parser.add_argument("--steps", type=int, default=DEFAULT_STEPS,
-                        help=f"control steps (default {DEFAULT_STEPS})")
-    parser.add_argument("--seed", type=int, default=0, help="random seed")
-    parser.add_argument("--set", dest="world_options", action="append", default=[],
-                        metavar="KEY=VALUE", help="world option (as for `bbzide run`)")
-    parser.add_argument("-I", dest="include", action="append", default=[],
-                        help="include folder")
-    parser.set_defaults(handler=run_command)
-
-
-def run_command(args: argparse.Namespace) -> int:
-    from bbzide.worlds.commands import load_script, parse_world_options
-    from bbzide.worlds.registry import WORLDS
-
-    world = args.world
-    if world is None:
-        world = next((name for name, spec in WORLDS.items() if spec.profile == args.platform),
-                     None)
-        if world is None:
-            raise UserError(f"no world runs the {args.platform} platform by default; give "
-                            f"--world ({', '.join(WORLDS)})")
-    if world not in WORLDS:
-        raise UserError(f"unknown world {world!r}; choose from {', '.join(WORLDS)}")
-    if args.steps < 1:
-        raise UserError(f"--steps must be at least 1, got {args.steps}")
-    if args.seed < 0:
-        raise UserError(f"--seed must be >= 0, got {args.seed}")
-    spec = WORLDS[world]
-    robots = spec.default_robots if args.robots is None else args.robots
-    if robots < 1:
-        raise UserError(f"--robots must be at least 1, got {robots}")
-    program = load_script(Path(args.script), spec.host_names, list(args.include or []))
-    report = measure(Path(args.script), program, world, args.platform, robots, args.steps,
-                     args.seed, parse_world_options(args.world_options))
-    print(report.text())
-    return 0
