@@ -17,14 +17,16 @@ out-queue per step.
 
 A prior belief map (the authorities' knowledge of where the targets are, thesis §5.3.2) is a
 `cells` x `cells` raster over the field with values in [0, 1]; it is either given (an array or
-a .npy/.csv file) or generated from the run seed as a few Gaussian hot spots, and the targets are
-drawn from it in proportion to the belief: by default (`targets_where=likely`) only in cells
-the prior puts at or above the search threshold (the paper's premise: a prior "from the
-authorities, such as the last known locations of the targets", where red cells mean "a
-probability close to 0"; our generator's 5 % floor is ours), or with `targets_where=anywhere`
-in every cell, floor included; `targets_where=uniform` ignores the prior and spreads them
-evenly over the field (§5.4.1: "randomly spawned"). The same seed gives the same map and
-targets whatever the search method (the pairs of the experiments).
+a .npy/.csv file) or generated from the run seed as a few Gaussian hot spots. By default
+(`targets_where=uniform`) the targets are spread evenly over the field whatever the prior
+says, as the simulation study describes them (§5.4.1: "randomly spawned"; §5.4.2: "randomly
+assigning ... the targets' positions and the belief map", two separate draws). Two other
+placements draw them from the prior in proportion to the belief: `targets_where=likely` only
+in cells the prior puts at or above the search threshold (the premise of §5.1: a prior "from
+the authorities, such as the last known locations of the targets", where red cells mean "a
+probability close to 0"; our generator's 5 % floor is ours), `targets_where=anywhere` in every
+cell, floor included. The same seed gives the same map and targets whatever the search method
+(the pairs of the experiments).
 
 Host functions (Buzz names). Positions and distances a script sees are integer DECIMETRES in
 the field frame: BittyBuzz compares floats by their raw 16-bit payloads (a wrong order for
@@ -106,12 +108,12 @@ TARGET_SEPARATION = 4.0      # m: generated targets at least this far apart (dis
 #: one wake of a flying searcher, 1 s (examples/sar/sar.bzz SEARCH_STEP): a run lasts 20 s.
 DEFAULT_SEARCH_STEPS = 20
 DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
-#: Where generated targets lie: "likely" (the default: in proportion to the prior, only in
-#: cells it puts at or above the search threshold: the authorities' prior is right),
-#: "anywhere" (in proportion to the prior, floor included: ~21 % of a generated map's mass is
-#: under the threshold) or "uniform" (thesis §5.4.1 taken literally: targets "randomly
-#: spawned" anywhere in the search area, whatever the prior says).
-TARGETS_WHERE = ("likely", "anywhere", "uniform")
+#: Where generated targets lie: "uniform" (the default, thesis §5.4.1-5.4.2: targets
+#: "randomly spawned" anywhere in the search area, whatever the prior says), "likely" (in
+#: proportion to the prior, only in cells it puts at or above the search threshold: the
+#: authorities' prior is right) or "anywhere" (in proportion to the prior, floor included:
+#: ~21 % of a generated map's mass is under the threshold).
+TARGETS_WHERE = ("uniform", "likely", "anywhere")
 
 #: Role codes of `set_role` -> names the UI shows; LED colours per role.
 ROLE_NAMES = ("searcher", "root_candidate", "root", "auctioneer", "networker_bidder",
@@ -230,7 +232,7 @@ class M300Field(World):
         search: str = "belief",
         search_steps: int = DEFAULT_SEARCH_STEPS,
         threshold: int = DEFAULT_THRESHOLD,
-        targets_where: str = "likely",
+        targets_where: str = "uniform",
         loss: float = 0.0,
         map_seed: int | None = None,
     ) -> None:

@@ -85,7 +85,7 @@ class RunSpec:
     targets: int | tuple[tuple[float, float], ...] = TARGETS
     belief_map: str | None = None
     search_steps: int = SEARCH_STEPS
-    targets_where: str = "likely"
+    targets_where: str = "uniform"
 
     @property
     def run_id(self) -> str:
@@ -533,12 +533,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
-    parser.add_argument("--targets-where", choices=["likely", "anywhere", "uniform"],
-                        default="likely",
-                        help="generated targets, in proportion to the prior belief: only where "
-                             "it reaches the search threshold (default) or anywhere; or "
-                             "uniform: anywhere in the field whatever the prior (thesis §5.4.1: "
-                             "randomly spawned)")
+    parser.add_argument("--targets-where", choices=["uniform", "likely", "anywhere"],
+                        default="uniform",
+                        help="generated targets: uniform (default): anywhere in the field "
+                             "whatever the prior (thesis §5.4.1: randomly spawned); or in "
+                             "proportion to the prior belief: likely: only where it reaches "
+                             "the search threshold; anywhere: floor included")
     parser.add_argument("--preset", choices=["field"], default=None,
                         help="field: the paper's field test (36 m, 3 drones, 1 target, "
                              "fixed belief map; 3 trials unless --trials is given)")
