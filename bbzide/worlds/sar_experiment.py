@@ -345,6 +345,40 @@ def sign_test(wins: int, losses: int) -> float:
     return min(1.0, 2 * tail)
 
 
+#: Scale of the Cauchy prior on the effect size of the Bayes factor: sqrt(2)/2, the default
+#: of JASP's Bayesian paired samples t-test, the software the thesis used (§5.4.2, [74]).
+CAUCHY_SCALE = math.sqrt(2) / 2
+
+
+def jzs_bayes_factor(differences: Sequence[float], scale: float = CAUCHY_SCALE) -> float | None:
+    """BF10 of the JZS Bayesian paired t-test (Rouder et al. 2009, two-sided, Cauchy prior of
+    scale `scale` on the effect size): the thesis' comparison (BF > 1 favours a difference).
+    From the t statistic of the differences: BF10 = integral over g of
+    (1 + n g r^2)^(-1/2) (1 + t^2 / ((1 + n g r^2) v))^(-(v+1)/2) (2 pi)^(-1/2) g^(-3/2)
+    e^(-1/(2g)) dg / (1 + t^2/v)^(-(v+1)/2), v = n - 1, integrated numerically on ln g (no
+    scipy). None with fewer than 2 differences or all differences equal."""
+    n = len(differences)
+    if n < 2:
+        return None
+    mean = statistics.fmean(differences)
+    sd = statistics.stdev(differences)
+    if sd == 0:
+        return None
+    t = mean / (sd / math.sqrt(n))
+    v = n - 1
+    # ln g from -30 to 30 in steps of 0.01: the integrand is negligible outside (e^-1/(2g)
+    # kills small g, g^-3/2 large g), and the step resolves its peak for any n of a sweep.
+    u = np.linspace(-30.0, 30.0, 6001)
+    g = np.exp(u)
+    spread = 1.0 + n * g * scale ** 2
+    log_integrand = (-0.5 * np.log(spread) - (v + 1) / 2 * np.log1p(t * t / (spread * v))
+                     - 0.5 * math.log(2 * math.pi) - 1.5 * u - 1 / (2 * g) + u)   # + u: dg = g du
+    log_null = -(v + 1) / 2 * math.log1p(t * t / v)
+    peak = float(log_integrand.max())
+    area = float(np.trapezoid(np.exp(log_integrand - peak), u))
+    return math.exp(peak + math.log(area) - log_null)
+
+
 def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """Per (arena, drones): belief vs random on the pairs where both found every target."""
     by_pair: dict[tuple[float, int, int], dict[str, dict[str, Any]]] = {}
@@ -371,6 +405,8 @@ def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
             "median_paired_saving": statistics.median(diffs) if diffs else None,
             "belief_faster": wins, "random_faster": losses,
             "sign_test_p": round(sign_test(wins, losses), 4),
+            "bayes_factor": (None if (bf := jzs_bayes_factor(diffs)) is None
+                             else float(f"{bf:.4g}")),
             "median_relay_random": med("random", "relay_formation_steps"),
             "median_relay_belief": med("belief", "relay_formation_steps"),
             "incomplete_trees": sum(p[s]["complete_step"] < 0 for p in pairs for s in p),
@@ -385,14 +421,15 @@ def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
 
 
 def format_markdown(rows: Iterable[dict[str, Any]]) -> str:
-    """The README's results table: medians per configuration, random | belief."""
+    """The README's results table: medians per configuration, random | belief; the last
+    column is the JZS Bayes factor of the paired find times (the paper's comparison)."""
     def f(v: Any, digits: int = 0) -> str:
         return "-" if v is None else f"{v:.{digits}f}"
 
     lines = ["| arena | drones | pairs | find: random | find: belief | belief faster | sign "
              "test p | relay: random | relay: belief | msgs/drone: random | msgs/drone: belief "
-             "| bytes/drone: random | bytes/drone: belief | incomplete trees |",
-             "|" + "---:|" * 14]
+             "| bytes/drone: random | bytes/drone: belief | incomplete trees | find BF10 |",
+             "|" + "---:|" * 15]
     for r in rows:
         lines.append(
             f"| {r['arena']:g} | {r['drones']} | {r['pairs']} | {f(r['median_find_random'])} | "
@@ -400,7 +437,8 @@ def format_markdown(rows: Iterable[dict[str, Any]]) -> str:
             f"{r['sign_test_p']:.3f} | {f(r['median_relay_random'])} | "
             f"{f(r['median_relay_belief'])} | {f(r['median_messages_random'])} | "
             f"{f(r['median_messages_belief'])} | {f(r['median_bytes_random'])} | "
-            f"{f(r['median_bytes_belief'])} | {r['incomplete_trees']} |")
+            f"{f(r['median_bytes_belief'])} | {r['incomplete_trees']} | "
+            f"{'-' if r.get('bayes_factor') is None else format(r['bayes_factor'], '.4g')} |")
     return "\n".join(lines)
 
 

@@ -171,3 +171,56 @@ def test_uniform_targets_ignore_the_prior_and_share_the_map_of_the_other_placeme
     assert likely_under == 0
     assert abs(under_targets - expected) < 4 * np.sqrt(expected) + 1
     assert under_targets > 0.3 * n        # generated maps are mostly under the threshold
+
+
+def _bayes_factor_by_direct_integration(d: list[float], scale: float) -> float:
+    """The same Bayes factor from its definition: d_i ~ N(delta sigma, sigma^2) against
+    N(0, sigma^2), p(sigma) ~ 1/sigma, delta ~ Cauchy(0, scale); marginal likelihoods by
+    brute-force integration over ln sigma and delta (an independent route to the g-form)."""
+    d = np.asarray(d, dtype=float)
+    log_sigma = np.linspace(-6, 6, 601)
+    delta = np.linspace(-40, 40, 8001)
+    cauchy = 1 / (np.pi * scale * (1 + (delta / scale) ** 2))
+
+    def log_likelihood(mu: np.ndarray, sigma: float) -> np.ndarray:
+        return (-len(d) / 2 * np.log(2 * np.pi * sigma ** 2)
+                - ((d[None, :] - mu[:, None]) ** 2).sum(axis=1) / (2 * sigma ** 2))
+
+    null = np.array([log_likelihood(np.zeros(1), s)[0] for s in np.exp(log_sigma)])
+    alt = []
+    for s in np.exp(log_sigma):
+        ll = log_likelihood(delta * s, s)
+        alt.append(ll.max() + np.log(np.trapezoid(np.exp(ll - ll.max()) * cauchy, delta)))
+    alt = np.array(alt)
+
+    def log_area(values: np.ndarray) -> float:
+        return float(values.max() + np.log(np.trapezoid(np.exp(values - values.max()),
+                                                        log_sigma)))
+
+    return float(np.exp(log_area(alt) - log_area(null)))
+
+
+@pytest.mark.parametrize("differences", [
+    [1, 2, 3, -1, 2, 0.5, 1.5, 2, 1, 0.2],          # a clear effect: BF10 ~ 7
+    [0.1, -0.1, 0.2, -0.2, 0.05, -0.05],           # none: BF10 < 1 (favours no difference)
+    [3, 4, 2.5, 5, 3.5, 4.2]])                      # a strong one: BF10 ~ 166
+def test_the_jzs_bayes_factor_matches_its_definition(differences):
+    bf = sx.jzs_bayes_factor(differences)
+    assert bf == pytest.approx(_bayes_factor_by_direct_integration(differences, sx.CAUCHY_SCALE),
+                               rel=2e-3)
+    assert sx.jzs_bayes_factor([1.0]) is None and sx.jzs_bayes_factor([2.0, 2.0]) is None
+
+
+def test_the_comparison_reports_the_bayes_factor_of_the_paired_find_times():
+    results = []
+    for trial, (random_step, belief_step) in enumerate([(300, 200), (280, 150), (350, 260),
+                                                        (240, 250), (400, 210)]):
+        for search, step in (("random", random_step), ("belief", belief_step)):
+            results.append({"arena": 20.0, "drones": 3, "trial": trial, "search": search,
+                            "found_all_step": step, "relay_formation_steps": 10,
+                            "complete_step": step + 10, "messages_per_drone": 1.0,
+                            "bytes_per_drone": 1.0, "wall_seconds": 1.0})
+    (row,) = sx.paired_comparison(results)
+    assert row["bayes_factor"] == pytest.approx(
+        sx.jzs_bayes_factor([100, 130, 90, -10, 190]), rel=1e-3)
+    assert sx.format_markdown([row]).splitlines()[2].endswith(f"| {row['bayes_factor']:.4g} |")
