@@ -59,6 +59,7 @@ def test_the_reported_sizes_are_the_least_that_run(tmp_path):
     assert not fails(prog, dataclasses.replace(CRAZYFLIE, stack_size=report.min_stack))
     assert fails(prog, dataclasses.replace(CRAZYFLIE, stack_size=report.min_stack - 1))
     assert report.ram_bytes == report.min_heap + 2 * report.min_stack
+    assert report.bytecode == len(prog.bbo)
 
 
 def test_more_live_data_needs_more_heap_and_deeper_calls_more_stack(tmp_path):
@@ -75,7 +76,7 @@ def test_the_command_prints_the_ram_and_refuses_bad_input(tmp_path, capsys):
                  "--steps", str(STEPS)]) == 0
     out = capsys.readouterr().out
     assert "on crazyflie (heap 3500 B, stack 128 entries)" in out
-    assert "RAM the script needs:" in out
+    assert "RAM the script needs:" in out and "bytecode (flash):" in out
     for argv, words in (
             (["--platform", "zooids"], "give --world"),
             (["--steps", "0"], "--steps must be at least 1"),
