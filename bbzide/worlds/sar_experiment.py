@@ -144,12 +144,12 @@ def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
     if small:
         raise UserError(f"arena {small[0]:g} m is smaller than the {comm_range:g} m "
                         "communication range: the swarm would never be sparse")
-    coarse = [a for a in settings.arenas if 4 * packing_unit_dm(a) > comm_range * 10]
+    coarse = [a for a in settings.arenas if a > largest_arena(comm_range)]
     if coarse:
         raise UserError(
-            f"arena {coarse[0]:g} m is too large for a {comm_range:g} m range: the script sends "
-            f"positions in one int16 at {packing_unit_dm(coarse[0]) / 10:g} m resolution and "
-            f"its relay spacing would lose over half the range (largest arena "
+            f"arena {coarse[0]:g} m is too large: the script sends positions in one int16, at "
+            f"{packing_unit_dm(coarse[0]) / 10:g} m resolution there, too coarse to keep relay "
+            f"nodes in a {comm_range:g} m range or a networker over its target (largest arena "
             f"{largest_arena(comm_range):g} m)")
     unknown = [s for s in settings.searches if s not in SEARCHES]
     if unknown:
@@ -173,9 +173,17 @@ def packing_unit_dm(arena: float) -> int:
 
 
 def largest_arena(comm_range: float) -> float:
-    """The largest arena (m) whose packing unit is at most a quarter of the range: the
-    script's relay nodes are then spaced at least half a range apart (range - 2 Q)."""
-    return (int(comm_range * 10 // 4) * 128 - 1) / 10
+    """The largest arena (m) whose packing unit Q keeps the relay sound: Q at most a quarter
+    of the range (the script spaces nodes range - 2 Q apart, at least half a range; two
+    packed nodes are then within range: their truncation errors differ by under Q per
+    axis, so by under 1.42 Q < 2 Q), and a packed target within the camera footprint of
+    the networker sent over it (Q sqrt(2) at most the footprint radius: 2.07 m at the
+    default 5 m altitude, so Q <= 14 dm and arenas up to 179.1 m)."""
+    from bbzide.worlds.m300 import CAMERA_FOV, DEFAULT_ALTITUDE
+
+    footprint_dm = DEFAULT_ALTITUDE * math.tan(CAMERA_FOV / 2) * 10
+    unit = min(int(comm_range * 10 // 4), int(footprint_dm / math.sqrt(2)))
+    return (unit * 128 - 1) / 10
 
 
 def run_seed(seed: int, drones: int, arena: float, trial: int) -> int:

@@ -42,14 +42,14 @@ def test_a_lone_searcher_flies_runs_of_20_search_steps_and_returns_between_them(
 
 
 def test_a_small_sweep_returns_to_the_rendezvous_and_elects_one_root_in_every_run(tmp_path):
-    """15 drones, 20 and 40 m arenas, both searches: every run has at least one return (a run
-    ends in 20 s + the climb, before any mission of these arenas is done), one election, one
-    root at the end and an auction per relay node; the CSV has the counts per run."""
-    settings = sx.SweepSettings(drones=[15], arenas=[20.0, 40.0], searches=["random", "belief"],
+    """15 drones, a 30 m arena, both searches (a pair): every run has at least one return (a
+    run ends 20 s after the 5 s climb, before a mission of this arena is done), one root at the
+    end and an auction per relay node; the CSV has the counts per run."""
+    settings = sx.SweepSettings(drones=[15], arenas=[30.0], searches=["random", "belief"],
                                 trials=1, seed=2026, jobs=1, out=tmp_path / "out")
     results = sx.run_sweep(settings)
     rows = list(csv.DictReader((tmp_path / "out" / "runs.csv").open()))
-    assert len(rows) == len(results) == 4
+    assert len(rows) == len(results) == 2
     for row in rows:
         assert int(row["complete_step"]) > 0, row["run_id"]
         assert int(row["rendezvous_returns"]) >= 1, row["run_id"]
@@ -118,10 +118,13 @@ def test_fields_too_large_for_the_packing_are_refused_with_a_message(tmp_path):
         Simulation("m300", sx._program(), robots=1, seed=0, world_options={"size": 3300})
     settings = sx.SweepSettings(drones=[3], arenas=[400.0], searches=["random"], trials=1,
                                 seed=0, jobs=1, out=tmp_path / "out")
-    with pytest.raises(UserError, match="largest arena 319.9 m"):
+    with pytest.raises(UserError, match="largest arena 179.1 m"):
         sx.validate(settings)
-    settings.arenas = [319.9]
+    settings.arenas = [179.1]
     sx.validate(settings)
+    assert sx.packing_unit_dm(179.1) == 14 and sx.packing_unit_dm(179.2) == 15
+    # with a 4 m range the spacing bound is the tighter one (Q <= 10 dm: up to 127.9 m)
+    assert sx.largest_arena(4.0) == 127.9
 
 
 def test_the_m300_queues_hold_a_full_step_of_the_largest_swarm_and_index_right():
