@@ -227,3 +227,38 @@ def test_the_comparison_reports_the_bayes_factor_of_the_paired_find_times():
     assert row["bayes_factor"] == pytest.approx(
         sx.jzs_bayes_factor([100, 130, 90, -10, 190]), rel=1e-3)
     assert sx.format_markdown([row]).splitlines()[2].endswith(f"| {row['bayes_factor']:.4g} |")
+
+
+def test_the_relay_tree_carries_the_victims_positions_hop_by_hop_to_the_root():
+    """Once the tree is formed, a networker that sees a target reports it ("vic") and every
+    networker passes its children's reports on: each link's parent sends a report after its
+    child's first one, and reports reach the root (its `reports` counter)."""
+    from bbzide.vm.message_layout import BC_TOPIC, BROADCAST, TYPE
+
+    program = sx._program()
+    topic = program.string_id("vic")
+    spec = sx.RunSpec(drones=10, arena=20.0, search="belief", trial=0, seed=11)
+    sim = Simulation("m300", program, robots=10, seed=11, world_options=spec.world_options())
+    world = sim.world
+    while sim.step_count < 2500 and not (sim.step_count % 10 == 0
+                                         and (world.found_step >= 0).all()
+                                         and world.relay_complete(sim)):
+        sim.step()
+    assert world.relay_complete(sim)
+    (root,) = roots_of(world)
+    before = sim.robots[root].global_value("reports")
+    sends: dict[int, list[int]] = {}
+    for _ in range(60):                 # 6 s: every networker wakes at least 5 times
+        sim.step()
+        outbox = sim.step_outbox
+        for sender, payload in zip(outbox.robots, outbox.payloads, strict=True):
+            if (payload[TYPE] == BROADCAST
+                    and int.from_bytes(bytes(payload[BC_TOPIC:BC_TOPIC + 2]), "little") == topic):
+                sends.setdefault(int(sender), []).append(sim.step_count)
+    links = world.relay_links()
+    assert links
+    for child, parent in links:
+        assert child in sends, f"networker {child} sent no report"
+        if parent != root:
+            assert max(sends[parent]) > min(sends[child]), (child, parent)
+    assert sim.robots[root].global_value("reports") > before
