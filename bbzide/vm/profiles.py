@@ -92,9 +92,24 @@ CRAZYFLIE = Profile(
 # * vstig_cap 512: a 400-cell map plus room for mission keys (local puts stop at the cap).
 # * neighbors_cap 64: a large swarm in radio range; the Lamport byte wraps at 256 anyway.
 # * gcmark_depth 16, stack_size 256: nested tables and deeper call chains than a Kilobot's.
+# * Message queues. The paper's M300s run full Buzz inside ROSBuzz on a Manifold 2 onboard
+#   computer (thesis §5.3.3): there the in- and out-queues are growable arrays in gigabytes of
+#   RAM, and every step the VM processes all the messages that arrived, so nothing is dropped
+#   for lack of room. A BittyBuzz ring needs a size: in_queue_cap 255 holds what one step can
+#   bring in the largest swarm of the experiments (25 drones all in range: 24 senders x the
+#   M300 radio's 10 transmissions per step = 240), and msg_in_proc_max = in_queue_cap
+#   processes all of it in that step, as Buzz does; out_queue_cap 255 lets a script queue as
+#   much in one step (the radio then sends 10 a step). 255 is the largest ring whose u8
+#   indices wrap right: the ring has capacity + 1 = 256 slots and BittyBuzz wraps `start + i`
+#   in a u8 before taking it modulo the slots, which is exact only when the slots divide 256
+#   (or when start + i never passes 255, i.e. up to 128 slots): a 251-slot ring reads the
+#   wrong records once start + i passes 255. With 10 (the microcontroller default) a
+#   candidate at the meeting point missed the root's beacon among 14 arrivals and a second
+#   root was elected.
 M300 = Profile(
     name="m300", heap_size=60000, ptr_size=8, gcmark_depth=16, stack_size=256,
-    vstig_cap=512, neighbors_cap=64,
+    vstig_cap=512, neighbors_cap=64, in_queue_cap=255, out_queue_cap=255,
+    msg_in_proc_max=255,
 )
 
 PROFILES: dict[str, Profile] = {p.name: p for p in (PC, KILOBOT, ZOOIDS, CRAZYFLIE, M300)}

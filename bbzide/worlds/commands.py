@@ -5,6 +5,8 @@
                [--steptime]   (estimated step time per platform: bbzide.worlds.steptime)
     bbzide run S.toml [--steps S] [--seed K]    a scenario file (bbzide/worlds/scenario.py)
     bbzide worlds               list the worlds, their platform, host functions and example
+    bbzide memory X.bzz [--platform P] [--world W] [--robots N] [--steps S]
+                                the RAM the script needs on P (bbzide/worlds/memory.py)
 
 `run` is shared with the VM room (single robot): `bbzide/cli.py` builds one parser from both
 rooms' options, so `add_world_run_arguments` adds only the options the VM room has not added
@@ -35,9 +37,10 @@ DEFAULT_STEPS = 100
 def register(subparsers: argparse._SubParsersAction) -> None:
     worlds = subparsers.add_parser("worlds", help="list the simulated worlds")
     worlds.set_defaults(handler=run_list_worlds)
-    from bbzide.worlds import sar_experiment  # `bbzide experiment sar` (thesis §5.4)
+    from bbzide.worlds import sar_experiment
 
-    sar_experiment.register(subparsers)
+    sar_experiment.register(subparsers)      # `bbzide experiment sar` (thesis §5.4)
+    register_memory(subparsers)              # `bbzide memory` (thesis Table 4.2)
 
 
 def _has_option(parser: argparse.ArgumentParser, option: str) -> bool:
@@ -328,4 +331,56 @@ def run_list_worlds(args: argparse.Namespace) -> int:
         print(f"{spec.name:10} {spec.title}: profile {spec.profile}, "
               f"{spec.default_robots} robots by default, example {spec.example}")
         print(f"{'':10} host functions: {', '.join(spec.host_names)}")
+    return 0
+
+
+def register_memory(subparsers: argparse._SubParsersAction) -> None:
+    """`bbzide memory SCRIPT --platform P ...` (bbzide/worlds/memory.py measures)."""
+    from bbzide.vm.profiles import PROFILES
+    from bbzide.worlds.memory import DEFAULT_STEPS as MEMORY_STEPS
+
+    parser = subparsers.add_parser(
+        "memory", help="how much RAM a script needs on a platform (peak heap, smallest heap "
+                       "and stack)")
+    parser.add_argument("script", help="the .bzz file")
+    parser.add_argument("--platform", default="crazyflie", choices=sorted(PROFILES),
+                        help="VM profile (default crazyflie)")
+    parser.add_argument("--world", default=None,
+                        help="world to run the swarm in (default: the platform's own)")
+    parser.add_argument("--robots", type=int, default=None,
+                        help="robots (default: the world's default)")
+    parser.add_argument("--steps", type=int, default=MEMORY_STEPS,
+                        help=f"control steps (default {MEMORY_STEPS})")
+    parser.add_argument("--seed", type=int, default=0, help="random seed")
+    parser.add_argument("--set", dest="world_options", action="append", default=[],
+                        metavar="KEY=VALUE", help="world option (as for `bbzide run`)")
+    parser.add_argument("-I", dest="include", action="append", default=[],
+                        help="include folder")
+    parser.set_defaults(handler=run_memory)
+
+
+def run_memory(args: argparse.Namespace) -> int:
+    from bbzide.worlds.memory import measure
+
+    world = args.world
+    if world is None:
+        world = next((name for name, spec in WORLDS.items() if spec.profile == args.platform),
+                     None)
+        if world is None:
+            raise UserError(f"no world runs the {args.platform} platform by default; give "
+                            f"--world ({', '.join(WORLDS)})")
+    if world not in WORLDS:
+        raise UserError(f"unknown world {world!r}; choose from {', '.join(WORLDS)}")
+    if args.steps < 1:
+        raise UserError(f"--steps must be at least 1, got {args.steps}")
+    if args.seed < 0:
+        raise UserError(f"--seed must be >= 0, got {args.seed}")
+    spec = WORLDS[world]
+    robots = spec.default_robots if args.robots is None else args.robots
+    if robots < 1:
+        raise UserError(f"--robots must be at least 1, got {robots}")
+    program = load_script(Path(args.script), spec.host_names, list(args.include or []))
+    report = measure(Path(args.script), program, world, args.platform, robots, args.steps,
+                     args.seed, parse_world_options(args.world_options))
+    print(report.text())
     return 0

@@ -17,13 +17,16 @@ out-queue per step.
 
 A prior belief map (the authorities' knowledge of where the targets are, thesis §5.3.2) is a
 `cells` x `cells` raster over the field with values in [0, 1]; it is either given (an array or
-a .npy/.csv file) or generated from the run seed as a few Gaussian hot spots, and the targets are
-drawn from it in proportion to the belief: by default (`targets_where=likely`) only in cells
-the prior puts at or above the search threshold (the paper's premise: a prior "from the
-authorities, such as the last known locations of the targets", where red cells mean "a
-probability close to 0"; our generator's 5 % floor is ours), or with `targets_where=anywhere`
-in every cell, floor included. The same seed gives the same map and targets whatever the
-search method (the pairs of the experiments).
+a .npy/.csv file) or generated from the run seed as a few Gaussian hot spots. By default
+(`targets_where=uniform`) the targets are spread evenly over the field whatever the prior
+says, as the simulation study describes them (§5.4.1: "randomly spawned"; §5.4.2: "randomly
+assigning ... the targets' positions and the belief map", two separate draws). Two other
+placements draw them from the prior in proportion to the belief: `targets_where=likely` only
+in cells the prior puts at or above the search threshold (the premise of §5.1: a prior "from
+the authorities, such as the last known locations of the targets", where red cells mean "a
+probability close to 0"; our generator's 5 % floor is ours), `targets_where=anywhere` in every
+cell, floor included. The same seed gives the same map and targets whatever the search method
+(the pairs of the experiments).
 
 Host functions (Buzz names). Positions and distances a script sees are integer DECIMETRES in
 the field frame: BittyBuzz compares floats by their raw 16-bit payloads (a wrong order for
@@ -59,7 +62,13 @@ ints; 1 dm is finer than the drones' GPS needs and an int16 holds 3.2 km.
 Sightings are the world's: a target counts as found (`found_step`) the first step a flying
 drone has it in its camera footprint, whatever the script does with it. `role_steps` counts, per
 drone and role, the steps spent in each role (the relay formation time is the root's auctioneer
-steps, thesis §5.4.2).
+steps, thesis §5.4.2). The world also counts, per drone, what the search pattern of §5.3 is
+made of, from the roles the script sets and the drones' positions: `rendezvous_returns` (a
+searcher's run ended and it turned back to the meeting point: searcher -> rendezvous),
+`rendezvous_arrivals` (a drone in the rendezvous role reached the meeting point; a returning
+drone that a call for bids recruits on the way, in range of the root, never arrives),
+`root_elections` (a root candidate became the root) and `auctions` (the root opened an
+auction: root -> auctioneer).
 """
 
 from __future__ import annotations
@@ -88,6 +97,7 @@ DEFAULT_ALTITUDE = 5.0       # m: low enough that the camera resolves a person o
 CAMERA_FOV = math.radians(45.0)  # full field of view of the downward camera
 ARRIVAL_TOLERANCE = 0.3      # m: goto counts as reached within this distance
 DM = 10.0                    # decimetres per metre: the unit of the Buzz interface
+INT16_MAX = 32767            # BittyBuzz ints: the largest position a script can hold, in dm
 DEFAULT_COMM_RANGE = 10.0    # m: thesis §5.4.2
 DEFAULT_CELLS = 10           # belief raster cells per side (the SAR script's key table matches)
 #: The most belief cells per side: BittyBuzz's virtual stigmergy keys are strings and it cannot
@@ -99,12 +109,16 @@ LAUNCH_STRIP = 4.0           # m: drones start within this distance of the west 
 HOT_SPOTS = 3                # Gaussian bumps of a generated belief map
 BELIEF_FLOOR = 0.05          # generated maps never say "impossible" (priors can be wrong)
 TARGET_SEPARATION = 4.0      # m: generated targets at least this far apart (distinct finds)
-DEFAULT_SEARCH_STEPS = 20    # goals per search run between two rendezvous (thesis §5.4.2)
+#: Search steps per search run between two rendezvous (thesis §5.4.2: 20). A search step is
+#: one wake of a flying searcher, 1 s (examples/sar/sar.bzz SEARCH_STEP): a run lasts 20 s.
+DEFAULT_SEARCH_STEPS = 20
 DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
-#: Where generated targets may lie, in proportion to the prior: "likely" (the default: only in
-#: cells the prior puts at or above the search threshold: the authorities' prior is right) or
-#: "anywhere" (floor included: ~21 % of a generated map's mass is under the threshold).
-TARGETS_WHERE = ("likely", "anywhere")
+#: Where generated targets lie: "uniform" (the default, thesis §5.4.1-5.4.2: targets
+#: "randomly spawned" anywhere in the search area, whatever the prior says), "likely" (in
+#: proportion to the prior, only in cells it puts at or above the search threshold: the
+#: authorities' prior is right) or "anywhere" (in proportion to the prior, floor included:
+#: ~21 % of a generated map's mass is under the threshold).
+TARGETS_WHERE = ("uniform", "likely", "anywhere")
 
 #: Role codes of `set_role` -> names the UI shows; LED colours per role.
 ROLE_NAMES = ("searcher", "root_candidate", "root", "auctioneer", "networker_bidder",
@@ -224,7 +238,7 @@ class M300Field(World):
         search: str = "belief",
         search_steps: int = DEFAULT_SEARCH_STEPS,
         threshold: int = DEFAULT_THRESHOLD,
-        targets_where: str = "likely",
+        targets_where: str = "uniform",
         loss: float = 0.0,
         map_seed: int | None = None,
     ) -> None:
@@ -236,6 +250,10 @@ class M300Field(World):
             raise WorldConfigError(
                 f"a {size:g} m field is smaller than the {comm_range:g} m communication range: "
                 "every drone would always hear every other and there is nothing to search for")
+        if size * DM > INT16_MAX:
+            raise WorldConfigError(
+                f"a {size:g} m field is too large: positions reach scripts as int16 decimetres "
+                f"(at most {INT16_MAX / DM:g} m)")
         if speed <= 0 or altitude <= 0:
             raise WorldConfigError("speed and altitude must be positive")
         if search not in ("belief", "random"):
@@ -314,7 +332,9 @@ class M300Field(World):
         self.belief = (self._given_map if self._given_map is not None
                        else generate_belief_map(self.cells, rng))
         self.targets = (self._given_targets if self._given_targets is not None
-                        else draw_targets(self.belief, self.field_size, self._target_count, rng,
+                        else draw_targets(np.ones_like(self.belief)
+                                          if self.targets_where == "uniform" else self.belief,
+                                          self.field_size, self._target_count, rng,
                                           keep_out=LAUNCH_STRIP + 1.0,
                                           floor=(self.threshold / 100
                                                  if self.targets_where == "likely" else 0.0)))
@@ -326,6 +346,11 @@ class M300Field(World):
         self.known_targets: list[list[tuple[float, float]]] = [[] for _ in range(count)]
         self.parents = np.full(count, -1, dtype=np.int64)
         self.role_steps = np.zeros((count, len(ROLE_NAMES)), dtype=np.int64)
+        self.rendezvous_returns = np.zeros(count, dtype=np.int64)
+        self.rendezvous_arrivals = np.zeros(count, dtype=np.int64)
+        self.root_elections = np.zeros(count, dtype=np.int64)
+        self.auctions = np.zeros(count, dtype=np.int64)
+        self.at_rendezvous = np.zeros(count, dtype=bool)
         self.asleep_until = np.zeros(count, dtype=np.int64)
         self.cells_now = np.array([self.cell_of(x, y) for x, y, _ in sim.positions])
         self.was_seeing = np.zeros(count, dtype=bool)
@@ -439,6 +464,7 @@ class M300Field(World):
                 call.fail("TYPE")
                 return
             name = ROLE_NAMES[code]
+            world.count_transition(index, world.roles[index], name)
             world.roles[index] = name
             world.role_codes[index] = code
             sim.robots[index].set_label("role", name)
@@ -487,6 +513,15 @@ class M300Field(World):
                 "mission": mission, "set_role": set_role, "know_target": know_target,
                 "relay_link": relay_link, "missed": missed, "rand": random_byte,
                 "clock": clock, "doze": doze}
+
+    def count_transition(self, index: int, before: str, after: str) -> None:
+        """Count the role changes that are events of the search pattern (§5.3.1)."""
+        if before == "searcher" and after == "rendezvous":
+            self.rendezvous_returns[index] += 1
+        elif before == "root_candidate" and after == "root":
+            self.root_elections[index] += 1
+        elif before == "root" and after == "auctioneer":
+            self.auctions[index] += 1
 
     # ---- sensors and physics ------------------------------------------------------------------
     def seen_target(self, sim: Simulation, index: int) -> int:
@@ -544,6 +579,13 @@ class M300Field(World):
         wake = ((cells != self.cells_now) | (sees & ~self.was_seeing)
                 | (arrived & ~self.was_arrived))
         self.cells_now, self.was_seeing, self.was_arrived = cells, sees, arrived
+        # An arrival: a drone in the rendezvous role comes within the arrival tolerance of the
+        # meeting point (counted once per stay).
+        near = np.hypot(positions[:, 0] - self.rendezvous[0],
+                        positions[:, 1] - self.rendezvous[1]) <= ARRIVAL_TOLERANCE
+        returning = self.role_codes == ROLE_NAMES.index("rendezvous")
+        self.rendezvous_arrivals[returning & near & ~self.at_rendezvous] += 1
+        self.at_rendezvous = returning & near
         self.asleep_until[wake] = 0
 
     # ---- what the UI and the experiments read -------------------------------------------------

@@ -16,8 +16,10 @@ A run ends when every target has been seen and the relay tree is complete (`M300
 relay_complete`, checked every CHECK_PERIOD steps), or after `max_steps` (a timeout, reported).
 Measured per run (thesis §5.4.2): the step at which the last target was first seen ("timesteps
 to find all targets"), the steps the root spent as auctioneer ("relay formation time"), the
-step at which the tree was complete, messages and bytes sent per drone, and the bytes each
-drone sent per simulated second (the bandwidth plot, Fig. 5.12).
+step at which the tree was complete, messages and bytes sent per drone, the bytes each
+drone sent per simulated second (the bandwidth plot, Fig. 5.12), and the events of the search
+pattern (§5.3), summed over the drones: returns to the rendezvous point (runs ended) and
+arrivals there, root elections and auctions opened.
 
 Recording: `runs.csv` gives, per run, the `bbzide run` command that replays it step for step
 (`reproduce_command`: same program, seed and world options, `--steps` = the run's length);
@@ -83,7 +85,7 @@ class RunSpec:
     targets: int | tuple[tuple[float, float], ...] = TARGETS
     belief_map: str | None = None
     search_steps: int = SEARCH_STEPS
-    targets_where: str = "likely"
+    targets_where: str = "uniform"
 
     @property
     def run_id(self) -> str:
@@ -142,6 +144,13 @@ def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
     if small:
         raise UserError(f"arena {small[0]:g} m is smaller than the {comm_range:g} m "
                         "communication range: the swarm would never be sparse")
+    coarse = [a for a in settings.arenas if a > largest_arena(comm_range)]
+    if coarse:
+        raise UserError(
+            f"arena {coarse[0]:g} m is too large: the script sends positions in one int16, at "
+            f"{packing_unit_dm(coarse[0]) / 10:g} m resolution there, too coarse to keep relay "
+            f"nodes in a {comm_range:g} m range or a networker over its target (largest arena "
+            f"{largest_arena(comm_range):g} m)")
     unknown = [s for s in settings.searches if s not in SEARCHES]
     if unknown:
         raise UserError(f"unknown search {unknown[0]!r}; choose from {', '.join(SEARCHES)}")
@@ -155,6 +164,26 @@ def validate(settings: SweepSettings, comm_range: float = COMM_RANGE) -> None:
         raise UserError(f"--seed must be >= 0, got {settings.seed}")
     if settings.out.exists() and not settings.out.is_dir():
         raise UserError(f"--out {settings.out} is not a folder (a file of that name exists)")
+
+
+def packing_unit_dm(arena: float) -> int:
+    """The resolution (dm) at which examples/sar/sar.bzz packs a position into one int16 on
+    an `arena` m field: Q = size / 128 + 1 (its `pack`), so x/Q and y/Q stay under 128."""
+    return int(round(arena * 10)) // 128 + 1
+
+
+def largest_arena(comm_range: float) -> float:
+    """The largest arena (m) whose packing unit Q keeps the relay sound: Q at most a quarter
+    of the range (the script spaces nodes range - 2 Q apart, at least half a range; two
+    packed nodes are then within range: their truncation errors differ by under Q per
+    axis, so by under 1.42 Q < 2 Q), and a packed target within the camera footprint of
+    the networker sent over it (Q sqrt(2) at most the footprint radius: 2.07 m at the
+    default 5 m altitude, so Q <= 14 dm and arenas up to 179.1 m)."""
+    from bbzide.worlds.m300 import CAMERA_FOV, DEFAULT_ALTITUDE
+
+    footprint_dm = DEFAULT_ALTITUDE * math.tan(CAMERA_FOV / 2) * 10
+    unit = min(int(comm_range * 10 // 4), int(footprint_dm / math.sqrt(2)))
+    return (unit * 128 - 1) / 10
 
 
 def run_seed(seed: int, drones: int, arena: float, trial: int) -> int:
@@ -247,6 +276,10 @@ def run_one(spec: RunSpec) -> dict[str, Any]:
         "steps": sim.step_count,
         "networkers": sum(r == "networker" for r in world.roles),
         "roots": sum(r in ("root", "auctioneer") for r in world.roles),
+        "rendezvous_returns": int(world.rendezvous_returns.sum()),
+        "rendezvous_arrivals": int(world.rendezvous_arrivals.sum()),
+        "root_elections": int(world.root_elections.sum()),
+        "auctions": int(world.auctions.sum()),
         "messages_per_drone": float(sent.mean()),
         "bytes_per_drone": float(sent_bytes.mean()),
         "errors": len(sim.failures),
@@ -296,7 +329,8 @@ def _check_same_sweep(previous: dict[str, Any], spec: RunSpec, out: Path) -> Non
 
 CSV_FIELDS = ("run_id", "drones", "arena", "search", "trial", "seed", "targets",
               "targets_found", "found_all_step", "relay_formation_steps", "complete_step",
-              "steps", "max_steps", "networkers", "roots", "messages_per_drone",
+              "steps", "max_steps", "networkers", "roots", "rendezvous_returns",
+              "rendezvous_arrivals", "root_elections", "auctions", "messages_per_drone",
               "bytes_per_drone", "errors", "wall_seconds", "command")
 
 
@@ -317,6 +351,40 @@ def sign_test(wins: int, losses: int) -> float:
     k = min(wins, losses)
     tail = sum(math.comb(n, i) for i in range(k + 1)) / 2 ** n
     return min(1.0, 2 * tail)
+
+
+#: Scale of the Cauchy prior on the effect size of the Bayes factor: sqrt(2)/2, the default
+#: of JASP's Bayesian paired samples t-test, the software the thesis used (§5.4.2, [74]).
+CAUCHY_SCALE = math.sqrt(2) / 2
+
+
+def jzs_bayes_factor(differences: Sequence[float], scale: float = CAUCHY_SCALE) -> float | None:
+    """BF10 of the JZS Bayesian paired t-test (Rouder et al. 2009, two-sided, Cauchy prior of
+    scale `scale` on the effect size): the thesis' comparison (BF > 1 favours a difference).
+    From the t statistic of the differences: BF10 = integral over g of
+    (1 + n g r^2)^(-1/2) (1 + t^2 / ((1 + n g r^2) v))^(-(v+1)/2) (2 pi)^(-1/2) g^(-3/2)
+    e^(-1/(2g)) dg / (1 + t^2/v)^(-(v+1)/2), v = n - 1, integrated numerically on ln g (no
+    scipy). None with fewer than 2 differences or all differences equal."""
+    n = len(differences)
+    if n < 2:
+        return None
+    mean = statistics.fmean(differences)
+    sd = statistics.stdev(differences)
+    if sd == 0:
+        return None
+    t = mean / (sd / math.sqrt(n))
+    v = n - 1
+    # ln g from -30 to 30 in steps of 0.01: the integrand is negligible outside (e^-1/(2g)
+    # kills small g, g^-3/2 large g), and the step resolves its peak for any n of a sweep.
+    u = np.linspace(-30.0, 30.0, 6001)
+    g = np.exp(u)
+    spread = 1.0 + n * g * scale ** 2
+    log_integrand = (-0.5 * np.log(spread) - (v + 1) / 2 * np.log1p(t * t / (spread * v))
+                     - 0.5 * math.log(2 * math.pi) - 1.5 * u - 1 / (2 * g) + u)   # + u: dg = g du
+    log_null = -(v + 1) / 2 * math.log1p(t * t / v)
+    peak = float(log_integrand.max())
+    area = float(np.trapezoid(np.exp(log_integrand - peak), u))
+    return math.exp(peak + math.log(area) - log_null)
 
 
 def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
@@ -345,6 +413,8 @@ def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
             "median_paired_saving": statistics.median(diffs) if diffs else None,
             "belief_faster": wins, "random_faster": losses,
             "sign_test_p": round(sign_test(wins, losses), 4),
+            "bayes_factor": (None if (bf := jzs_bayes_factor(diffs)) is None
+                             else float(f"{bf:.4g}")),
             "median_relay_random": med("random", "relay_formation_steps"),
             "median_relay_belief": med("belief", "relay_formation_steps"),
             "incomplete_trees": sum(p[s]["complete_step"] < 0 for p in pairs for s in p),
@@ -359,14 +429,15 @@ def paired_comparison(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]
 
 
 def format_markdown(rows: Iterable[dict[str, Any]]) -> str:
-    """The README's results table: medians per configuration, random | belief."""
+    """The README's results table: medians per configuration, random | belief; the last
+    column is the JZS Bayes factor of the paired find times (the paper's comparison)."""
     def f(v: Any, digits: int = 0) -> str:
         return "-" if v is None else f"{v:.{digits}f}"
 
     lines = ["| arena | drones | pairs | find: random | find: belief | belief faster | sign "
              "test p | relay: random | relay: belief | msgs/drone: random | msgs/drone: belief "
-             "| bytes/drone: random | bytes/drone: belief | incomplete trees |",
-             "|" + "---:|" * 14]
+             "| bytes/drone: random | bytes/drone: belief | incomplete trees | find BF10 |",
+             "|" + "---:|" * 15]
     for r in rows:
         lines.append(
             f"| {r['arena']:g} | {r['drones']} | {r['pairs']} | {f(r['median_find_random'])} | "
@@ -374,7 +445,8 @@ def format_markdown(rows: Iterable[dict[str, Any]]) -> str:
             f"{r['sign_test_p']:.3f} | {f(r['median_relay_random'])} | "
             f"{f(r['median_relay_belief'])} | {f(r['median_messages_random'])} | "
             f"{f(r['median_messages_belief'])} | {f(r['median_bytes_random'])} | "
-            f"{f(r['median_bytes_belief'])} | {r['incomplete_trees']} |")
+            f"{f(r['median_bytes_belief'])} | {r['incomplete_trees']} | "
+            f"{'-' if r.get('bayes_factor') is None else format(r['bayes_factor'], '.4g')} |")
     return "\n".join(lines)
 
 
@@ -507,9 +579,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
-    parser.add_argument("--targets-where", choices=["likely", "anywhere"], default="likely",
-                        help="generated targets, in proportion to the prior belief: only where "
-                             "it reaches the search threshold (default) or anywhere")
+    parser.add_argument("--targets-where", choices=["uniform", "likely", "anywhere"],
+                        default="uniform",
+                        help="generated targets: uniform (default): anywhere in the field "
+                             "whatever the prior (thesis §5.4.1: randomly spawned); or in "
+                             "proportion to the prior belief: likely: only where it reaches "
+                             "the search threshold; anywhere: floor included")
     parser.add_argument("--preset", choices=["field"], default=None,
                         help="field: the paper's field test (36 m, 3 drones, 1 target, "
                              "fixed belief map; 3 trials unless --trials is given)")

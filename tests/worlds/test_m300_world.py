@@ -232,16 +232,17 @@ def test_likely_targets_lie_only_where_the_prior_reaches_the_threshold():
     assert cells.min() >= 0.2
     anywhere = np.vstack([draw_targets(belief, 20.0, 3, rng, keep_out=5.0) for _ in range(100)])
     assert belief[(anywhere[:, 1] // 2).astype(int), (anywhere[:, 0] // 2).astype(int)].min() < 0.2
-    # The world's default is the likely placement; `anywhere` reaches the floor cells.
-    priors: dict[str, list] = {"default": [], "anywhere": []}
+    # The likely placement stays above the threshold; `anywhere` reaches the floor cells.
+    priors: dict[str, list] = {"likely": [], "anywhere": []}
     for where, found in priors.items():
-        options = {"targets_where": where} if where == "anywhere" else {}
+        options = {"targets_where": where}
         for seed in range(40):
             sim, _ = one_drone({}, **options)
             sim.seed = seed                  # a new map and targets per seed
             sim.world.attach(sim)
             world = sim.world
             found += [world.belief.ravel()[world.cell_of(x, y)] for x, y in world.targets]
-    assert min(priors["default"]) >= 0.2 and min(priors["anywhere"]) < 0.2
+    assert min(priors["likely"]) >= 0.2 and min(priors["anywhere"]) < 0.2
+    assert M300Field().targets_where == "uniform"        # the default: §5.4.1's placement
     with pytest.raises(WorldConfigError, match="targets_where"):
         M300Field(targets_where="nowhere")
