@@ -127,7 +127,7 @@ class Scenario:
 
     def programs(self, include: Sequence[str] = ()) -> dict[Path, Any]:
         """Each script compiled for the world (a `BittyBuzzProgram` per path)."""
-        from bbzide.worlds.commands import load_script
+        from bbzide.worlds.scripts import load_script
 
         host_names = world_spec(self.world).host_names
         return {path: load_script(path, host_names, list(include)) for path in self.scripts()}
