@@ -218,8 +218,23 @@ class WorldsSimulation:
         state = self.sim.robots[index]
         if state.robot is None:
             raise UserError(f"robot #{index} has no VM (a passive body)")
+        world = self.sim.world
         return inspect_robot(state.robot, self.profile, state.program or self.program, index,
-                             self.step_count, _sent_last_step(self.sim, index))
+                             self.step_count, _sent_last_step(self.sim, index),
+                             world.host_names, world.name)
+
+    def runtime_errors(self) -> list[tuple[Any, str, int]]:
+        """The swarm's failures grouped by place and message: (location, message, robots),
+        for the editor's markers (one marker per line however many robots hit it)."""
+        world = self.sim.world
+        counts: dict[tuple[Any, str], int] = {}
+        for state in self.sim.failures:
+            program = state.program or self.program
+            where, message = explain_robot_failure(state.failure, program, world.host_names,
+                                                   world.name)
+            text = f"{getattr(state.failure, 'reason', 'error')}: {message}"
+            counts[(where, text)] = counts.get((where, text), 0) + 1
+        return [(where, text, count) for (where, text), count in counts.items()]
 
 
 def world_geometry(world: Any) -> WorldGeometry:
@@ -235,10 +250,26 @@ def world_geometry(world: Any) -> WorldGeometry:
     )
 
 
+def explain_robot_failure(failure: Any, program: Any, host_names: Sequence[str],
+                          world_name: str) -> tuple[Any, str]:
+    """(location, message) of a robot's failure: in the student's terms at the call itself
+    when the compiler knows the failing call (`bbzide.compiler.call_sites`), else the debug
+    map's location and the VM's message."""
+    reason = getattr(failure, "reason", "error")
+    call_sites = _import("bbzide.compiler.call_sites")
+    explained = call_sites.explain_failure(program, reason, int(getattr(failure, "pc", -1)),
+                                           host_names, call_sites.robot_phrase(world_name))
+    if explained is not None:
+        return explained
+    return getattr(failure, "location", None), str(getattr(failure, "message", ""))
+
+
 def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
-                  last_sent: Sequence[bytes] = ()) -> RobotInspection:
+                  last_sent: Sequence[bytes] = (), host_names: Sequence[str] = (),
+                  world_name: str = "") -> RobotInspection:
     """The inspector's view of one robot's VM (a live robot, or one rebuilt from a recording).
-    `last_sent`: the payloads it sent in its last step (the out-queue is drained by then)."""
+    `last_sent`: the payloads it sent in its last step (the out-queue is drained by then);
+    `host_names`, `world_name`: the world's, to explain a failed call in the student's terms."""
     vm = robot.vm
     heap = vm.heap
     geometry = HeapGeometry(
@@ -255,8 +286,8 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
     error_text = None
     error_line = None
     if failure is not None:
-        where = getattr(failure, "location", None)
-        error_text = f"{getattr(failure, 'reason', 'error')}: {getattr(failure, 'message', '')}"
+        where, message = explain_robot_failure(failure, program, host_names, world_name)
+        error_text = f"{getattr(failure, 'reason', 'error')}: {message}"
         if where is not None:
             error_text += f" at {where}"
             error_line = _source_line(where)

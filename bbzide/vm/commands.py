@@ -136,10 +136,25 @@ def run_single_robot(args: argparse.Namespace) -> int:
     out.flush()
     failure = run.robot.failure
     if failure is not None:
+        from bbzide.compiler.call_sites import explain_failure
+
+        names = host_names(registrations)
+        explained = explain_failure(program, failure.reason, failure.pc, names,
+                                    f"this run (--reg {', '.join(names)})")
+        if explained is not None:
+            location, message = explained
+            raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
+                            f"{message}", location, hint=_REG_HINT)
         raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
                         f"{failure.message}", failure.location,
                         hint=_call_hint(run.robot, failure))
     return 0
+
+
+#: What to do about a call of a host function that a one-robot run does not register.
+_REG_HINT = ("a host function such as led() exists only where it is registered: "
+             "--reg NAME=ACTION here, or run the script in its world "
+             "(--world kilobot|crazyflie|m300)")
 
 
 def _injections(path: Path) -> list[Injection]:
@@ -166,6 +181,4 @@ def _call_hint(robot: Any, failure: Any) -> str | None:
             or bcode[failure.pc] != Op.CALLC:
         return None
     return ("the value called is not a function (the call can be on the line before "
-            "the one shown). A host function such as led() exists only where it is "
-            "registered: --reg NAME=ACTION here, or run the script in its world "
-            "(--world kilobot|crazyflie|m300).")
+            f"the one shown). {_REG_HINT[0].upper()}{_REG_HINT[1:]}.")

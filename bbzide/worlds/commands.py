@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from bbzide.compiler.call_sites import explain_failure, robot_phrase
 from bbzide.diagnostics import UserError
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import WORLDS, world_spec
@@ -211,6 +212,13 @@ def describe_failure(state: Any, others: int = 0, world: str | None = None) -> s
     location = getattr(failure, "location", None)
     pc = getattr(failure, "pc", None)
     message = getattr(failure, "message", "")
+    explained = None
+    if world is not None and pc is not None and state.robot is not None:
+        spec = world_spec(world)
+        explained = explain_failure(state.robot.program, reason, pc, spec.host_names,
+                                    robot_phrase(spec.name))
+    if explained is not None:
+        location, message = explained
     who = f"robot {state.robot_id}" + (f" and {others} other(s)" if others else "")
     text = f"{who} (step {state.failure_step}): {reason}"
     if location is not None:
@@ -223,9 +231,9 @@ def describe_failure(state: Any, others: int = 0, world: str | None = None) -> s
     if line is not None:
         text += f"\n      {line.strip()}"
         if reason == "TYPE" and world is not None:
-            # bzzparse's debug positions point at the token after a statement (often the next
-            # line's `}`), so the call can be on the line before.
-            before = _source_line(location, offset=-1) or ""
+            # without the call's own position, bzzparse's debug position points at the token
+            # after the call (often the next line's `}`), so the call can be on the line before
+            before = "" if explained else _source_line(location, offset=-1) or ""
             hints = _other_world_calls(before + "\n" + line, world)
             text += "".join(f"\n      hint: {hint}" for hint in hints)
     return text

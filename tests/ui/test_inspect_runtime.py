@@ -83,3 +83,22 @@ def test_frame_links_are_the_engine_links_as_indexes(tmp_path: Path) -> None:
     engine = sim.sim
     by_id = [(frame.robot_ids[a], frame.robot_ids[b]) for a, b in frame.links.tolist()]
     assert by_id == engine.links and len(by_id) > 0
+
+
+def test_an_undefined_call_is_explained_at_its_line(tmp_path: Path) -> None:
+    """The inspector and the editor's runtime markers name the call at its own line."""
+    assert BACKEND is not None
+    path = tmp_path / "student.bzz"
+    text = "function init() {}\nfunction step() {\n  led(1)\n  nosuchfunction(id)\n}\n"
+    path.write_text(text)
+    _, program = BACKEND.compile(text, path, "kilobot")
+    sim = BACKEND.create("kilobot", program, 3, 1)
+    sim.step()
+    view = sim.inspect(1)
+    assert view.last_error == (
+        "TYPE: `nosuchfunction` is nil here: it is not defined, and no host function of the "
+        f"Kilobot has that name at {path.resolve()}:4:2")
+    assert view.last_error_line is not None and "nosuchfunction(id)" in view.last_error_line
+    [(where, message, robots)] = sim.runtime_errors()
+    assert (where.line, where.col, robots) == (4, 2, 3)
+    assert message.startswith("TYPE: `nosuchfunction` is nil here")

@@ -137,3 +137,14 @@ def test_a_bbo_compiled_for_another_string_table_is_refused(tmp_path, capsys):
     capsys.readouterr()
     assert main(run) == 0
     assert "messages: 0 sent" not in capsys.readouterr().out
+
+
+def test_an_undefined_call_is_reported_at_its_line_in_plain_words(tmp_path, capsys):
+    """The call's own line and column (bzzparse's debug info would say the `}` after it)."""
+    script = tmp_path / "student.bzz"
+    script.write_text("function init() {}\nfunction step() {\n  led(1)\n  nosuchfunction(id)\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "2", "--steps", "2"]) == 0
+    out = capsys.readouterr().out
+    assert (f"robot 0 and 1 other(s) (step 0): TYPE at {script}:4:2, pc ") in out
+    assert "`nosuchfunction` is nil here: it is not defined, and no host function of the " \
+           "Kilobot has that name\n      nosuchfunction(id)" in out
