@@ -136,6 +136,17 @@ def robot_phrase(world_name: str) -> str:
     return f"the {world_name[:1].upper()}{world_name[1:]}" if world_name else "this robot"
 
 
+def lint_globals(program: object, host_names: Sequence[str], platform: str
+                 ) -> list[tuple[SourceLocation, str]]:
+    """The undefined-global warnings of a compiled program (`CompiledProgram` or
+    `BittyBuzzProgram`): one per name, at its first use."""
+    symbols = getattr(program, "symbols", None)
+    if symbols is None:
+        return []
+    return [(where, undefined_global_message(name, symbols, host_names, platform))
+            for name, where in undefined_globals(symbols, host_names)]
+
+
 def explain_failure(program: object, reason: str, pc: int, host_names: Sequence[str],
                     platform: str) -> tuple[SourceLocation, str] | None:
     """Where and why, in the student's terms, for a robot stopped by `reason` at `pc` of

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import viser
 
+from bbzide.compiler.call_sites import lint_globals, robot_phrase
 from bbzide.ui.build_panel import footprint_markdown, listing_html
 from bbzide.ui.controls import RunControls
 from bbzide.ui.editor_server import EditorServer
@@ -135,9 +136,14 @@ class IdeApp:
     def _compile(self, text: str, path: Path) -> tuple[object, object]:
         return self.backend.compile(text, path, self.controller.settings.world)
 
-    def _pitfalls(self, text: str) -> list[Diagnostic]:
-        platform = self.backend.platform(self.controller.settings.world)
-        return find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+    def _pitfalls(self, text: str, program: object) -> list[Diagnostic]:
+        """BittyBuzz pitfalls of the text and the globals it uses but nothing defines."""
+        world = self.controller.settings.world
+        platform = self.backend.platform(world)
+        found = find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+        undefined = lint_globals(program, self.backend.host_names(world), robot_phrase(world))
+        return found + [Diagnostic(where.line, where.col, message, "warning")
+                        for where, message in undefined if where.file == str(self.session.path)]
 
     def _toggle_recording(self, on: bool) -> None:
         if not on:

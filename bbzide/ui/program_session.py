@@ -97,7 +97,7 @@ class ProgramSession:
         path: Path,
         compile_fn: CompileFunction,
         on_program: Callable[[Any], None] | None = None,
-        lint_fn: Callable[[str], list[Diagnostic]] | None = None,
+        lint_fn: Callable[[str, Any], list[Diagnostic]] | None = None,
     ) -> None:
         self.path = path.resolve()
         self._compile_fn = compile_fn
@@ -171,7 +171,7 @@ class ProgramSession:
                 compiled, program = self._compile_fn(text, self.path)
                 warnings = _warnings_of(compiled, program)
                 if self._lint_fn is not None:
-                    warnings += self._lint_fn(text)
+                    warnings += self._lint_fn(text, program)
                 outcome = CompileOutcome(revision, True, warnings, compiled, program)
             except UserError as error:
                 outcome = CompileOutcome(revision, False, diagnostics_from_error(error, self.path))

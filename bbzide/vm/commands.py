@@ -120,6 +120,11 @@ def run_single_robot(args: argparse.Namespace) -> int:
                         f"16-bit), got {args.robot}")
     registrations = group_registrations(args.reg or ["log=print"])
     program = load(script, registrations, list(getattr(args, "include", []) or []))
+    from bbzide.compiler.call_sites import lint_globals
+
+    names = host_names(registrations)
+    for where, message in lint_globals(program, names, f"this run (--reg {', '.join(names)})"):
+        print(f"{where}: warning: {message}", file=sys.stderr)
     injections = _injections(Path(args.inject)) if args.inject else []
     run = run_harness(program, PROFILES[args.platform], robot_id=args.robot, steps=steps,
                       seed=int(args.seed or 0), loop=args.loop, registrations=registrations,
@@ -138,7 +143,6 @@ def run_single_robot(args: argparse.Namespace) -> int:
     if failure is not None:
         from bbzide.compiler.call_sites import explain_failure
 
-        names = host_names(registrations)
         explained = explain_failure(program, failure.reason, failure.pc, names,
                                     f"this run (--reg {', '.join(names)})")
         if explained is not None:

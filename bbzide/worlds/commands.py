@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
-from bbzide.compiler.call_sites import explain_failure, robot_phrase
+from bbzide.compiler.call_sites import explain_failure, lint_globals, robot_phrase
 from bbzide.diagnostics import UserError
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import WORLDS, world_spec
@@ -123,6 +124,8 @@ def run_world(args: argparse.Namespace) -> int:
     engine_options = vm_options_for_world(args)
     program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
                                                                     or []))
+    for where, message in lint_globals(program, spec.host_names, robot_phrase(spec.name)):
+        print(f"{where}: warning: {message}", file=sys.stderr)
     radio: dict[str, Any] = {}
     if args.comm_range is not None:
         radio["comm_range"] = args.comm_range

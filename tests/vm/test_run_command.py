@@ -55,6 +55,8 @@ def test_calling_an_unregistered_host_function_gets_a_hint(tmp_path: Path, capsy
     script.write_text("function step() {\n  log(1)\n    led(3)\n}\n")
     assert main(["run", str(script), "--platform", "pc", "--steps", "1"]) == 1
     err = capsys.readouterr().err.splitlines()
+    assert err[0].startswith(f"{script}:3:4: warning: `led` is never defined")  # the lint
+    err = err[1:]
     assert err[0].startswith(f"{script}:3:4: error: robot 0 stopped: TYPE")
     assert "`led` is nil here: it is not defined, and no host function of this run " \
            "(--reg log) has that name" in err[0]
@@ -69,7 +71,7 @@ def test_an_undefined_function_is_named_at_its_call(tmp_path: Path, capsys) -> N
     script = tmp_path / "typo.bzz"
     script.write_text("function step() {\n  var x = 1\n  lgo(x)\n}\n")
     assert main(["run", str(script), "--platform", "pc", "--steps", "1"]) == 1
-    first = capsys.readouterr().err.splitlines()[0]
+    first = capsys.readouterr().err.splitlines()[1]
     assert first.startswith(f"{script}:3:2: error:")
     assert first.endswith("`lgo` is nil here: it is not defined, and no host function of this "
                           "run (--reg log) has that name; did you mean `log`?")

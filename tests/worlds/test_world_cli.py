@@ -148,3 +148,17 @@ def test_an_undefined_call_is_reported_at_its_line_in_plain_words(tmp_path, caps
     assert (f"robot 0 and 1 other(s) (step 0): TYPE at {script}:4:2, pc ") in out
     assert "`nosuchfunction` is nil here: it is not defined, and no host function of the " \
            "Kilobot has that name\n      nosuchfunction(id)" in out
+
+
+def test_globals_read_but_never_defined_are_warned_before_the_run(tmp_path, capsys):
+    script = tmp_path / "typo.bzz"
+    script.write_text("var gradient = 1\nfunction init() {}\nfunction step() {\n"
+                      "  lde(gradiant)\n  led(gradient)\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "1", "--steps", "1"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warnings) == 2
+    assert warnings[0].startswith(f"{script}:4:2: warning: `lde` is never defined: it is not a "
+                                  "global of the script, nor a host function of the Kilobot")
+    assert "Known names: `led`, " in warnings[0]          # the close match first
+    assert warnings[1].startswith(f"{script}:4:6: warning: `gradiant` is never defined")
+    assert "Known names: `gradient`, " in warnings[1]
