@@ -245,6 +245,24 @@ class IdeApp:
         frame = self.controller.last_frame
         self.overlays.show(overlays, positions=None if frame is None else frame.positions)
 
+    def _refresh_runtime_errors(self) -> None:
+        """The swarm's failures in this file, grouped by place, as the editor's runtime markers
+        (for the revision of the program the robots run)."""
+        good = self.session.last_good
+        try:
+            with self.controller.locked(timeout=INSPECT_LOCK_TIMEOUT) as sim:
+                read = getattr(sim, "runtime_errors", None)
+                found = read() if read is not None else []
+        except StepInProgress:
+            return
+        path = str(self.session.path)
+        markers = [
+            Diagnostic(where.line, where.col, message, "runtime", robots)
+            for where, message, robots in found
+            if where is not None and where.file == path
+        ]
+        self.session.set_runtime_errors(good.revision if good is not None else -1, markers)
+
     def _program_warnings(self) -> list[str]:
         """The running program's compiler warnings and pitfalls, as `line:col: message`."""
         good = self.session.last_good
@@ -273,6 +291,7 @@ class IdeApp:
         self._overlay_ticks += 1
         if self._overlay_ticks % OVERLAY_TICKS == 1:
             self._refresh_overlays()
+        self._refresh_runtime_errors()
         busy_since = self.controller.status.step_started_at
         step_is_long = (
             busy_since is not None and time.monotonic() - busy_since > INSPECT_LOCK_TIMEOUT

@@ -39,7 +39,8 @@ class Diagnostic:
     line: int
     col: int
     message: str
-    severity: str = "error"  # "error" | "warning"
+    severity: str = "error"  # "error" | "warning" | "runtime" (robots stopped there)
+    robots: int = 0  # a runtime error: how many robots hit it
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -47,6 +48,7 @@ class Diagnostic:
             "col": self.col,
             "message": self.message,
             "severity": self.severity,
+            "robots": self.robots,
         }
 
 
@@ -112,6 +114,8 @@ class ProgramSession:
         self.outcome: CompileOutcome | None = None
         self.last_good: CompileOutcome | None = None
         self.compiling = False
+        # errors of the running robots, for the revision of the program they run
+        self._runtime: tuple[int, list[Diagnostic]] = (-1, [])
 
     # ---- observers -------------------------------------------------------------------------
     def add_listener(self, listener: Callable[[CompileOutcome], None]) -> None:
@@ -191,6 +195,12 @@ class ProgramSession:
             listener(outcome)
         return outcome
 
+    def set_runtime_errors(self, revision: int, errors: list[Diagnostic]) -> None:
+        """The robots' runtime errors in this file, for the program of `revision` (the editor
+        marks them only while it shows that revision: positions in other text would lie)."""
+        with self._lock:
+            self._runtime = (revision, list(errors))
+
     # ---- what the editor polls ---------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         with self._lock:
@@ -208,6 +218,8 @@ class ProgramSession:
                 "summary": summary,
                 "diagnostics_revision": outcome.revision if outcome else -1,
                 "diagnostics": [d.as_json() for d in outcome.diagnostics] if outcome else [],
+                "runtime_revision": self._runtime[0],
+                "runtime": [d.as_json() for d in self._runtime[1]],
             }
 
     def source(self) -> dict[str, Any]:
