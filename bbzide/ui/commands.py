@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from bbzide.diagnostics import UserError
+from bbzide.worlds.registry import DEFAULT_SEED
 
 if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
     from bbzide.ui.app import IdeApp
@@ -44,7 +45,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ide.add_argument("script", nargs="?", type=Path, help="Buzz script to edit and run (.bzz)")
     ide.add_argument("--world", help="world to open (default: the Kilobot table)")
     ide.add_argument("--robots", type=int, help="number of robots (default: the world's)")
-    ide.add_argument("--seed", type=int, default=1, help="world seed (default 1)")
+    ide.add_argument("--seed", type=int, default=DEFAULT_SEED,
+                     help=f"world seed (default {DEFAULT_SEED}, as bbzide run --world)")
     ide.add_argument(
         "--speed",
         type=float,
@@ -60,7 +62,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         script=None,
         world=None,
         robots=None,
-        seed=1,
+        seed=DEFAULT_SEED,
         speed=30.0,
         host="127.0.0.1",
         port=DEFAULT_PORT,

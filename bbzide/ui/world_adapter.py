@@ -48,19 +48,6 @@ DEFAULT_ROBOTS = 25
 #: the Robot's default budget: the swarm reloads in seconds after the fix.
 IDE_INSTRUCTION_BUDGET = 5_000
 
-#: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
-#: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash; the build
-#: view's budget for the .bbo is the compiler room's FLASH_BUDGETS).
-#: Zooids: STM32F051C8, 8 KB SRAM / 64 KB flash; Crazyflie 2.x: STM32F405RG, 192 KB SRAM
-#: (128 KB + 64 KB core-coupled) / 1 MB flash. The M300's script runs on a companion computer
-#: (no meaningful RAM limit) and `pc` is a desktop: no figure.
-PLATFORM_MEMORY = {
-    "kilobot": (2048, 32768),
-    "zooids": (8192, 65536),
-    "crazyflie": (196608, 1048576),
-}
-
-
 class MissingRoomError(UserError):
     """A room the IDE needs (compiler, VM, worlds) is not in this build."""
 
@@ -308,7 +295,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         free_bytes=decoded.free_bytes,
         peak_bytes=int(heap.peak_used),
         gc_runs=int(heap.gc_runs),
-        ram_bytes=PLATFORM_MEMORY.get(profile.name, (None, None))[0],
+        ram_bytes=_import("bbzide.compiler.footprint").RAM_BYTES.get(profile.name),
         objects=decoded.objects,
         frames=_frame_rows(vm, program) + _stack_rows(vm, reader),
         globals=globals_,

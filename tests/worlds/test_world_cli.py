@@ -1,5 +1,6 @@
 """`bbzide run --world` and `bbzide worlds`: bad input is a one-line error, never a traceback."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -162,3 +163,17 @@ def test_globals_read_but_never_defined_are_warned_before_the_run(tmp_path, caps
     assert "Known names: `led`, " in warnings[0]          # the close match first
     assert warnings[1].startswith(f"{script}:4:6: warning: `gradiant` is never defined")
     assert "Known names: `gradient`, " in warnings[1]
+
+
+def test_a_run_prints_each_robots_heap_peak_and_warns_near_the_limit(tmp_path, capsys):
+    script = tmp_path / "grow.bzz"
+    script.write_text("t = {}\nfunction init() {}\nfunction step() {\n"
+                      "  if (id == 1) {\n    t[size(t)] = size(t)\n  }\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "3", "--steps", "60"]) == 0
+    out = capsys.readouterr().out
+    [heap] = [line for line in out.splitlines() if line.startswith("heap peak: ")]
+    peaks = {int(robot): int(peak) for robot, peak in re.findall(r"robot (\d+) (\d+) B", heap)}
+    assert sorted(peaks) == [0, 1, 2] and heap.endswith(
+        "of the 1088 B heap (kilobot profile, 2048 B of RAM)")
+    assert peaks[1] > peaks[0] == peaks[2]      # only robot 1 grows its table
+    assert "warning: robot(s) 1 used up to " in out and "may stop them with MEM" in out
