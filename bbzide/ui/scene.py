@@ -149,6 +149,7 @@ class SwarmScene:
         self.server = server
         self._on_robot_click = on_robot_click
         self._lock = threading.Lock()
+        self._selection_lock = threading.Lock()  # see `select`
         self.geometry: WorldGeometry | None = None
         self.show_links = True
         self.show_ranges = False
@@ -361,27 +362,37 @@ class SwarmScene:
                 self._on_robot_click(event.client, int(index))
 
     # ---- per-client selection ----------------------------------------------------------------
+    # A click arrives on viser's thread while frames are drawn on the simulation thread: both
+    # move the selection marks, and both would create `/selection/ring` if they found none (the
+    # second creation removes the first handle, which the other thread then updates: "Cannot
+    # assign to 'points' on a removed LineSegmentsHandle"). `_selection_lock` makes "find or
+    # create, then update" one step.
+
     def select(self, client: viser.ClientHandle, index: int | None) -> None:
-        if index is None:
-            self._selection.pop(client.client_id, None)
-        else:
-            self._selection[client.client_id] = index
-        if self.last_frame is not None:
-            self._draw_selection(client, self.last_frame)
+        with self._selection_lock:
+            if index is None:
+                self._selection.pop(client.client_id, None)
+            else:
+                self._selection[client.client_id] = index
+            if self.last_frame is not None:
+                self._draw_selection(client, self.last_frame)
 
     def forget_client(self, client_id: int) -> None:
-        self._selection.pop(client_id, None)
-        self._selection_marks.pop(client_id, None)
+        with self._selection_lock:
+            self._selection.pop(client_id, None)
+            self._selection_marks.pop(client_id, None)
 
     def _draw_selections(self, frame: SwarmFrame) -> None:
         clients = self.server.get_clients()
-        for client_id in list(self._selection):
-            client = clients.get(client_id)
-            if client is not None:
-                self._draw_selection(client, frame)
+        with self._selection_lock:
+            for client_id in list(self._selection):
+                client = clients.get(client_id)
+                if client is not None:
+                    self._draw_selection(client, frame)
 
     def _draw_selection(self, client: viser.ClientHandle, frame: SwarmFrame) -> None:
-        """Move this tab's ring and label onto its robot (created once, then only updated)."""
+        """Move this tab's ring and label onto its robot (created once, then only updated);
+        called with `_selection_lock` held."""
         index = self._selection.get(client.client_id)
         geometry = self.geometry
         marks = self._selection_marks.get(client.client_id)

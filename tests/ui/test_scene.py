@@ -5,6 +5,8 @@ Each test reads back what the viser handles would send, so it checks the arrays 
 
 from __future__ import annotations
 
+import contextlib
+import threading
 from collections.abc import Iterator
 
 import numpy as np
@@ -85,3 +87,81 @@ def test_trails_sample_every_few_frames_into_a_fixed_buffer(server: viser.ViserS
     sampled = range(0, steps, TRAIL_SAMPLE_FRAMES)[-TRAIL_SAMPLES:]
     robot0 = sent[-1][sent[-1][:, 1] == 1.0]
     assert sorted(robot0[:, 0].tolist()) == [1.0 + s for s in sampled]
+
+
+class _FakeHandle:
+    """A scene handle that only keeps what is assigned to it."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+
+class _FakeClientScene:
+    def __init__(self, on_first_ring: object) -> None:
+        self.rings: list[_FakeHandle] = []
+        self._on_first_ring = on_first_ring
+
+    def add_line_segments(self, name: str, *args: object, **kwargs: object) -> _FakeHandle:
+        ring = _FakeHandle(name)
+        self.rings.append(ring)
+        if len(self.rings) == 1:
+            self._on_first_ring()  # type: ignore[operator]
+        return ring
+
+    def add_label(self, name: str, *args: object, **kwargs: object) -> _FakeHandle:
+        return _FakeHandle(name)
+
+
+class _FakeClient:
+    client_id = 7
+
+    def __init__(self, on_first_ring: object) -> None:
+        self.scene = _FakeClientScene(on_first_ring)
+
+    def atomic(self) -> contextlib.AbstractContextManager[None]:
+        return contextlib.nullcontext()
+
+
+class _WatchedLock:
+    """A lock that says (through `settled`) when a thread has to wait for it."""
+
+    def __init__(self, settled: threading.Event) -> None:
+        self._lock = threading.Lock()
+        self._settled = settled
+
+    def __enter__(self) -> None:
+        if not self._lock.acquire(blocking=False):
+            self._settled.set()
+            self._lock.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self._lock.release()
+
+
+def test_a_click_and_a_frame_create_one_selection_ring(
+        server: viser.ViserServer, monkeypatch: pytest.MonkeyPatch) -> None:
+    """While the click's thread is creating the tab's ring, a frame drawn on the simulation
+    thread must wait for it instead of creating a second `/selection/ring` (which removes the
+    first one, so the next update of the stored handle fails)."""
+    scene = SwarmScene(server)
+    scene.set_world(FIELD)
+    positions = np.array([[1.0, 1.0], [5.0, 5.0], [9.0, 2.0]])
+    scene.draw(frame(0, positions))
+    settled = threading.Event()  # the frame's thread waits for the lock, or has finished
+    frame_thread = threading.Thread(target=lambda: (scene.draw(frame(1, positions + 0.5)),
+                                                    settled.set()))
+
+    def draw_a_frame_meanwhile() -> None:
+        frame_thread.start()
+        settled.wait()
+
+    client = _FakeClient(draw_a_frame_meanwhile)
+    monkeypatch.setattr(server, "get_clients", lambda: {client.client_id: client})
+    scene._selection_lock = _WatchedLock(settled)  # type: ignore[assignment]
+    scene.select(client, 1)  # type: ignore[arg-type]
+    frame_thread.join()
+    assert [ring.name for ring in client.scene.rings] == ["/selection/ring"]
+    ring = client.scene.rings[0]
+    assert ring.visible is True
+    np.testing.assert_allclose(ring.points.reshape(-1, 3)[:, :2].mean(axis=0), [5.5, 5.5],
+                               atol=1e-6)  # moved by the frame drawn after the click
