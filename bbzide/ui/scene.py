@@ -191,6 +191,7 @@ class SwarmScene:
         self._view_box: tuple[float, float, float, float] | None = None
         self._selection: dict[int, int] = {}  # client id -> selected robot index
         self._selection_marks: dict[int, tuple[viser.LineSegmentsHandle, viser.LabelHandle]] = {}
+        self._canvas_sizes: dict[int, tuple[int, int]] = {}  # client id -> last canvas size
         self.last_frame: SwarmFrame | None = None
         server.scene.set_up_direction("+z")
         self._headings = server.scene.add_line_segments(
@@ -261,7 +262,19 @@ class SwarmScene:
             self.aim_camera(client)
 
     def aim_camera(self, client: viser.ClientHandle) -> None:
-        """Point this tab's camera at the world's area of interest, fitted to its canvas."""
+        """Point this tab's camera at the world's area of interest, fitted to its canvas; again
+        whenever the tab reports another canvas size (its first real size arrives after it
+        connects; a resized window)."""
+        if client.client_id not in self._canvas_sizes:
+            self._canvas_sizes[client.client_id] = (0, 0)
+
+            @client.camera.on_update
+            def _(camera: viser.CameraHandle) -> None:
+                size = (int(camera.image_width), int(camera.image_height))
+                if self._canvas_sizes.get(client.client_id) not in (None, size):
+                    self._canvas_sizes[client.client_id] = size
+                    self.aim_camera(client)
+
         if self.geometry is None or self._view_box is None:
             return
         try:  # viser knows a tab's canvas once its first camera message has arrived
@@ -426,6 +439,7 @@ class SwarmScene:
                 self._draw_selection(client, self.last_frame)
 
     def forget_client(self, client_id: int) -> None:
+        self._canvas_sizes.pop(client_id, None)
         with self._selection_lock:
             self._selection.pop(client_id, None)
             self._selection_marks.pop(client_id, None)
