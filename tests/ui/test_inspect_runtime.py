@@ -102,3 +102,19 @@ def test_an_undefined_call_is_explained_at_its_line(tmp_path: Path) -> None:
     [(where, message, robots)] = sim.runtime_errors()
     assert (where.line, where.col, robots) == (4, 2, 3)
     assert message.startswith("TYPE: `nosuchfunction` is nil here")
+
+
+def test_problem_messages_keep_their_inline_code(tmp_path: Path) -> None:
+    """Warnings are sentences with `code` in them: shown as text (not one code span, which
+    glued "`not x` gives" into "not xgives"), emphasis characters escaped outside the code."""
+    from bbzide.ui.inspection import RobotInspection
+    from bbzide.ui.inspector_panel import _problems_markdown
+
+    view = RobotInspection(0, 0, 1, "error", 0, 1088, 0, 1088, 0, [], 0, 1088, None, None, None,
+                           last_error="TYPE: `my_func` is nil here",
+                           warnings=["11:4: BittyBuzz `not x` gives the truth value of x: "
+                                     "write `x == 0`", "a_b * c"])
+    text = _problems_markdown(view)
+    assert "**Last error:** TYPE: `my_func` is nil here" in text
+    assert "- 11:4: BittyBuzz `not x` gives the truth value of x: write `x == 0`" in text
+    assert "- a\\_b \\* c" in text
