@@ -227,9 +227,16 @@ class ProgramSession:
             return {"revision": self.revision, "text": self.text}
 
 
+#: bo2bbo's warning for an integer outside int16, which names a `.bo` offset: the editor's
+#: pitfall check already marks the literal itself (`pitfalls.py`), so the IDE shows that one.
+BO2BBO_INT16_WARNING = "out of 16 bit integer range"
+
+
 def _warnings_of(compiled: Any, program: Any) -> list[Diagnostic]:
-    """Compiler and bo2bbo warnings as line-1 markers (they carry no location in the contract)."""
-    messages = list(getattr(compiled, "warnings", []) or []) + list(
-        getattr(program, "warnings", []) or []
-    )
+    """Compiler and bo2bbo warnings as line-1 markers (they carry no location in the contract),
+    except bo2bbo's int16 warnings: one warning per problem, at the literal (pitfalls)."""
+    messages = list(getattr(compiled, "warnings", []) or []) + [
+        message for message in getattr(program, "warnings", []) or []
+        if BO2BBO_INT16_WARNING not in str(message)
+    ]
     return [Diagnostic(1, 0, str(message), "warning") for message in messages]

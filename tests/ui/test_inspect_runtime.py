@@ -118,3 +118,19 @@ def test_problem_messages_keep_their_inline_code(tmp_path: Path) -> None:
     assert "**Last error:** TYPE: `my_func` is nil here" in text
     assert "- 11:4: BittyBuzz `not x` gives the truth value of x: write `x == 0`" in text
     assert "- a\\_b \\* c" in text
+
+
+def test_an_int16_overflow_is_warned_once_at_the_literal(tmp_path: Path) -> None:
+    """`var big = 40000`: the pitfall at 1:10, not also bo2bbo's warning naming a .bo offset."""
+    from bbzide.ui.pitfalls import find_pitfalls
+    from bbzide.ui.program_session import _warnings_of
+
+    assert BACKEND is not None
+    path = tmp_path / "big.bzz"
+    text = "var big = 40000\nfunction step() {}\n"
+    path.write_text(text)
+    compiled, program = BACKEND.compile(text, path, "kilobot")
+    assert any("16 bit integer range" in w for w in program.warnings)  # bo2bbo still says it
+    shown = _warnings_of(compiled, program) + find_pitfalls(text)
+    assert [(d.line, d.col) for d in shown] == [(1, 10)]
+    assert "int16" in shown[0].message
