@@ -50,10 +50,10 @@ CAMERA_SLACK = 1.1
 #: 1400 x 900 window is about 420 x 880 px. A wider view then just shows more around the box.
 ASSUMED_ASPECT = 0.45
 #: A robot is drawn with a radius of at least this share of the framed box's larger side: at
-#: the narrowest view (about 420 px for 1.1 times the box) a disc of about 10 px, visible and
-#: clickable. Kilobots (1.65 cm on a 1 m table, 1.4 % of its 1.2 m box) keep their size;
-#: Crazyflies (5 cm in a 6 m lab) are drawn larger than they are.
-MIN_DRAWN_RADIUS_SHARE = 0.013
+#: the narrowest view (about 420 px for 1.1 times the box) a disc of about 14 px, visible and
+#: clickable on a light floor. Crazyflies (4.6 cm in a 6 m lab) are drawn 2.5 times their size;
+#: Kilobots (1.65 cm on a 1 m table) 1.3 times, 4.3 cm: still apart on the 5 cm lattice.
+MIN_DRAWN_RADIUS_SHARE = 0.018
 #: Robots in error get a red ring; links and ranges are drawn in these colours (RGB 0..255).
 FAILED_COLOR = (224, 49, 49)
 LINK_COLOR = (60, 140, 230)

@@ -71,10 +71,13 @@ def test_robots_are_drawn_large_enough_to_see_and_click(server: viser.ViserServe
     scene = SwarmScene(server)
     scene.set_world(lab, np.array([[3.0, 3.0]]))
     assert scene.geometry is not None
-    assert scene.geometry.robot_radius == pytest.approx(0.013 * (6.0 + 12 * 0.05))
+    assert scene.geometry.robot_radius == pytest.approx(0.018 * (6.0 + 12 * 0.05))
     table = WorldGeometry(0.0165, 0.1, (0.0, 0.0, 1.0, 1.0), np.zeros((0, 2, 2)))
     scene.set_world(table, np.array([[0.5, 0.5]]))
-    assert scene.geometry.robot_radius == 0.0165  # a Kilobot is drawn at its own size
+    assert 0.0165 < scene.geometry.robot_radius < 0.025  # Kilobots stay apart on a 5 cm grid
+    field_drone = FIELD.robot_radius
+    scene.set_world(FIELD, np.array([[18.0, 18.0]]))
+    assert scene.geometry.robot_radius == pytest.approx(max(field_drone, 0.018 * 42.0))
 
 
 def test_the_view_reframes_when_the_robot_count_changes(server: viser.ViserServer) -> None:
