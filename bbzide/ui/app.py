@@ -190,7 +190,7 @@ class IdeApp:
             footprint_markdown(good.compiled, good.program, name, budget) + note
         )
         self.listing.content = listing_html(
-            good.compiled.basm, self.session.text, self.session.path
+            good.compiled, good.program, self.session.text, self.session.path
         )
 
     # ---- frames and selection -------------------------------------------------------------------
