@@ -86,3 +86,17 @@ def test_recorded_run_applies_budget_and_loop(tmp_path: Path,
                  "--loop", "robot", "--record", str(path)]) == 0
     assert "STACK" in capsys.readouterr().out  # the firmware keeps step's return value
     assert read_recording(path).meta["loop"] == "robot"
+
+
+@pytest.mark.skipif(not HAS_ROBOT, reason="bbzide/vm/robot.py (vm-runtime) not merged yet")
+def test_a_replay_has_the_world_overlays_from_its_first_step(tmp_path: Path) -> None:
+    """The belief map, targets and rendezvous of an M300 field at the first recorded step
+    (they were missing until the first look, ten steps in)."""
+    path = tmp_path / "field.rrd"
+    flocking = str(REPO / "examples/m300/flocking.bzz")
+    assert main(["run", flocking, "--world", "m300", "--robots", "3", "--steps", "4",
+                 "--record", str(path)]) == 0
+    recording = read_recording(path)
+    first = recording.overlays_at(recording.first_step)
+    assert {"belief_map", "targets", "rendezvous"} <= set(first)
+    assert len(first["targets"]) == 3
