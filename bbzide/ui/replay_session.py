@@ -167,3 +167,14 @@ class ReplaySession:
 
     def events_text(self, limit: int = 200) -> list[str]:
         return [f"step {e.step}: {e.text}" for e in self.recording.events[:limit]]
+
+    def event_choices(self, limit: int = 200) -> list[tuple[str, int]]:
+        """(text, step) of each event, in order, for a list that seeks to the chosen one."""
+        return [(f"step {e.step}: {e.text}", int(e.step)) for e in self.recording.events[:limit]]
+
+    def jump_kinds(self) -> list[tuple[str, str]]:
+        """The jump rows that apply to this recording: robot errors always (none is news too);
+        found targets and role changes only when the recording has some (a Kilobot run has no
+        targets and no roles)."""
+        return [(kind, label) for kind, label in JUMP_KINDS
+                if kind == layout.EVENT_ERROR or self.event_steps(kind)]
