@@ -6,9 +6,9 @@ and darray segments by their own colour, freed slots inside the used areas are p
 between ROP and LSP is white. ROP and LSP are marked with their byte offsets.
 
 A large heap (an M300's 60,000 bytes) would need rows so wide that its 9-byte objects become
-stripes. When the used areas fit `MAX_DETAIL_ROWS` rows of 64 bytes, the map shows them at that scale
-and folds the free gap between them into one row that says how many bytes it holds: rows are
-`spans` of the heap, each row labelled with its real offset.
+stripes. When the used areas fit `MAX_DETAIL_ROWS` rows of 64 bytes, the map shows them at that
+scale and folds the free gap between them into one row that says how many bytes it holds: rows
+are `spans` of the heap, each row labelled with its real offset.
 """
 
 from __future__ import annotations
@@ -101,7 +101,6 @@ def _rows_for(inspection: RobotInspection) -> _Rows:
 
 
 def render_heap_svg(inspection: RobotInspection) -> str:
-    size = inspection.heap_size
     layout = _rows_for(inspection)
     per_row = layout.per_row
     byte_px = BYTE_PX * 64 / per_row
