@@ -15,6 +15,8 @@ import pytest
 
 from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
 
+REPO = Path(__file__).resolve().parents[2]
+
 try:
     BACKEND: WorldsBackend | None = WorldsBackend()
 except MissingRoomError:
@@ -134,3 +136,27 @@ def test_an_int16_overflow_is_warned_once_at_the_literal(tmp_path: Path) -> None
     shown = _warnings_of(compiled, program) + find_pitfalls(text)
     assert [(d.line, d.col) for d in shown] == [(1, 10)]
     assert "int16" in shown[0].message
+
+
+def test_switching_world_then_opening_its_example(tmp_path: Path) -> None:
+    """After the World dropdown changes, one click puts that world's example in the editor
+    (saved and compiled for the new world), instead of the old world's script."""
+    from browser import free_port
+
+    from bbzide.ui.app import IdeApp
+    from bbzide.ui.run_controller import RunSettings
+
+    assert BACKEND is not None
+    script = tmp_path / "mine.bzz"
+    script.write_text((REPO / "examples/kilobot/gradient.bzz").read_text())
+    app = IdeApp(script, BACKEND, RunSettings("kilobot", 4, 0), port=free_port()).start(run=False)
+    try:
+        app.controls.world.value = "crazyflie"
+        app._change_world("crazyflie")  # what choosing it in the World dropdown does
+        assert app.load_world_example()
+        example = BACKEND.example_path("crazyflie")
+        assert example is not None
+        assert script.read_text() == example.read_text() == app.session.text
+        assert app.session.outcome is not None and app.session.outcome.ok
+    finally:
+        app.stop()
