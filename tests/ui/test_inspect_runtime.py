@@ -160,3 +160,32 @@ def test_switching_world_then_opening_its_example(tmp_path: Path) -> None:
         assert app.session.outcome is not None and app.session.outcome.ok
     finally:
         app.stop()
+
+
+STUDENT = "function init() {}\nfunction step() {\n  led(1)\n  nosuchfunction(id)\n}\n"
+
+
+def test_the_error_line_is_the_compiled_one_not_the_file_on_disk(tmp_path: Path) -> None:
+    """The file changed after the robots got their program: the inspector shows the line the
+    robots run, live and in a replay of a recording."""
+    from bbzide.cli import main
+    from bbzide.recording.reader import read_recording
+    from bbzide.recording.rebuild import RobotRebuilder
+    from bbzide.ui.replay_session import ReplaySession
+
+    assert BACKEND is not None
+    path = tmp_path / "student.bzz"
+    path.write_text(STUDENT)
+    _, program = BACKEND.compile(STUDENT, path, "kilobot")
+    sim = BACKEND.create("kilobot", program, 2, 1)
+    sim.step()
+    recording_path = tmp_path / "student.rrd"
+    assert main(["run", str(path), "--world", "kilobot", "--robots", "2", "--steps", "3",
+                 "--record", str(recording_path)]) == 0
+    path.write_text("# rewritten\n" * 10)  # the file on disk moves on
+    assert sim.inspect(0).last_error_line == "  nosuchfunction(id)"
+    recording = read_recording(recording_path)
+    session = ReplaySession(recording, RobotRebuilder(recording))
+    view = session.inspect(0, recording.last_step)
+    assert view.last_error is not None and "`nosuchfunction` is nil here" in view.last_error
+    assert view.last_error_line == "  nosuchfunction(id)"
