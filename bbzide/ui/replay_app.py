@@ -34,6 +34,18 @@ FRAME_HZ = 30.0
 SOURCE_PANEL_WIDTH = 560
 
 
+def numbered_source_html(source: str | None) -> str:
+    """The recorded program with its line numbers (grey), as the editor numbers them."""
+    if not source:
+        return "(the recording has no source text)"
+    lines = source.splitlines()
+    width = len(str(len(lines)))
+    return "\n".join(
+        f'<span style="color:#868e96;user-select:none">{number:>{width}} │ </span>'
+        f"{html.escape(line)}"
+        for number, line in enumerate(lines, start=1))
+
+
 #: The event list's first entry, which seeks nowhere.
 NO_EVENT = "— choose an event to go to its step —"
 
@@ -128,7 +140,7 @@ class ReplayApp:
             gui.add_html(
                 "<pre class='bbzide-replay-source' style='font-size:12px;line-height:1.35;"
                 "white-space:pre;overflow:auto;max-height:calc(100vh - 160px)'>"
-                + html.escape(source or "(the recording has no source text)") + "</pre>")
+                + numbered_source_html(source) + "</pre>")
         panel.dock_left()
         panel.set_width(SOURCE_PANEL_WIDTH)
         self.slider.on_update(lambda _: self._slider_moved())

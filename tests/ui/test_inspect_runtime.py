@@ -8,6 +8,7 @@ table goes out as its type only (BittyBuzz's 9-byte payload carries one 3-byte v
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -189,3 +190,12 @@ def test_the_error_line_is_the_compiled_one_not_the_file_on_disk(tmp_path: Path)
     view = session.inspect(0, recording.last_step)
     assert view.last_error is not None and "`nosuchfunction` is nil here" in view.last_error
     assert view.last_error_line == "  nosuchfunction(id)"
+
+
+def test_the_replay_program_tab_numbers_the_lines() -> None:
+    from bbzide.ui.replay_app import numbered_source_html
+
+    text = numbered_source_html("var a = 1\n\nfunction step() { a = a < 2 }\n")
+    rows = [re.sub(r"<[^>]+>", "", row) for row in text.split("\n")]
+    assert rows == ["1 │ var a = 1", "2 │ ", "3 │ function step() { a = a &lt; 2 }"]
+    assert numbered_source_html(None) == "(the recording has no source text)"
