@@ -279,6 +279,10 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         if where is not None:
             error_text += f" at {where}"
             error_line = _line_of(program, where, recorded_source)
+    # the line of the pc: a call's own line when the compiler kept it (call_sites.py)
+    site = getattr(program, "call_sites", {}).get(int(vm.pc))
+    at_pc = site.location if site is not None else (
+        program.location_of(int(vm.pc)) if hasattr(program, "location_of") else None)
     gsyms = int(vm.gsyms)
     globals_ = reader.named_entries(gsyms)
     return RobotInspection(
@@ -308,6 +312,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         last_error=error_text,
         last_error_line=error_line,
         warnings=_runtime_warnings(vm, last_sent),
+        pc_line=at_pc.line if at_pc is not None and at_pc.line else None,
     )
 
 

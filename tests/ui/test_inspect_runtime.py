@@ -102,6 +102,7 @@ def test_an_undefined_call_is_explained_at_its_line(tmp_path: Path) -> None:
         "TYPE: `nosuchfunction` is nil here: it is not defined, and no host function of the "
         f"Kilobot has that name at {path.resolve()}:4:2")
     assert view.last_error_line is not None and "nosuchfunction(id)" in view.last_error_line
+    assert view.pc_line == 4  # the header's "pc N (line 4)": the call's line, not the `}`
     [(where, message, robots)] = sim.runtime_errors()
     assert (where.line, where.col, robots) == (4, 2, 3)
     assert message.startswith("TYPE: `nosuchfunction` is nil here")
