@@ -142,7 +142,10 @@ class IdeApp:
         world = self.controller.settings.world
         platform = self.backend.platform(world)
         found = find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
-        undefined = lint_globals(program, self.backend.host_names(world), robot_phrase(world))
+        names = getattr(self.backend, "host_names", None)  # not every backend names them
+        if names is None:
+            return found
+        undefined = lint_globals(program, names(world), robot_phrase(world))
         return found + [Diagnostic(where.line, where.col, message, "warning")
                         for where, message in undefined if where.file == str(self.session.path)]
 
