@@ -1,7 +1,8 @@
 # bbzide: two commands on a fresh machine.
 #   make run    set up (venv, pinned deps) and open the IDE on the default world
 #   make test   set up and run every test (lint, unit, corpus conformance, browser)
-# Also: make bench (benchmarks/*.py), make lint, make lock, make clean.
+# Also: make bench (benchmarks/*.py), make screenshots (docs/screenshots/*.png, the README's
+# pictures, taken in headless Chromium), make lint, make lock, make clean.
 
 PYTHON ?= python3
 VENV   := .venv
@@ -22,7 +23,7 @@ UV_VERSION := 0.13.8
 SETUPTOOLS_VERSION := 80.9.0
 PIP_QUIET := --disable-pip-version-check -q
 
-.PHONY: setup run test bench lint lock browser clean
+.PHONY: setup run test bench lint lock browser screenshots clean
 
 # A new lock or pyproject.toml rebuilds the venv from nothing, so that packages dropped from the
 # lock do not linger; scripts/check_lock.py then refuses a lock older than pyproject.toml's pins.
@@ -62,6 +63,9 @@ lock:
 
 bench: setup
 	@set -e; for bench in benchmarks/*_bench.py; do echo "== $$bench"; $(PY) $$bench; done
+
+screenshots: setup browser
+	$(PY) scripts/screenshots.py docs/screenshots
 
 clean:
 	rm -rf $(VENV) $(LOCK_VENV) build *.egg-info .pytest_cache .ruff_cache
