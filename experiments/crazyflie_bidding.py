@@ -7,14 +7,18 @@ the post (step 5 + drone 0's phase) to the moment the last drone knew the winner
 step + its phase).
 The run also checks that every drone names the same winner.
 
-    PYTHONPATH=. python experiments/crazyflie_bidding.py [runs, default 20]
+    PYTHONPATH=. python experiments/crazyflie_bidding.py [runs, default 20] [--jobs N]
+        [--cluster ADDRESS]
 """
 
 from __future__ import annotations
 
 import sys
+from functools import partial
 
-from common import compile_example, globals_of, mean_sd, run, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run, table
+
+from bbzide.worlds.executors import run_in_order
 
 POST_STEP = 5
 PAPER_MS = {3: "88.00 ± 29.25", 4: "99.05 ± 35.30", 6: "137.10 ± 21.70"}
@@ -35,16 +39,22 @@ def auction_time(drones: int, seed: int, program: object) -> tuple[float, bool]:
 
 
 def main() -> None:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 20
+    executor, argv = executor_from_argv(sys.argv[1:])
+    runs = int(argv[0]) if argv else 20
+    seeds = list(range(runs))
     rows = []
-    for drones in (3, 4, 6):
-        program = compile_example("crazyflie", "examples/crazyflie/bidding.bzz", {"N": drones})
-        results = [auction_time(drones, seed, program) for seed in range(runs)]
-        times = [t * 50 for t, _ in results if t >= 0]
-        agree = sum(1 for _, same in results if same)
-        rows.append([drones, runs, mean_sd(times),
-                     f"{min(times):.0f}-{max(times):.0f}" if times else "-",
-                     f"{agree}/{runs}", PAPER_MS[drones]])
+    with executor:
+        for drones in (3, 4, 6):
+            program = compile_example("crazyflie", "examples/crazyflie/bidding.bzz",
+                                      {"N": drones})
+            results = run_in_order(executor, partial(auction_time, drones, program=program),
+                                   seeds, [f"bidding-{drones}drones-seed{s}" for s in seeds],
+                                   what=f"{drones} drones")
+            times = [t * 50 for t, _ in results if t >= 0]
+            agree = sum(1 for _, same in results if same)
+            rows.append([drones, runs, mean_sd(times),
+                         f"{min(times):.0f}-{max(times):.0f}" if times else "-",
+                         f"{agree}/{runs}", PAPER_MS[drones]])
     print(table(["drones", "runs", "auction duration (ms)", "range (ms)",
                  "same winner everywhere", "paper (ms)"], rows))
 

@@ -7,7 +7,8 @@ Runs examples/crazyflie/consensus.bzz with asynchronous drones (each its own pha
 first read the value; a drone's delay is (its step + its phase) - (5 + the writer's phase), and
 a run's consensus time is the last drone's, in steps and in ms.
 
-    PYTHONPATH=. python experiments/crazyflie_consensus.py [runs, default 20]
+    PYTHONPATH=. python experiments/crazyflie_consensus.py [runs, default 20] [--jobs N]
+        [--cluster ADDRESS]
 """
 
 from __future__ import annotations
@@ -15,8 +16,11 @@ from __future__ import annotations
 import math
 import sys
 from collections import Counter
+from functools import partial
 
-from common import compile_example, globals_of, mean_sd, run, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run, table
+
+from bbzide.worlds.executors import run_in_order
 
 WRITE_STEP = 5
 DRONES = 10
@@ -37,13 +41,22 @@ def consensus_time(formation: str, seed: int, program: object) -> float:
     return max(a + phases[i] for i, a in enumerate(agreed)) - (WRITE_STEP + phases[0])
 
 
+def _consensus_test(test: tuple[str, int], program: object) -> float:
+    formation, seed = test
+    return consensus_time(formation, seed=seed, program=program)
+
+
 def main() -> None:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 20
+    executor, argv = executor_from_argv(sys.argv[1:])
+    runs = int(argv[0]) if argv else 20
     program = compile_example("crazyflie", "examples/crazyflie/consensus.bzz")
+    tests = [(("chain", "circle")[k % 2], k) for k in range(runs)]   # (formation, seed)
+    with executor:
+        delays = run_in_order(executor, partial(_consensus_test, program=program), tests,
+                              [f"consensus-{formation}-seed{k}" for formation, k in tests])
     results: dict[str, list[float]] = {"chain": [], "circle": []}
-    for k in range(runs):
-        formation = ("chain", "circle")[k % 2]
-        results[formation].append(consensus_time(formation, seed=k, program=program))
+    for (formation, _), delay in zip(tests, delays, strict=True):
+        results[formation].append(delay)
     results["both"] = results["chain"] + results["circle"]
     step_ms = 50
     rows = []
