@@ -176,10 +176,15 @@ class DaskExecutor:
             if why is not None:
                 raise UserError(f"Dask worker {worker} cannot run bbzide's experiments: {why}; "
                                 f"{worker_check.INSTALL_HINT}")
-        threads = sum(self._client.nthreads().values())
+        threads = self._client.nthreads()
         if self.address != LOCAL:
             self.description = (f"Dask cluster {self.address} ({len(reports)} workers, "
-                                f"{threads} threads)")
+                                f"{sum(threads.values())} threads)")
+        if max(threads.values()) > 1:
+            # A run is pure Python: threads of one worker process take turns on one core.
+            print(f"note: some Dask workers run {max(threads.values())} threads; a run holds "
+                  "Python's lock, so start workers with `--nworkers N --nthreads 1` for N "
+                  "runs at a time", file=sys.stderr)
 
     def map_unordered(self, function: Callable[[Item], Result], items: Sequence[Item],
                       keys: Sequence[str]) -> Iterator[tuple[int, Result]]:
