@@ -5,9 +5,9 @@ Design: each sweep is a fresh `bbzide` process writing into a fresh folder, time
 exit, so the LocalCluster's start-up and shut-down, the workers' imports and their first
 compile of the SAR script all count against Dask. The modes alternate, and each goes first in
 every other round, so a machine whose load changes during the benchmark burdens both alike;
-the load average is printed before and after each sweep. Each pair's `runs.csv` files must match but for the
-wall-time column (the sweep's promise); the overhead is the cluster's total time over the
-local processes' total.
+the load average is printed before and after each sweep. Each pair's `runs.csv` files must
+match but for the wall-time column (the sweep's promise); the overhead is the cluster's total
+time over the local processes' total.
 
 The runs are the full study's grid (15,20,25 drones x 20,30,40 m x both searches, sweep seed
 2026) with fewer trials: `--trials 3` is 54 of the 540 runs.

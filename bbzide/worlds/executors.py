@@ -142,7 +142,11 @@ class DaskExecutor:
                 self.description = f"a Dask LocalCluster of {self.jobs} workers"
             else:
                 self._client = Client(self.address, timeout=CONNECT_SECONDS)
-        except (OSError, TimeoutError, ValueError) as error:
+        except ValueError:   # Dask could not parse the address
+            self.__exit__(None, None, None)
+            raise UserError(f"--cluster {self.address!r} is not a scheduler address "
+                            "(tcp://HOST:8786) or 'local'") from None
+        except (OSError, TimeoutError) as error:
             self.__exit__(None, None, None)
             raise UserError(f"cannot reach the Dask scheduler at {self.address}: "
                             f"{_first_line(error)}") from None

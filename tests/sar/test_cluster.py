@@ -142,6 +142,13 @@ def test_cluster_without_dask_installed_says_which_extra_to_install(tmp_path, ca
     assert "--cluster needs Dask" in err and "'.[cluster]'" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("address", ["", "foo:bar"])
+def test_a_malformed_scheduler_address_is_a_clear_error(address, tmp_path, capsys):
+    assert main([*SWEEP, "--cluster", address, "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert "scheduler address (tcp://HOST:8786) or 'local'" in err and "Traceback" not in err
+
+
 def _square(n: int) -> int:
     return n * n
 
