@@ -18,7 +18,7 @@ import pytest
 
 from bbzide.cli import main
 from bbzide.worlds import worker_check
-from bbzide.worlds.executors import ProcessExecutor, run_in_order
+from bbzide.worlds.executors import DaskExecutor, ProcessExecutor, run_in_order
 
 REPO = Path(__file__).resolve().parents[2]
 #: A small sweep with varied results: 2 drone counts x 2 trials x 2 searches; 300 steps is
@@ -140,6 +140,21 @@ def test_cluster_without_dask_installed_says_which_extra_to_install(tmp_path, ca
     assert main([*SWEEP, "--cluster", "local", "--out", str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err
     assert "--cluster needs Dask" in err and "'.[cluster]'" in err and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_workers_of_several_threads_get_a_note_and_still_run_every_task(capsys):
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        with DaskExecutor(cluster.scheduler_address) as executor:
+            items = list(range(6))
+            squares = run_in_order(executor, _square, items, [f"square-{n}" for n in items])
+        assert squares == [n * n for n in items]
+        assert "(1 workers, 2 threads)" in executor.description
+    err = capsys.readouterr().err
+    assert "note: some Dask workers run 2 threads" in err and "--nthreads 1" in err
 
 
 @pytest.mark.parametrize("address", ["", "foo:bar"])
