@@ -14,8 +14,10 @@ resumes from them) and advance its progress bar (`progress_bar`, tqdm).
   processes on 127.0.0.1 without a dashboard. Tasks are submitted one by one, so the scheduler
   runs them first come first served (the caller's order). Before the first task every worker
   runs `worker_check.probe`, shipped by value: a worker without the project, or with other
-  sources or pins, is a one-line `UserError`, not a pickling error in the first task; an
-  import error of a worker that joins later gets the same message.
+  sources or pins, is a one-line `UserError`, not a pickling error in the first task. Tasks
+  travel as bytes unpickled inside the task (`worker_check.ship`), so a worker that joins
+  later without bbzide fails its task with an import error (one line here too) instead of
+  dropping off the cluster.
 
 Dask is the optional `cluster` extra (pyproject.toml): it is imported only for `--cluster`.
 """
@@ -26,6 +28,7 @@ import argparse
 import logging
 import multiprocessing
 import os
+import pickle
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType, TracebackType
@@ -196,7 +199,7 @@ class DaskExecutor:
 
         if len(set(keys)) != len(keys):
             raise ValueError("two tasks share a key: Dask would run only one of them")
-        futures = [self._client.submit(function, item, key=key)
+        futures = [self._client.submit(pickle.loads, worker_check.ship(function, item), key=key)
                    for item, key in zip(items, keys, strict=True)]
         index_of = {future.key: index for index, future in enumerate(futures)}
         for future in as_completed(futures):

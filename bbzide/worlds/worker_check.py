@@ -9,6 +9,13 @@ submitting machine runs the same probe and `mismatch` compares the two reports: 
 sources (the package's code and data, the examples the experiments read) or pinned dependency
 versions differ could give other results, so it is refused too, with one line saying what
 differs and how to fix it.
+
+A worker that joins after the check would fail differently: Dask unpickles a task as it reads
+the scheduler's message, and a task that names a bbzide function ends the worker there (the
+task then waits forever if no other worker is left). So each task travels as bytes (`ship`)
+and the task Dask sees is `pickle.loads(those bytes)`, which needs only the standard library
+to unpickle: the bytes unpickle into the call itself, so a missing bbzide is the task's own
+`ModuleNotFoundError`, which reaches the submitting machine like any task error.
 """
 
 from __future__ import annotations
@@ -90,3 +97,21 @@ def mismatch(worker: dict[str, Any], here: dict[str, Any]) -> str | None:
         return (f"its {PROJECT} sources at {worker['root']} differ from this machine's "
                 "(another commit, or local changes)")
     return None
+
+
+class _Call:
+    """Pickles as `function(item)`: unpickling it runs the task and gives its result."""
+
+    def __init__(self, function: Any, item: Any) -> None:
+        self.function, self.item = function, item
+
+    def __reduce__(self) -> tuple[Any, tuple[Any]]:
+        return self.function, (self.item,)
+
+
+def ship(function: Any, item: Any) -> bytes:
+    """The task `function(item)` as bytes that `pickle.loads` runs (cloudpickle: functions of
+    `__main__` and of modules registered by value travel with it)."""
+    import cloudpickle  # with distributed (the cluster extra), like every caller of `ship`
+
+    return cloudpickle.dumps(_Call(function, item))

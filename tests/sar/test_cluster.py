@@ -99,27 +99,45 @@ def scheduler():
     cluster.close()
 
 
-@pytest.mark.slow
-def test_a_worker_without_the_project_is_a_clear_error_before_any_run(scheduler, tmp_path,
-                                                                       capsys):
+@pytest.fixture
+def worker_without_project(scheduler, tmp_path):
+    """A `dask worker` (no nanny: the hiding finder lives in its own process) joined to
+    `scheduler` whose Python cannot import bbzide; the scheduler's address."""
     script = tmp_path / "worker_without_bbzide.py"
     script.write_text(HIDE_PROJECT)
     worker = subprocess.Popen(
         [sys.executable, str(script), scheduler, "--no-nanny", "--nthreads", "1",
          "--no-dashboard", "--host", "127.0.0.1"], cwd=tmp_path,
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    try:
-        out = tmp_path / "out"
-        assert main([*SWEEP, "--cluster", scheduler, "--out", str(out)]) == 1
-    finally:
-        worker.terminate()
-        worker.wait(timeout=60)
+    yield scheduler
+    worker.terminate()
+    worker.wait(timeout=60)
+
+
+@pytest.mark.slow
+def test_a_worker_without_the_project_is_a_clear_error_before_any_run(worker_without_project,
+                                                                       tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main([*SWEEP, "--cluster", worker_without_project, "--out", str(out)]) == 1
     err = capsys.readouterr().err
     assert "cannot import bbzide (No module named 'bbzide')" in err
     assert "install it from the lock file" in err
     assert "Traceback" not in err and "pickl" not in err.lower()
     assert len(err.strip().splitlines()) == 1
     assert list((out / "runs").iterdir()) == []
+
+
+@pytest.mark.slow
+def test_a_worker_that_joins_after_the_check_without_the_project_is_a_clear_error_too(
+        worker_without_project, tmp_path, capsys, monkeypatch):
+    # As if the worker had joined after the check: the check passes, the first task fails.
+    monkeypatch.setattr(worker_check, "mismatch", lambda worker, here: None)
+    out = tmp_path / "out"
+    assert main([*SWEEP, "--cluster", worker_without_project, "--out", str(out)]) == 1
+    err = capsys.readouterr().err.split("\r")[-1]   # after the progress bar's last redraw
+    assert "a Dask worker could not load the task sar-d" in err
+    assert "No module named 'bbzide'" in err and "install it from the lock file" in err
+    assert "Traceback" not in err and "pickl" not in err.lower()
 
 
 def test_a_worker_with_other_sources_or_pins_is_refused_with_what_differs():
