@@ -7,7 +7,8 @@ compile of the SAR script all count against Dask. The modes alternate, and each 
 every other round, so a machine whose load changes during the benchmark burdens both alike;
 the load average is printed before and after each sweep. Each pair's `runs.csv` files must
 match but for the wall-time column (the sweep's promise); the overhead is the cluster's total
-time over the local processes' total.
+time over the local processes' total. Per sweep it also prints the runs' own wall times summed
+per process, and the rest (start-up, dispatch, idle processes, the summary and plots).
 
 The runs are the full study's grid (15,20,25 drones x 20,30,40 m x both searches, sweep seed
 2026) with fewer trials: `--trials 3` is 54 of the 540 runs.
@@ -50,6 +51,13 @@ def rows_but_wall_times(folder: Path) -> list[dict[str, str]]:
                 for row in csv.DictReader(f)]
 
 
+def run_seconds(folder: Path) -> float:
+    """The runs' own wall times, summed (what the sweep would take with no start-up, no
+    dispatch and no process ever idle)."""
+    with (folder / "runs.csv").open(newline="") as f:
+        return sum(float(row["wall_seconds"]) for row in csv.DictReader(f))
+
+
 def load() -> str:
     return "/".join(f"{value:.1f}" for value in os.getloadavg())
 
@@ -71,7 +79,9 @@ def main() -> None:
                 seconds = sweep(trials, jobs, mode == "cluster", out)
                 totals[mode] += seconds
                 outputs[mode] = out
-                print(f"round {round_ + 1} {mode:8} {seconds:7.1f} s   load {before} -> {load()}",
+                busy = run_seconds(out) / jobs
+                print(f"round {round_ + 1} {mode:8} {seconds:7.1f} s   load {before} -> {load()}"
+                      f"   runs {busy:6.1f} s per process, outside them {seconds - busy:5.1f} s",
                       flush=True)
             same = rows_but_wall_times(outputs["jobs"]) == rows_but_wall_times(
                 outputs["cluster"])
