@@ -51,7 +51,11 @@ def _sources_digest(root: Path) -> str:
 def _pinned_versions() -> dict[str, str | None]:
     """The installed version of every core dependency the project's metadata names."""
     versions: dict[str, str | None] = {}
-    for requirement in importlib.metadata.requires(PROJECT) or []:
+    try:
+        requirements = importlib.metadata.requires(PROJECT) or []
+    except importlib.metadata.PackageNotFoundError:
+        return versions   # run from a checkout without installing it: no pins to compare
+    for requirement in requirements:
         if "extra ==" in requirement:
             continue
         name = re.match(r"[A-Za-z0-9_.-]+", requirement)
