@@ -1,14 +1,19 @@
 """Shared helpers of the experiment scripts: compile an example (with constants replaced),
-run it in a world, read script globals, and print a Markdown table.
+run it in a world, read script globals, run the runs on an executor, and print a Markdown table.
 
 The experiments reproduce the Crazyflie experiments of the BittyBuzz thesis (ch. 4, §4.6-4.7)
-in the simulator; each script prints its table next to the paper's figures (README.md).
+in the simulator; each script prints its table next to the paper's figures (README.md). Their
+runs go through the same executors as `bbzide experiment sar` (`--jobs N`, `--cluster
+ADDRESS`; bbzide/worlds/executors.py); this module and the script travel to Dask workers by
+value, since only the package is installed there.
 """
 
 from __future__ import annotations
 
+import argparse
 import re
 import statistics
+import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -16,6 +21,7 @@ from typing import Any
 
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
+from bbzide.worlds.executors import Executor, add_executor_arguments, open_executor
 from bbzide.worlds.registry import WORLDS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -72,3 +78,14 @@ def table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
     return "\n".join(lines)
+
+
+def executor_from_argv(argv: list[str]) -> tuple[Executor, list[str]]:
+    """`--jobs N` / `--cluster ADDRESS` taken out of `argv` (default: 1 job, in this process),
+    and the script's own arguments left."""
+    parser = argparse.ArgumentParser(add_help=False)
+    add_executor_arguments(parser, default_jobs=1)
+    options, rest = parser.parse_known_args(argv)
+    # The script itself (`__main__`) is shipped by value anyway; this module is not.
+    return open_executor(options.jobs, options.cluster,
+                         local_modules=[sys.modules[__name__]]), rest

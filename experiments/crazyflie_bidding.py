@@ -7,7 +7,8 @@ the post (step 5 + drone 0's phase) to the moment the last drone knew the winner
 step + its phase).
 The run also checks that every drone names the same winner.
 
-    PYTHONPATH=. python experiments/crazyflie_bidding.py [runs, default 20] [loss]
+    PYTHONPATH=. python experiments/crazyflie_bidding.py [runs, default 20] [loss] [--jobs N]
+        [--cluster ADDRESS]
 
 With a loss probability, every message is lost with it (instead of the paper's loss-by-rate
 curve, measured with one broadcast per drone per step): the auction's traffic — a bid from
@@ -18,10 +19,12 @@ more than that measurement did; the README compares the durations this gives wit
 from __future__ import annotations
 
 import sys
+from functools import partial
 
-from common import compile_example, globals_of, mean_sd, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, table
 
 from bbzide.worlds.engine import Simulation
+from bbzide.worlds.executors import run_in_order
 
 POST_STEP = 5
 PAPER_MS = {3: "88.00 ± 29.25", 4: "99.05 ± 35.30", 6: "137.10 ± 21.70"}
@@ -49,17 +52,23 @@ def auction_time(drones: int, seed: int, program: object,
 
 
 def main() -> None:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 20
-    loss = float(sys.argv[2]) if len(sys.argv) > 2 else None
+    executor, argv = executor_from_argv(sys.argv[1:])
+    runs = int(argv[0]) if argv else 20
+    loss = float(argv[1]) if len(argv) > 1 else None
+    seeds = list(range(runs))
     rows = []
-    for drones in (3, 4, 6):
-        program = compile_example("crazyflie", "examples/crazyflie/bidding.bzz", {"N": drones})
-        results = [auction_time(drones, seed, program, loss) for seed in range(runs)]
-        times = [t * 50 for t, _ in results if t >= 0]
-        agree = sum(1 for _, same in results if same)
-        rows.append([drones, runs, mean_sd(times),
-                     f"{min(times):.0f}-{max(times):.0f}" if times else "-",
-                     f"{agree}/{runs}", PAPER_MS[drones]])
+    with executor:
+        for drones in (3, 4, 6):
+            program = compile_example("crazyflie", "examples/crazyflie/bidding.bzz",
+                                      {"N": drones})
+            results = run_in_order(
+                executor, partial(auction_time, drones, program=program, loss=loss), seeds,
+                [f"bidding-{drones}drones-seed{s}" for s in seeds], what=f"{drones} drones")
+            times = [t * 50 for t, _ in results if t >= 0]
+            agree = sum(1 for _, same in results if same)
+            rows.append([drones, runs, mean_sd(times),
+                         f"{min(times):.0f}-{max(times):.0f}" if times else "-",
+                         f"{agree}/{runs}", PAPER_MS[drones]])
     print(table(["drones", "runs", "auction duration (ms)", "range (ms)",
                  "same winner everywhere", "paper (ms)"], rows))
 

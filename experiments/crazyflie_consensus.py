@@ -11,6 +11,7 @@ independent phases (all nine would have to step within 17 ms of the write: (17/5
 so Fig. 4.7 is read as per-drone delays as well.
 
     PYTHONPATH=. python experiments/crazyflie_consensus.py [runs, default 20] [spread ms]
+        [--jobs N] [--cluster ADDRESS]
 
 With a spread (ms), the drones step nearly together (phases within that spread), as drones
 started by one command and run by the same FreeRTOS period would: see the README for what
@@ -22,11 +23,13 @@ from __future__ import annotations
 import math
 import sys
 from collections import Counter
+from functools import partial
 
 import numpy as np
-from common import compile_example, globals_of, mean_sd, run, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run, table
 
 from bbzide.worlds.engine import Simulation
+from bbzide.worlds.executors import run_in_order
 
 WRITE_STEP = 5
 DRONES = 10
@@ -68,15 +71,25 @@ def reader_delays(formation: str, seed: int, program: object,
             for i, a in enumerate(agreed) if i > 0]
 
 
+def _reader_delays_test(test: tuple[str, int], program: object,
+                        spread: float | None) -> list[float]:
+    formation, seed = test
+    return reader_delays(formation, seed=seed, program=program, spread=spread)
+
+
 def main() -> None:
-    runs = int(sys.argv[1]) if len(sys.argv) > 1 else 20
-    spread = float(sys.argv[2]) / 50 if len(sys.argv) > 2 else None
+    executor, argv = executor_from_argv(sys.argv[1:])
+    runs = int(argv[0]) if argv else 20
+    spread = float(argv[1]) / 50 if len(argv) > 1 else None
     program = compile_example("crazyflie", "examples/crazyflie/consensus.bzz")
+    tests = [(("chain", "circle")[k % 2], k) for k in range(runs)]   # (formation, seed)
+    with executor:
+        all_delays = run_in_order(
+            executor, partial(_reader_delays_test, program=program, spread=spread), tests,
+            [f"consensus-{formation}-seed{k}" for formation, k in tests])
     results: dict[str, list[float]] = {"chain": [], "circle": []}
     per_drone: list[float] = []
-    for k in range(runs):
-        formation = ("chain", "circle")[k % 2]
-        delays = reader_delays(formation, seed=k, program=program, spread=spread)
+    for (formation, _), delays in zip(tests, all_delays, strict=True):
         per_drone += [d for d in delays if d >= 0]
         results[formation].append(-1.0 if any(d < 0 for d in delays) else max(delays))
     results["both"] = results["chain"] + results["circle"]

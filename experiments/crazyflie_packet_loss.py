@@ -8,13 +8,17 @@ summed over the drones. The model's loss curve is the paper's own measurement, s
 that the engine's rate estimate, loss draws and the VM's receive path give it back.
 
     PYTHONPATH=. python experiments/crazyflie_packet_loss.py [tests, default 20] [drones, 4]
+        [--jobs N] [--cluster ADDRESS]
 """
 
 from __future__ import annotations
 
 import sys
+from functools import partial
 
-from common import compile_example, globals_of, mean_sd, run, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run, table
+
+from bbzide.worlds.executors import run_in_order
 
 DRONES = 4
 BROADCASTS = 200
@@ -31,16 +35,26 @@ def loss_percent(period: int, seed: int, program: object, drones: int) -> float:
     return 100.0 * (1 - sum(heard) / expected)
 
 
+def _loss_test(seed: int, period: int, program: object, drones: int) -> float:
+    return loss_percent(period, seed, program, drones)
+
+
 def main() -> None:
-    tests = int(sys.argv[1]) if len(sys.argv) > 1 else 20
-    drones = int(sys.argv[2]) if len(sys.argv) > 2 else DRONES
+    executor, argv = executor_from_argv(sys.argv[1:])
+    tests = int(argv[0]) if argv else 20
+    drones = int(argv[1]) if len(argv) > 1 else DRONES
+    seeds = list(range(tests))
     rows = []
-    for hz, period in ((2, 10), (10, 2), (20, 1)):
-        program = compile_example("crazyflie", "examples/crazyflie/packet_loss.bzz",
-                                  {"PERIOD": period, "COUNT": BROADCASTS})
-        losses = [loss_percent(period, seed, program, drones) for seed in range(tests)]
-        rows.append([f"{hz} Hz ({period * 50} ms)", f"{tests} x {drones} drones", mean_sd(losses),
-                     f"{min(losses):.1f}-{max(losses):.1f}", PAPER[hz]])
+    with executor:
+        for hz, period in ((2, 10), (10, 2), (20, 1)):
+            program = compile_example("crazyflie", "examples/crazyflie/packet_loss.bzz",
+                                      {"PERIOD": period, "COUNT": BROADCASTS})
+            losses = run_in_order(
+                executor, partial(_loss_test, period=period, program=program, drones=drones),
+                seeds, [f"loss-{hz}hz-{drones}drones-seed{s}" for s in seeds],
+                what=f"{hz} Hz")
+            rows.append([f"{hz} Hz ({period * 50} ms)", f"{tests} x {drones} drones",
+                         mean_sd(losses), f"{min(losses):.1f}-{max(losses):.1f}", PAPER[hz]])
     print(table(["broadcast rate", "tests", "loss (%)", "range (%)", "paper (%)"], rows))
 
 

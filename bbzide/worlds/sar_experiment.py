@@ -5,10 +5,12 @@ Design: a sweep is a list of `RunSpec`s, one per (drones, arena, search, trial).
 depends on (sweep seed, drones, arena, trial) but not on the search, so the two searches of a
 pair start from the same drone positions, belief map and targets (the world draws them from the
 run seed) and differ only in how goals are chosen. Each run is independent and reproducible from
-its spec alone, so runs go to a `multiprocessing` pool (one worker per `--jobs`) and each
-finished run is written at once, atomically, as `runs/<id>.json` in the output folder: an
-interrupted sweep keeps every finished run and a rerun of the same command skips them
-(resume). When the pool is done, the JSON files are summarised into `runs.csv`, the paired
+its spec alone, so runs are independent tasks (keyed by run id and seed, `task_key`) for an
+`executors.Executor`: local processes (`--jobs`) or a Dask cluster (`--cluster`). Each finished
+run comes back to this process and is written at once, atomically, as `runs/<id>.json` in the
+output folder: an interrupted sweep keeps every finished run and a rerun of the same command
+skips them (resume), wherever the runs ran. When every run is done, the JSON files are
+summarised into `runs.csv`, the paired
 belief-vs-random comparison `comparison.csv` (and on screen, and as the README's markdown
 table in `summary.md`), and the plots (`sar_plots.py`).
 
@@ -32,13 +34,12 @@ from __future__ import annotations
 
 import argparse
 import csv
+import hashlib
 import json
 import math
-import multiprocessing
 import os
 import shlex
 import statistics
-import sys
 import time
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -48,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.diagnostics import UserError
+from bbzide.worlds.executors import add_executor_arguments, open_executor, progress_bar
 
 #: The paper's fixed parameters (thesis §5.4.2): 3 targets, 10 m range, 20 search steps.
 TARGETS = 3
@@ -114,6 +116,7 @@ class SweepSettings:
     max_steps: int = DEFAULT_MAX_STEPS
     preset: str | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    cluster: str | None = None   # a Dask scheduler's address, or "local" (executors.py)
 
 
 def _int_list(text: str, what: str) -> list[int]:
@@ -344,13 +347,13 @@ def write_csv(path: Path, results: Sequence[dict[str, Any]]) -> None:
 
 
 def sign_test(wins: int, losses: int) -> float:
-    """Two-sided exact sign test p-value (ties dropped): a paired test without scipy."""
-    n = wins + losses
-    if n == 0:
+    """Two-sided exact sign test p-value (ties dropped): the binomial test of `wins` in
+    `wins + losses` pairs against 1/2."""
+    from scipy.stats import binomtest  # scipy.stats takes ~0.5 s to import: only when needed
+
+    if wins + losses == 0:
         return 1.0
-    k = min(wins, losses)
-    tail = sum(math.comb(n, i) for i in range(k + 1)) / 2 ** n
-    return min(1.0, 2 * tail)
+    return float(binomtest(wins, wins + losses, 0.5).pvalue)
 
 
 #: Scale of the Cauchy prior on the effect size of the Bayes factor: sqrt(2)/2, the default
@@ -475,30 +478,11 @@ def format_comparison(rows: Iterable[dict[str, Any]]) -> str:
 
 
 # ---- the sweep ---------------------------------------------------------------------------------
-class Progress:
-    """A one-line progress bar on stderr (runs done, elapsed, estimated time left)."""
-
-    def __init__(self, total: int, done: int) -> None:
-        self.total, self.done, self.new = total, done, 0
-        self.started = time.monotonic()
-        self.draw()
-
-    def advance(self) -> None:
-        self.done += 1
-        self.new += 1
-        self.draw()
-
-    def draw(self) -> None:
-        width = 30
-        filled = int(width * self.done / max(self.total, 1))
-        elapsed = time.monotonic() - self.started
-        left = self.total - self.done
-        eta = (f"{elapsed / self.new * left / 60:.1f} min left" if self.new else "")
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total}"
-                         f" runs, {elapsed / 60:.1f} min {eta}   ")
-        sys.stderr.flush()
-        if self.done == self.total:
-            sys.stderr.write("\n")
+def task_key(spec: RunSpec) -> str:
+    """The run's task name for a Dask scheduler: its id and seed, and a digest of the rest of
+    its spec, since the scheduler treats two tasks of one name as one result."""
+    digest = hashlib.blake2b(repr(spec).encode(), digest_size=6).hexdigest()
+    return f"sar-{spec.run_id}-seed{spec.seed}-{digest}"
 
 
 def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
@@ -520,27 +504,18 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
             todo.append(spec)
     if results:
         print(f"resuming: {len(results)} of {len(specs)} runs already in {out / 'runs'}")
-    progress = Progress(len(specs), len(results))
     started = time.monotonic()
+    executor = open_executor(settings.jobs, settings.cluster)
     if todo:
         # Trial by trial, so a sweep stopped early has as many pairs in every configuration
         # (give it --trials 30 and stop it when time is up); within a trial, longest runs first
         # (big arenas, few drones) so the pool does not end on one straggler.
         todo.sort(key=lambda s: (s.trial, -s.arena, s.drones, s.search))
-        if settings.jobs == 1:
-            for spec in todo:
-                result = run_one(spec)
+        with executor, progress_bar(len(specs), len(results)) as bar:
+            for _, result in executor.map_unordered(run_one, todo, [task_key(s) for s in todo]):
                 write_result(out, result)
-                results[spec.run_id] = result
-                progress.advance()
-        else:
-            context = multiprocessing.get_context("spawn" if sys.platform == "darwin"
-                                                  else "fork")
-            with context.Pool(settings.jobs) as pool:
-                for result in pool.imap_unordered(run_one, todo):
-                    write_result(out, result)
-                    results[result["run_id"]] = result
-                    progress.advance()
+                results[result["run_id"]] = result
+                bar.update()
     wall = time.monotonic() - started
     finished = [results[s.run_id] for s in specs]
     for spec, result in zip(specs, finished, strict=True):
@@ -554,7 +529,7 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
 
     written = sar_plots.write_all(out, finished)
     timeouts = sum(r["complete_step"] < 0 for r in finished)
-    print(f"{len(todo)} runs in {wall / 60:.1f} min with {settings.jobs} jobs "
+    print(f"{len(todo)} runs in {wall / 60:.1f} min on {executor.description} "
           f"({len(finished)} in {out}); {timeouts} without a complete relay tree; "
           f"plots: {', '.join(p.name for p in written)}")
     return finished
@@ -574,8 +549,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help=f"trials per configuration (default {DEFAULT_TRIALS}; "
                              f"{FIELD_TRIALS} with --preset field)")
     parser.add_argument("--seed", type=int, default=0, help="sweep seed")
-    parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
-                        help="parallel worker processes (default: all cores)")
+    add_executor_arguments(parser, default_jobs=None)
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
     parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
                         help="steps before a run counts as a timeout")
@@ -609,7 +583,8 @@ def settings_from_args(args: argparse.Namespace) -> SweepSettings:
         drones=_int_list(args.drones or DEFAULT_DRONES, "drones"),
         arenas=_float_list(args.arena or DEFAULT_ARENAS, "arena"),
         searches=searches, trials=trials, seed=args.seed, jobs=args.jobs,
-        out=Path(args.out), max_steps=args.max_steps, preset=args.preset)
+        out=Path(args.out), max_steps=args.max_steps, preset=args.preset,
+        cluster=args.cluster)
     settings.extra["targets_where"] = args.targets_where
     if args.preset == "field":
         settings.drones, settings.arenas = [3], [36.0]
