@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bbzide.vm.fastgc import first_free as _first_free
-from bbzide.vm.fastgc import first_free_segment as _first_free_segment
+from bbzide.vm.compiled.fastgc import first_free as _first_free
+from bbzide.vm.compiled.fastgc import first_free_segment as _first_free_segment
 from bbzide.vm.profiles import Profile
 
 # Object types (bits 0-2 of the metadata byte).

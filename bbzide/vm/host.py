@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from bbzide.compiler import bbzfloat
+from bbzide.vm.compiled.packed_queues import arrays_changed
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
-from bbzide.vm.packed_queues import arrays_changed
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM

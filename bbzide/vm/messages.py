@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Generic, TypeVar
 
 import numpy as np
 
-from bbzide.vm import fasthost, fastinbox, fastloop
+from bbzide.vm.compiled import fasthost, fastinbox, fastloop
 from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
 from bbzide.vm.message_layout import (  # noqa: F401 - the wire format's names, re-exported
     BC_TOPIC,

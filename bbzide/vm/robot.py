@@ -44,16 +44,8 @@ import numpy as np
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import (
-    fasthost,
-    fastinbox,
-    fastloop,
-    fastreceive,
-    messages,
-    neighbors,
-    packed_queues,
-    snapshot_layout,
-)
+from bbzide.vm import messages, neighbors, snapshot_layout
+from bbzide.vm.compiled import fasthost, fastinbox, fastloop, fastreceive, packed_queues
 from bbzide.vm.host import HostCall, LatchedHostFunction
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get

@@ -127,14 +127,14 @@ def control_steps(robots: Sequence[SteppableRobot | None], deliveries: PackedMes
     if reference is None:
         reference = REFERENCE
     if not reference and _fast_available():
-        from bbzide.vm import swarm_batch_fast
+        from bbzide.vm.compiled import swarm_batch_fast
 
         return swarm_batch_fast.control_steps(robots, deliveries, stepping)
     return control_steps_reference(robots, deliveries, stepping)
 
 
 def _fast_available() -> bool:
-    from bbzide.vm import fastbatch
+    from bbzide.vm.compiled import fastbatch
 
     return fastbatch.COMPILED
 

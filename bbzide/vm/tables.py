@@ -7,15 +7,15 @@ valid, bits 0-14 = heap index. Every function here mirrors one ``bbztable_*``/
 ``bbzdarray_*`` routine, including its quirks (darray ``size`` unlinks trailing segments,
 ``pop`` leaves an empty trailing segment until the next pop).
 The four hottest readers (``table_get``, ``darray_get/set/size``) run as compiled loops in
-:mod:`bbzide.vm.fasttables`.
+:mod:`bbzide.vm.compiled.fasttables`.
 """
 
 from __future__ import annotations
 
-from bbzide.vm.fasttables import darray_get as _darray_get
-from bbzide.vm.fasttables import darray_set as _darray_set
-from bbzide.vm.fasttables import darray_size as _darray_size
-from bbzide.vm.fasttables import table_lookup as _table_lookup
+from bbzide.vm.compiled.fasttables import darray_get as _darray_get
+from bbzide.vm.compiled.fasttables import darray_set as _darray_set
+from bbzide.vm.compiled.fasttables import darray_size as _darray_size
+from bbzide.vm.compiled.fasttables import table_lookup as _table_lookup
 from bbzide.vm.heap import (
     CLOSURE,
     ELEM_INDEX,

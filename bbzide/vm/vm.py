@@ -30,10 +30,11 @@ from typing import Any
 import numpy as np
 
 from bbzide.compiler import bbzfloat
-from bbzide.vm import fastloop
 from bbzide.vm import gc as gcmod
-from bbzide.vm.fastgc import PERMANENT_PHASE
-from bbzide.vm.fastgc import collect as _collect
+from bbzide.vm.compiled import fastloop
+from bbzide.vm.compiled.fastgc import PERMANENT_PHASE
+from bbzide.vm.compiled.fastgc import collect as _collect
+from bbzide.vm.compiled.packed_queues import PackedQueues, arrays_changed
 from bbzide.vm.heap import (
     CLOSURE,
     FLAG1,
@@ -55,7 +56,6 @@ from bbzide.vm.heap import (
 from bbzide.vm.host import HostFunction, HostRegistry
 from bbzide.vm.messages import MessageQueues, record_size
 from bbzide.vm.neighbors import NeighborsState
-from bbzide.vm.packed_queues import PackedQueues, arrays_changed
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (

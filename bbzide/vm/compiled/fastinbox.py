@@ -42,9 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, _compile, _i, collect_with
-from bbzide.vm.fasthost import call_pushed
-from bbzide.vm.fastloop import (
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
+from bbzide.vm.compiled.fasthost import call_pushed
+from bbzide.vm.compiled.fastloop import (
     EXIT,
     NONE,
     R_GC_RUNS,
@@ -57,7 +57,7 @@ from bbzide.vm.fastloop import (
     R_STACK_SIZE,
     _obj_alloc,
 )
-from bbzide.vm.fasttables import table_lookup
+from bbzide.vm.compiled.fasttables import table_lookup
 from bbzide.vm.heap import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID
 

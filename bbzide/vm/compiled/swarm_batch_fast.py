@@ -42,8 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm import fastbatch, fastinbox, fastloop, fastviews, messages, neighbors, packed_queues
-from bbzide.vm.fastbatch import (
+from bbzide.vm import messages, neighbors
+from bbzide.vm.compiled import fastbatch, fastinbox, fastloop, fastviews, packed_queues
+from bbzide.vm.compiled.fastbatch import (
     F_POP,
     F_RECEIVE,
     F_STEP,
@@ -55,8 +56,8 @@ from bbzide.vm.fastbatch import (
     P_INMSGS,
     P_STEP,
 )
+from bbzide.vm.compiled.packed_queues import LATCH_ARGS, LATCH_SLOTS
 from bbzide.vm.messages import PAYLOAD_SIZE
-from bbzide.vm.packed_queues import LATCH_ARGS, LATCH_SLOTS
 from bbzide.vm.robot import STR_STEP, Robot
 from bbzide.vm.swarm_batch import PackedMessages, StepResult
 from bbzide.vm.vm import State

@@ -15,7 +15,7 @@ segments as the heap holds (a cyclic chain would hang the firmware).
 
 from __future__ import annotations
 
-from bbzide.vm.fastgc import _compile, _i
+from bbzide.vm.compiled.fastgc import _compile, _i
 
 _NIL = 0
 _INT = 1
