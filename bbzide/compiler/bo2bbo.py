@@ -12,7 +12,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-from bbzide.compiler import bbzfloat
+import bbzide.compiler.bbzfloat as bbzfloat
 from bbzide.compiler.bytecode import read_strings
 from bbzide.compiler.opcodes import OPCODE_COUNT, Op
 from bbzide.diagnostics import BytecodeError

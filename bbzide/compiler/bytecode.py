@@ -12,7 +12,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-from bbzide.compiler import bbzfloat
+import bbzide.compiler.bbzfloat as bbzfloat
 from bbzide.compiler.opcodes import ADDRESS_OPERAND_OPS, MNEMONICS, OPCODE_COUNT, Op, has_operand
 from bbzide.diagnostics import BytecodeError, SourceLocation
 

@@ -52,7 +52,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-from bbzide.compiler import scanner as T
+import bbzide.compiler.scanner as T
 from bbzide.compiler.codegen import CodeGenerator
 from bbzide.compiler.parser import Parser
 from bbzide.compiler.scanner import Scanner, user_text

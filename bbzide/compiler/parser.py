@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from bbzide.compiler import scanner as T
+import bbzide.compiler.scanner as T
 from bbzide.compiler.codegen import CodeGenerator
 from bbzide.compiler.scanner import Scanner, Token, user_text
 from bbzide.compiler.syntax_tree import Node

@@ -1,6 +1,6 @@
 """Pickling a VM's records for `VM.pickled_snapshot()` without slowing the live VM down afterwards.
 
-Since session 6 a snapshot is pickled only when the state is outside the flat layout's shape
+A snapshot is pickled only when the state is outside the flat layout's shape
 (`snapshot_layout`); recordings of formats 2 and 3 hold pickled snapshots, which still restore.
 
 Design: CPython 3.11 keeps an object's attributes as "inline values" and specialises attribute

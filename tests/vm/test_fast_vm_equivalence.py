@@ -2,9 +2,9 @@
 
 ``VM(stress_gc=True)`` collects with the transcription of ``bbzheap_gc`` before every
 instruction, as the firmware does; ``VM(stress_gc=False)`` runs the compiled collector and
-skips the collections it proves changeless (ARCHITECTURE.md "vm speed"). Every observable
-state must be identical: heap bytes (stale bytes, mark and valid bits included), rtobj/ltseg,
-stack, pc, state, error events with their pc, the GC run count.
+skips the collections it proves changeless (ARCHITECTURE.md "Two modes, and the seam"). Every
+observable state must be identical: heap bytes (stale bytes, mark and valid bits included),
+rtobj/ltseg, stack, pc, state, error events with their pc, the GC run count.
 
 Observed: every dump of the 92 corpus harness runs (``tests/vm/test_core_corpus.py`` also
 compares the vm-core driver's dumps), and for generated

@@ -231,16 +231,14 @@ def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100
 def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  # noqa: ANN001
     """The gradient example runs wholly in the compiled step (no hand-over to Python:
     `neighbors.broadcast` and the latched `led` run in machine code) and stays identical."""
-    from bbzide.vm.compiled import swarm_batch_fast
-
     handed: list[int] = []
-    finish = swarm_batch_fast._finish
+    finish = Robot.finish_compiled_step
 
     def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
         handed.append(phase)
         return finish(robot, phase, regs, io)
 
-    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    monkeypatch.setattr(Robot, "finish_compiled_step", counted)
     program = load_script(REPO / "examples/kilobot/gradient.bzz",
                           WORLDS["kilobot"].host_names, [])
     seen = _run_batches(program, "kilobot", 20, 14, options={"width": 0.35, "height": 0.35})
@@ -250,16 +248,14 @@ def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  #
 def test_batch_latching_switched_off_identical(monkeypatch) -> None:  # noqa: ANN001
     """`Robot.latch_host_calls = False` (a recorder logging every host call) sends the
     latched `led` to Python — a hand-over every step — with the same robots and LEDs."""
-    from bbzide.vm.compiled import swarm_batch_fast
-
     handed: list[int] = []
-    finish = swarm_batch_fast._finish
+    finish = Robot.finish_compiled_step
 
     def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
         handed.append(phase)
         return finish(robot, phase, regs, io)
 
-    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    monkeypatch.setattr(Robot, "finish_compiled_step", counted)
     build = _batch_swarms
 
     def swarms(*args):  # noqa: ANN002, ANN202

@@ -74,7 +74,7 @@ from bbzide.vm.compiled.packed_queues import (
     RING_COLUMNS,
     XTREME,
 )
-from bbzide.vm.heap import TABLE
+from bbzide.vm.heap_layout import TABLE
 from bbzide.vm.message_layout import (
     BC_TOPIC,
     BC_VALUE,

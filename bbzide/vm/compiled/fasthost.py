@@ -64,7 +64,7 @@ from bbzide.vm.compiled.packed_queues import (
     OUT_START,
     ROBOT,
 )
-from bbzide.vm.heap import INT
+from bbzide.vm.heap_layout import INT
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",

@@ -17,7 +17,7 @@ before any side effect it cannot hand over** — at two points of a message:
   extraction: a record that is not a broadcast (stigmergy), a stack without room for the
   six pushes (five arguments and ``closure_call``'s argument count), a heap without room
   for the four objects (topic string, userdata, sender id, argument count): the kernel
-  returns :data:`PYTHON_MESSAGE` and ``messages.process_inmsgs`` runs that message with
+  returns :data:`PYTHON_MESSAGE` and ``inmsgs.process_inmsgs`` runs that message with
   the reference routines, the collection already done;
 * during the listener call: whatever :func:`fastloop.run` hands back (a host function, an
   instruction it does not cover, an error, the budget, a C closure as listener) is
@@ -58,7 +58,7 @@ from bbzide.vm.compiled.fastloop import (
     _obj_alloc,
 )
 from bbzide.vm.compiled.fasttables import table_lookup
-from bbzide.vm.heap import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
+from bbzide.vm.heap_layout import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID
 
 # Slots of the ``inq`` array (in: the queue's values; out: the updated ones).

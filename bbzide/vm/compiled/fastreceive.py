@@ -29,7 +29,7 @@ import numpy as np
 
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
 from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
-from bbzide.vm.heap import VALID
+from bbzide.vm.heap_layout import VALID
 from bbzide.vm.message_layout import (
     BC_TOPIC,
     BC_VALUE,

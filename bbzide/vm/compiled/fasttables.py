@@ -4,8 +4,8 @@ These four routines run for nearly every instruction (global lookups walk ``gsym
 every local access walks the activation-record darray), and written with one Python call
 per heap word they were a third of the interpreter's time. Here they are flat loops over
 the heap ``bytearray``, compiled by numba when it is installed (see :mod:`fastgc`), and
-:mod:`bbzide.vm.tables` calls them in both GC modes, so the reference-mode VM and the fast
-VM share one implementation. Each mirrors the routine named in its docstring word for
+:mod:`bbzide.vm.tables` calls them in the fast mode; the reference mode walks the same
+chains in plain Python there, so the two modes share no code. Each mirrors the routine named in its docstring word for
 word; the geometry comes from the heap itself (``size = len(d)``, ``G = 4E + 2``).
 
 Where C would read outside the heap (a stale payload, a corrupt chain) these stop: a
