@@ -19,8 +19,9 @@ queues, its outbox rows, its latch slots), never the world: so it may run for ev
 before any Python of the step. Then, in robot index order, Python runs what is left: the
 robots the kernel does not take (``control_step``) and the **hand-overs** — a robot whose
 kernel call stopped in a phase it does not cover (``fastbatch.P_*``) is finished by the
-reference routines from exactly there (its in-queue loop resumed, ``VM._loop`` resumed
-inside a call, ``step``'s pop, the out-queue), under the same guard as
+reference routines (``Robot.finish_compiled_step``, the model's side) from exactly there
+(its in-queue loop resumed, ``VM._loop`` resumed inside a call, ``step``'s pop, the
+out-queue), under the same guard as
 ``Robot.control_step`` (a Python exception becomes the robot's HOST failure). So host
 functions that touch the world run in the reference's order; a robot's receive before its
 own step is equivalent to all receives first (a receive touches only its own robot: see
