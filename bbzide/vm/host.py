@@ -1,4 +1,5 @@
-"""Host (C-closure) functions: Python callables that stand for BittyBuzz C functions.
+"""Host (C-closure) functions: Python callables that stand for BittyBuzz C functions
+(spec §E.2 closure objects, §E.8 calls).
 
 A C closure in the heap stores a function *address* in its pointer-sized payload. To be
 byte-faithful on the PC profile the model stores exactly the addresses the reference host

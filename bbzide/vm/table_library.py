@@ -1,5 +1,5 @@
-"""Global table closures ``foreach filter map reduce size`` (``bbztable.c``) and the live
-segment walk they share with the neighbors library.
+"""Global table closures ``foreach filter map reduce size`` (``bbztable.c``, spec §E.6) and the
+live segment walk they share with the neighbors library.
 
 Registered at the end of construct with ``function_register`` (closure first, then the
 name string). The walk (``bbztable_foreach``) reads the segments while the callbacks run,
