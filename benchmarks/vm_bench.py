@@ -18,7 +18,7 @@ with -O2 on this machine (≈ 1.2 M instructions/s on a 3,400-instruction loop s
 reference runs its GC before every instruction). Rates are per second of this process's
 CPU time (``time.process_time``): the machine is shared, and wall time would measure the
 other jobs as much as the VM (the load average is printed first). The first fast run also
-would pay numba's first-call compilation (once per cache, ``bbzide/vm/__pycache__``), so a
+would pay numba's first-call compilation (once per cache, ``bbzide/vm/compiled/__pycache__``), so a
 short untimed warm-up run comes first and its duration is printed.
 
     PYTHONPATH=. python benchmarks/vm_bench.py [seconds per run, default 2]
