@@ -4,7 +4,7 @@
     bbzide compile X.bzz ...    compiler room  (bbzide.compiler.commands)
     bbzide disasm X.bo|X.bbo    compiler room
     bbzide bo2bbo X.bo          compiler room
-    bbzide run X.bzz|X.bbo --platform P ...   one robot on the VM model (bbzide.vm.commands)
+    bbzide run X.bzz|X.bbo --platform P ...   one robot on the VM model (bbzide.harness.commands)
     bbzide run X.bzz --world W --robots N ... a swarm in a world (bbzide.worlds.commands)
     bbzide run S.toml [--steps S] [--seed K]  a scenario file's swarm (bbzide.worlds.commands)
     bbzide ide [X.bzz] ...      the browser IDE (bbzide.ui.commands)
@@ -13,7 +13,7 @@
 
 Each room's `commands` module exposes `register(subparsers)`; rooms are imported lazily so that
 `bbzide compile` never pays for importing viser. `run` is shared by two rooms, so it is defined
-here: `bbzide.vm.commands.add_run_arguments(parser)` adds the single-robot options (the corpus
+here: `bbzide.harness.commands.add_run_arguments(parser)` adds the single-robot options (the corpus
 harness's: --platform, --robot, --reg, --inject, --loop, --seed, --dump, ...) and
 `bbzide.worlds.commands.add_world_run_arguments(parser)` the swarm options (--world, --robots, ...);
 with `--world` or a scenario file (`.toml`) the worlds room runs it (`run_world(args)`,
@@ -47,7 +47,7 @@ EXIT_BUG = 70
 #: Rooms that contribute subcommands, lowest first (the order of the help text).
 COMMAND_MODULES = (
     "bbzide.compiler.commands",
-    "bbzide.vm.commands",
+    "bbzide.harness.commands",
     "bbzide.worlds.commands",
     "bbzide.ui.commands",
     "bbzide.ui.lesson_commands",
@@ -82,7 +82,7 @@ def _optional_module(name: str):  # noqa: ANN202 - a module or None
 
 
 def _register_run(subparsers: argparse._SubParsersAction) -> None:
-    vm_commands = _optional_module("bbzide.vm.commands")
+    vm_commands = _optional_module("bbzide.harness.commands")
     world_commands = _optional_module("bbzide.worlds.commands")
     if vm_commands is None and world_commands is None:
         return

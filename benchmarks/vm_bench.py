@@ -11,13 +11,14 @@ Scripts (ours, beside this file):
 Each run: construct, ``set_bcode``, the top-level code, then ``step`` called repeatedly
 (the firmware's loop, ``pop`` variant) for a fixed CPU time. Modes: ``stress`` collects
 before every instruction (the reference ``bbzvm_step``), ``fast`` is the default fast VM
-(compiled collector, provably changeless collections skipped — ARCHITECTURE.md "vm speed").
+(compiled collector, provably changeless collections skipped — ARCHITECTURE.md "Two modes,
+and the seam").
 Printed: instructions/s, steps/s, fast/stress ratio, and the ratio to the C BittyBuzz built
 with -O2 on this machine (≈ 1.2 M instructions/s on a 3,400-instruction loop step; the
 reference runs its GC before every instruction). Rates are per second of this process's
 CPU time (``time.process_time``): the machine is shared, and wall time would measure the
 other jobs as much as the VM (the load average is printed first). The first fast run also
-would pay numba's first-call compilation (once per cache, ``bbzide/vm/__pycache__``), so a
+would pay numba's first-call compilation (once per cache, ``bbzide/vm/compiled/__pycache__``), so a
 short untimed warm-up run comes first and its duration is printed.
 
     PYTHONPATH=. python benchmarks/vm_bench.py [seconds per run, default 2]

@@ -13,7 +13,7 @@ Per-robot values are batches of N (robot index order, the engine's `robots` orde
 
 from __future__ import annotations
 
-from bbzide.vm.input_log import LAYOUT_COMPACT, LAYOUT_FULL
+from bbzide.recording.input_log import LAYOUT_COMPACT, LAYOUT_FULL
 
 #: `/mission` static component `meta` (JSON) starts with this; anything else is foreign.
 FORMAT = "bbzide-mission"

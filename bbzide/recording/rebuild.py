@@ -25,15 +25,15 @@ from typing import Any
 from bbzide.diagnostics import SourceLocation
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import CompressionError, decompress
-from bbzide.recording.reader import Keyframe, Recording
-from bbzide.recording.recorder import RecordingError, build_robot
-from bbzide.vm.input_log import (
+from bbzide.recording.input_log import (
     InputLogError,
     ReplayDivergence,
     ReplayHostFunctions,
     decode_step,
     replay_step,
 )
+from bbzide.recording.reader import Keyframe, Recording
+from bbzide.recording.recorder import RecordingError, build_robot
 from bbzide.vm.snapshot_layout import (
     ROBOT_MAGIC,
     VM_MAGIC,

@@ -49,8 +49,8 @@ import numpy as np
 from bbzide.diagnostics import UserError
 from bbzide.recording import keyframes, layout
 from bbzide.recording.compression import INPUT_LEVEL, Compressor
+from bbzide.recording.input_log import SwarmCapture, encode_steps, encode_steps_joined
 from bbzide.vm.host import LatchedHostFunction
-from bbzide.vm.input_log import SwarmCapture, encode_steps, encode_steps_joined
 from bbzide.vm.vm import State
 
 #: A robot is keyframed at least every 150 steps (15 s of Kilobot time)...

@@ -11,7 +11,7 @@ Mark bits stay set after a collection (they are visible in the heap bytes).
 Where C would read outside the heap (a stale table payload, a corrupt or cyclic chain) this
 model stops instead: a segment whose bytes fall outside the heap ends its chain, an object
 index past the heap is ignored, and a chain stops after as many segments as the heap holds
-(the firmware would loop forever). :mod:`bbzide.vm.fastgc` does exactly the same.
+(the firmware would loop forever). :mod:`bbzide.vm.compiled.fastgc` does exactly the same.
 """
 
 from __future__ import annotations

@@ -18,26 +18,29 @@ from __future__ import annotations
 
 import numpy as np
 
-from bbzide.vm.fastgc import first_free as _first_free
-from bbzide.vm.fastgc import first_free_segment as _first_free_segment
+from bbzide.vm.heap_layout import (  # noqa: F401 - the layout's names, re-exported
+    CLOSURE,
+    ELEM_INDEX,
+    ELEM_VALID,
+    FLAG1,
+    FLAG2,
+    FLOAT,
+    GC_MARK,
+    INT,
+    NIL,
+    NO_ACTREC,
+    PERMANENT,
+    SEG_MARK,
+    SEG_NEXT,
+    SEG_VALID,
+    STRING,
+    TABLE,
+    TYPE_MASK,
+    USERDATA,
+    VALID,
+)
+from bbzide.vm.kernels import fastgc
 from bbzide.vm.profiles import Profile
-
-# Object types (bits 0-2 of the metadata byte).
-NIL, INT, FLOAT, STRING, TABLE, CLOSURE, USERDATA = range(7)
-TYPE_MASK = 0x07
-VALID = 0x08
-PERMANENT = 0x10
-GC_MARK = 0x20
-FLAG1 = 0x40   # table: darray; closure: native (bytecode) closure
-FLAG2 = 0x80   # darray: has-self activation record; closure: lambda
-
-# Segment words (spec §E.4).
-ELEM_VALID = 0x8000
-ELEM_INDEX = 0x7FFF
-SEG_VALID = 0x8000
-SEG_MARK = 0x4000
-SEG_NEXT = 0x3FFF      # also the "no next segment" value
-NO_ACTREC = 0xFF       # lambda byte 2: uses the default activation record
 
 
 class HeapFull(Exception):
@@ -47,8 +50,11 @@ class HeapFull(Exception):
 class Heap:
     """The heap buffer and its two pointers (``rtobj``/``ltseg`` are byte offsets)."""
 
-    def __init__(self, profile: Profile) -> None:
+    def __init__(self, profile: Profile, reference: bool = False) -> None:
         self.profile = profile
+        #: the reference mode: first-fit scans and table reads in plain Python (this file,
+        #: tables.py), not the compiled kernels; set by the VM with its ``stress_gc``
+        self.reference = reference
         self.size = profile.heap_size
         self.obj_size = profile.obj_size
         self.seg_size = profile.tseg_size
@@ -145,8 +151,10 @@ class Heap:
         """
         d = self.data
         s = self.obj_size
-        # the first-fit scan (and string dedupe) runs compiled: see fastgc.first_free
-        found = _first_free(self.view, self.rtobj, s, self.reserved, typ, string_id)
+        if self.reference:
+            found = self._first_free_object(typ, string_id)
+        else:  # the same scan compiled: fastgc.first_free
+            found = fastgc.first_free(self.view, self.rtobj, s, self.reserved, typ, string_id)
         if found < -1:
             self.prior_mdata = d[(-2 - found) * s]
             return -2 - found
@@ -166,6 +174,21 @@ class Heap:
         elif typ == CLOSURE:
             d[o + 2] = NO_ACTREC
         return found
+
+    def _first_free_object(self, typ: int, string_id: int) -> int:
+        """``bbzheap_obj_alloc``'s scan (spec §E.5): the first invalid slot from R below
+        rtobj, or -1; for a STRING, a valid string of the same id met before it is returned
+        as ``-2 - index`` (deduplication)."""
+        d = self.data
+        s = self.obj_size
+        for i in range(self.reserved, self.rtobj // s):
+            mdata = d[i * s]
+            if not mdata & VALID:
+                return i
+            if typ == STRING and mdata & TYPE_MASK == STRING \
+                    and d[i * s + 1] | (d[i * s + 2] << 8) == string_id & 0xFFFF:
+                return -2 - i
+        return -1
 
     def new_int(self, value: int) -> int:
         i = self.obj_alloc(INT)
@@ -227,8 +250,11 @@ class Heap:
 
     def seg_alloc(self) -> int:
         """``bbzheap_tseg_alloc``: first invalid segment slot, else grow left."""
-        found = _first_free_segment(self.view, self.ltseg, self.size, self.seg_size,
-                                    self.elems)
+        if self.reference:
+            found = self._first_free_segment()
+        else:  # the same scan compiled: fastgc.first_free_segment
+            found = fastgc.first_free_segment(self.view, self.ltseg, self.size, self.seg_size,
+                                              self.elems)
         if found < 0:
             if self.ltseg - self.seg_size < self.rtobj:
                 raise HeapFull
@@ -241,6 +267,13 @@ class Heap:
         self.data[o + g - 2] = 0xFF
         self.data[o + g - 1] = 0xFF
         return found
+
+    def _first_free_segment(self) -> int:
+        """``bbzheap_tseg_alloc``'s scan (spec §E.5): the first invalid segment slot, or -1."""
+        for j in range(self.segment_count):
+            if not self.seg_mdata(j) & SEG_VALID:
+                return j
+        return -1
 
     def segment_chain(self, first: int) -> list[int]:
         """Segment indices of a table chain starting at ``first``."""

@@ -1,4 +1,5 @@
-"""Host (C-closure) functions: Python callables that stand for BittyBuzz C functions.
+"""Host (C-closure) functions: Python callables that stand for BittyBuzz C functions
+(spec §E.2 closure objects, §E.8 calls).
 
 A C closure in the heap stores a function *address* in its pointer-sized payload. To be
 byte-faithful on the PC profile the model stores exactly the addresses the reference host
@@ -22,7 +23,8 @@ from typing import TYPE_CHECKING, Any
 from bbzide.compiler import bbzfloat
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
-from bbzide.vm.packed_queues import arrays_changed
+from bbzide.vm.kernels import packed_queues
+from bbzide.vm.states import Error
 
 if TYPE_CHECKING:
     from bbzide.vm.vm import VM
@@ -85,7 +87,7 @@ class HostRegistry:
         self.by_address[address] = call
         self.by_symbol[symbol] = call
         self.version += 1
-        arrays_changed()
+        packed_queues.arrays_changed()
         return address
 
     def lookup(self, address: int) -> RegisteredHostFunction | None:
@@ -171,8 +173,6 @@ class HostCall:
         self.vm.ret1()
 
     def fail(self, kind: str) -> None:
-        from bbzide.vm.vm import Error
-
         self._done = True
         self.vm.seterror(Error[kind])
 

@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 from bbzide.vm import messages
 from bbzide.vm.heap import CLOSURE, INT, STRING
 from bbzide.vm.messages import RingBuffer
+from bbzide.vm.states import Error
 from bbzide.vm.table_library import (
     call_and_take,
     foreach_live,
@@ -246,8 +247,6 @@ def neighbors_filter(vm: VM) -> None:
 
 
 def neighbors_reduce(vm: VM) -> None:
-    from bbzide.vm.vm import Error
-
     if not vm.assert_lnum(2):
         return
     c = vm.lsym(1)
@@ -373,8 +372,6 @@ def add(vm: VM, entry: NeighborEntry) -> None:
             k = vm.new_int(0)
             v = vm.new_int(0)
         if not table_set_quiet(vm, vm.stack[vm.stackptr], k, v):
-            from bbzide.vm.vm import Error
-
             vm.seterror(Error.MEM)
             return
     vm.tput()
@@ -400,8 +397,6 @@ def data_gc(vm: VM) -> None:
         for _ in range(unmarked):
             ring.pop()
         return
-    from bbzide.vm.vm import Error
-
     tbl = table_get(vm.heap, n.hpos, vm.new_string_obj(STR_DATA))
     if tbl is None:
         vm.seterror(Error.MEM)

@@ -112,6 +112,10 @@ M300 = Profile(
     msg_in_proc_max=255,
 )
 
+#: A heap whose peak reaches this share of the profile's heap gets a warning (one robot's run
+#: and a world's alike): the next allocation burst (a table, a message) may stop it with MEM.
+HEAP_WARNING_SHARE = 0.85
+
 PROFILES: dict[str, Profile] = {p.name: p for p in (PC, KILOBOT, ZOOIDS, CRAZYFLIE, M300)}
 
 

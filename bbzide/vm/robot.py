@@ -44,17 +44,9 @@ import numpy as np
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import (
-    fasthost,
-    fastinbox,
-    fastloop,
-    fastreceive,
-    messages,
-    neighbors,
-    packed_queues,
-    snapshot_layout,
-)
+from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout
 from bbzide.vm.host import HostCall, LatchedHostFunction
+from bbzide.vm.kernels import fastbatch, fasthost, fastinbox, fastloop, fastreceive, packed_queues
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
 from bbzide.vm.vm import VM, Error, State
@@ -338,7 +330,7 @@ class Robot:
 
         def run() -> None:
             vm = self.vm
-            messages.process_inmsgs(vm)
+            inmsgs.process_inmsgs(vm)
             if vm.state != State.ERROR:
                 self.call_global(STR_STEP)
             neighbors.process_outmsgs(vm)
@@ -347,6 +339,46 @@ class Robot:
             self._check()
 
         self._guard(run)
+        return sent
+
+    def finish_compiled_step(self, phase: int, regs: np.ndarray, io: np.ndarray) -> list[bytes]:
+        """The rest of a control step the compiled swarm step (``swarm_batch_fast``) stopped
+        in ``phase`` (``fastbatch.P_*``), by the reference routines (``control_step``'s,
+        from that point; its ``_guard`` too); the payloads sent this step."""
+        vm = self.vm
+        sent: list[bytes] = []
+        try:
+            io_status = int(io[fastbatch.IO_STATUS])
+            saved, budget = int(regs[fastloop.R_SAVED]), vm.instruction_budget
+            if phase == fastbatch.P_INMSGS:
+                count = int(io[fastbatch.IO_COUNT])
+                if io_status == fastinbox.IN_CALL:
+                    vm._loop(saved, budget, resume=(int(io[fastbatch.IO_INNER]), regs))
+                    vm.pop()
+                    vm.gc()
+                    inmsgs.go_on_inmsgs(vm, count, True)
+                else:  # PYTHON_MESSAGE: message `count` collected, its extraction is next
+                    inmsgs.go_on_inmsgs(vm, count, bool(io[fastbatch.IO_COLLECTED]),
+                                        taken=True)
+                if vm.state != State.ERROR:
+                    self.call_global(STR_STEP)
+            elif phase == fastbatch.P_STEP:
+                if io_status == fastinbox.PYTHON_MESSAGE:
+                    self.call_global(STR_STEP)
+                else:
+                    if io_status >= fastinbox.CALL_UNDER_WAY:
+                        vm._loop(saved, budget,
+                                 resume=(io_status - fastinbox.CALL_UNDER_WAY, regs))
+                    if io_status != fastinbox.NOT_DEFINED and self.loop == "pop" \
+                            and vm.state == State.READY:
+                        vm.pop()
+            # P_OUTMSGS (and after the above): the countdown is still to do
+            neighbors.process_outmsgs(vm)
+            sent = messages.drain_outbox(vm.queues)
+            self.steps_done += 1
+            self._check()
+        except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
+            self._fail_host(exc)
         return sent
 
     # ---- failure -------------------------------------------------------------------------
@@ -379,7 +411,7 @@ class Robot:
     def snapshot(self) -> bytes:
         """The whole robot state (VM heap and records, loop bookkeeping) as bytes: the flat
         layout of `snapshot_layout` for a state of the usual shape, else pickled."""
-        flat = snapshot_layout.robot_bytes(self)
+        flat = snapshot_layout.robot_bytes(self, RobotFailure)
         if flat is not None:
             return flat
         return pickle.dumps((self.vm.snapshot(), self.failure, self.steps_done, self.booted))

@@ -49,8 +49,8 @@ from typing import TYPE_CHECKING, Any
 from bbzide.diagnostics import SourceLocation
 from bbzide.vm.messages import MessageQueues, RingBuffer, record_size
 from bbzide.vm.neighbors import NeighborEntry, NeighborsState
+from bbzide.vm.states import Error, State
 from bbzide.vm.swarm import SwarmState
-from bbzide.vm.vm import Error, State
 from bbzide.vm.vstig import VstigEntry, VstigStore
 
 if TYPE_CHECKING:
@@ -274,8 +274,6 @@ def decode_vm(data: bytes, at: int = 0, end: int | None = None) -> tuple[Any, ..
 
 
 def _decode_vm(data: bytes, at: int, end: int) -> tuple[Any, ...]:
-    from bbzide.vm.vm import Error, State
-
     if data[at:at + len(VM_MAGIC)] != VM_MAGIC:
         raise SnapshotError("not a flat VM snapshot")
     magic, *values = _VM_HEAD.unpack_from(data, at)
@@ -332,9 +330,10 @@ def _decode_vm(data: bytes, at: int, end: int) -> tuple[Any, ...]:
 Failure = tuple[str, int, SourceLocation | None, str]
 
 
-def robot_bytes(robot: Robot) -> bytes | None:
+def robot_bytes(robot: Robot, failure_type: type) -> bytes | None:
     """A robot's snapshot in this layout (its VM's flat snapshot inside), or None when the
-    VM's state or the robot's bookkeeping has another shape (then the robot's is pickled)."""
+    VM's state or the robot's bookkeeping has another shape (then the robot's is pickled).
+    ``failure_type``: `robot.RobotFailure` (passed in: the robot module imports this one)."""
     steps_done, booted, failure = robot.steps_done, robot.booted, robot.failure
     if type(steps_done) is not int or type(booted) is not bool:
         return None
@@ -345,10 +344,8 @@ def robot_bytes(robot: Robot) -> bytes | None:
     try:
         head = _ROBOT_HEAD.pack(ROBOT_MAGIC, steps_done, booted, failure is not None, length)
         if failure is not None:
-            from bbzide.vm.robot import RobotFailure
-
             location = failure.location
-            if type(failure) is not RobotFailure \
+            if type(failure) is not failure_type \
                     or type(location) not in (SourceLocation, type(None)) \
                     or not _only_ints((failure.pc, *((location.line, location.col)
                                                      if location else ()))):

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from bbzide.vm.heap import CLOSURE, HeapFull
+from bbzide.vm.states import Error
 from bbzide.vm.table_library import to_bool
 from bbzide.vm.tables import darray_get, darray_pop, darray_push, darray_size
 
@@ -37,8 +38,6 @@ class SwarmState:
 
 def _bit(vm: VM, swarm: int) -> int:
     """``swarmlist_entry_fromswarm``: SWARM error (and an empty list) for ids ≥ 8."""
-    from bbzide.vm.vm import Error
-
     if swarm < MAX_SWARMS:
         return 1 << swarm
     vm.seterror(Error.SWARM)
@@ -59,8 +58,6 @@ def _add_function(vm: VM, sid: int, symbol: str, fn: object) -> None:
 
 
 def swarm_create(vm: VM) -> None:
-    from bbzide.vm.vm import Error
-
     if not vm.assert_lnum(1):
         return
     swarm = vm.heap.u16(vm.lsym(1))
@@ -87,8 +84,6 @@ def swarm_create(vm: VM) -> None:
 
 
 def swarm_id(vm: VM) -> None:
-    from bbzide.vm.vm import Error
-
     h = vm.heap
     argc = darray_size(h, vm.lsyms) - 1
     if not argc <= 1:

@@ -1,5 +1,5 @@
-"""Global table closures ``foreach filter map reduce size`` (``bbztable.c``) and the live
-segment walk they share with the neighbors library.
+"""Global table closures ``foreach filter map reduce size`` (``bbztable.c``, spec §E.6) and the
+live segment walk they share with the neighbors library.
 
 Registered at the end of construct with ``function_register`` (closure first, then the
 name string). The walk (``bbztable_foreach``) reads the segments while the callbacks run,
@@ -16,6 +16,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from bbzide.vm.heap import CLOSURE, ELEM_INDEX, ELEM_VALID, INT, SEG_NEXT, TABLE, HeapFull
+from bbzide.vm.states import Error
 from bbzide.vm.tables import table_set
 
 if TYPE_CHECKING:
@@ -78,8 +79,6 @@ def call_and_take(vm: VM, self_slot: int, c: int, *args: int) -> int | None:
         vm.push(arg)
     vm.closure_call(len(args))
     if not vm.stack_depth() > ss:
-        from bbzide.vm.vm import Error  # vm imports this module: only on the error path
-
         vm.seterror(Error.RET)
         return None
     ret = vm.stack[vm.stackptr]

@@ -6,16 +6,17 @@ words; a darray segment uses the same 2E words as values. Element words carry bi
 valid, bits 0-14 = heap index. Every function here mirrors one ``bbztable_*``/
 ``bbzdarray_*`` routine, including its quirks (darray ``size`` unlinks trailing segments,
 ``pop`` leaves an empty trailing segment until the next pop).
-The four hottest readers (``table_get``, ``darray_get/set/size``) run as compiled loops in
-:mod:`bbzide.vm.fasttables`.
+The four hottest readers (``table_get``, ``darray_get/set/size``) run in the fast mode as
+compiled loops (``fasttables``, through the seam :mod:`bbzide.vm.kernels`); a heap of the
+reference mode (``heap.reference``) reads through the plain walks below, so the reference
+shares no code with the kernels it checks. Both stop where C would read outside the heap
+(a stale payload, a corrupt chain): a segment whose bytes fall outside the heap counts as
+absent, and a walk stops after as many segments as the heap holds (a cyclic chain would
+hang the firmware).
 """
 
 from __future__ import annotations
 
-from bbzide.vm.fasttables import darray_get as _darray_get
-from bbzide.vm.fasttables import darray_set as _darray_set
-from bbzide.vm.fasttables import darray_size as _darray_size
-from bbzide.vm.fasttables import table_lookup as _table_lookup
 from bbzide.vm.heap import (
     CLOSURE,
     ELEM_INDEX,
@@ -35,6 +36,7 @@ from bbzide.vm.heap import (
     Heap,
     HeapFull,
 )
+from bbzide.vm.kernels import fasttables
 
 
 def compare(heap: Heap, a: int, b: int) -> int:
@@ -60,9 +62,42 @@ def compare(heap: Heap, a: int, b: int) -> int:
 
 # ---- tables ---------------------------------------------------------------------------
 def table_get(heap: Heap, t: int, k: int) -> int | None:
-    """The value index stored under key object ``k``, or None (absent or not a table)."""
-    v = _table_lookup(heap.view, t, k, heap.obj_size, heap.elems)
+    """``bbztable_get``: the value index stored under key object ``k``, or None (absent or
+    not a table)."""
+    if heap.reference:
+        return _table_get_reference(heap, t, k)
+    v = fasttables.table_lookup(heap.view, t, k, heap.obj_size, heap.elems)
     return None if v < 0 else v
+
+
+def _segment_in_heap(heap: Heap, seg: int) -> bool:
+    """Do segment ``seg``'s bytes lie inside the heap? (A stale or corrupt index may not.)"""
+    return (seg + 1) * heap.seg_size <= heap.size
+
+
+def _object_in_heap(heap: Heap, i: int) -> bool:
+    return 0 <= i < heap.size // heap.obj_size
+
+
+def _table_get_reference(heap: Heap, t: int, k: int) -> int | None:
+    """``bbztable_get`` walked in Python (spec §E.6): the chain in order, each segment's
+    E slots in order; a valid key comparing equal to ``k`` (``bbztype_cmp`` = 0) wins."""
+    if not (_object_in_heap(heap, t) and _object_in_heap(heap, k)) \
+            or heap.obj_type(t) != TABLE:
+        return None
+    seg = heap.u16(t)
+    for _ in range(heap.size // heap.seg_size + 1):  # at most every segment once
+        if not _segment_in_heap(heap, seg):
+            return None
+        for slot in range(heap.elems):
+            key = heap.word(seg, slot)
+            if key & ELEM_VALID and _object_in_heap(heap, key & ELEM_INDEX) \
+                    and compare(heap, key & ELEM_INDEX, k) == 0:
+                return heap.word(seg, slot + heap.elems) & ELEM_INDEX
+        seg = heap.seg_next(seg)
+        if seg == SEG_NEXT:
+            return None
+    return None
 
 
 def table_set(heap: Heap, t: int, k: int, v: int) -> bool:
@@ -187,18 +222,70 @@ def darray_pop(heap: Heap, d: int) -> bool:
     return True
 
 
+def _darray_slot(heap: Heap, d: int, i: int) -> tuple[int, int] | None:
+    """(segment, word) of darray ``d``'s element ``i`` (spec §E.7: follow ⌊i/2E⌋ links,
+    reached only if the chain is long enough), or None (not a darray, out of the chain)."""
+    n = 2 * heap.elems
+    if i < 0 or not _object_in_heap(heap, d):
+        return None
+    mdata = heap.mdata(d)
+    if mdata & TYPE_MASK != TABLE or not mdata & FLAG1:
+        return None
+    seg = heap.u16(d)
+    if not _segment_in_heap(heap, seg):
+        return None
+    for _ in range(i // n):
+        seg = heap.seg_next(seg)
+        if seg == SEG_NEXT or not _segment_in_heap(heap, seg):
+            return None
+    return seg, i % n
+
+
 def darray_get(heap: Heap, d: int, i: int) -> int | None:
-    v = _darray_get(heap.view, d, i, heap.obj_size, heap.elems)
+    """``bbzdarray_get``: element ``i``'s object index, or None (absent or invalid)."""
+    if heap.reference:
+        found = _darray_slot(heap, d, i)
+        if found is None:
+            return None
+        word = heap.word(*found)
+        return word & ELEM_INDEX if word & ELEM_VALID else None
+    v = fasttables.darray_get(heap.view, d, i, heap.obj_size, heap.elems)
     return None if v < 0 else v
 
 
 def darray_set(heap: Heap, d: int, i: int, v: int) -> bool:
-    return _darray_set(heap.view, d, i, v, heap.obj_size, heap.elems)
+    """``bbzdarray_set``: overwrite an already-valid element (a darray cannot grow so)."""
+    if heap.reference:
+        found = _darray_slot(heap, d, i)
+        if found is None or not heap.word(*found) & ELEM_VALID:
+            return False
+        heap.set_word(*found, v | ELEM_VALID)
+        return True
+    return fasttables.darray_set(heap.view, d, i, v, heap.obj_size, heap.elems)
 
 
 def darray_size(heap: Heap, d: int) -> int:
-    """Count valid elements up to the first invalid one; unlinks what follows (quirk)."""
-    return _darray_size(heap.view, d, heap.obj_size, heap.elems)
+    """``bbzdarray_size``: count valid elements up to the first invalid one; that element's
+    segment gets next := none, unlinking what follows (quirk, spec §E.7). Like the firmware
+    it reads the payload as a segment index without checking the type."""
+    if not heap.reference:
+        return fasttables.darray_size(heap.view, d, heap.obj_size, heap.elems)
+    if not _object_in_heap(heap, d):
+        return 0
+    seg = heap.u16(d)
+    count = 0
+    for _ in range(heap.size // heap.seg_size + 1):  # at most every segment once
+        if not _segment_in_heap(heap, seg):
+            return count
+        for p in range(2 * heap.elems):
+            if not heap.word(seg, p) & ELEM_VALID:
+                heap.set_seg_next(seg, SEG_NEXT)
+                return count
+            count += 1
+        seg = heap.seg_next(seg)
+        if seg == SEG_NEXT:
+            return count
+    return count
 
 
 def darray_elements(heap: Heap, d: int) -> list[int]:

@@ -24,16 +24,12 @@ from __future__ import annotations
 import math
 from array import array
 from collections.abc import Callable
-from enum import IntEnum
 from typing import Any
 
 import numpy as np
 
 from bbzide.compiler import bbzfloat
-from bbzide.vm import fastloop
 from bbzide.vm import gc as gcmod
-from bbzide.vm.fastgc import PERMANENT_PHASE
-from bbzide.vm.fastgc import collect as _collect
 from bbzide.vm.heap import (
     CLOSURE,
     FLAG1,
@@ -53,10 +49,11 @@ from bbzide.vm.heap import (
     HeapFull,
 )
 from bbzide.vm.host import HostFunction, HostRegistry
+from bbzide.vm.kernels import fastgc, fastloop, packed_queues
 from bbzide.vm.messages import MessageQueues, record_size
 from bbzide.vm.neighbors import NeighborsState
-from bbzide.vm.packed_queues import PackedQueues, arrays_changed
 from bbzide.vm.profiles import PC, Profile
+from bbzide.vm.states import Error, State
 from bbzide.vm.swarm import SwarmState
 from bbzide.vm.tables import (
     CloneFailed,
@@ -78,38 +75,6 @@ from bbzide.vm.tables import (
 )
 from bbzide.vm.vstig import VstigStore
 
-
-class State(IntEnum):
-    """``bbzvm_state`` (BittyBuzz numbering)."""
-
-    NOCODE = 0
-    READY = 1
-    STOPPED = 2
-    DONE = 3
-    ERROR = 4
-
-
-class Error(IntEnum):
-    """``bbzvm_error``; BUDGET is our own addition (instruction budget exhausted)."""
-
-    NONE = 0
-    INSTR = 1
-    STACK = 2
-    LNUM = 3
-    PC = 4
-    FLIST = 5
-    TYPE = 6
-    OUTOFRANGE = 7
-    NOTIMPL = 8
-    RET = 9
-    STRING = 10
-    SWARM = 11
-    VSTIG = 12
-    MEM = 13
-    MATH = 14
-    BUDGET = 15
-
-
 _I16 = 0xFFFF
 
 
@@ -123,9 +88,9 @@ class VM:
 
     def __init__(self, profile: Profile = PC, robot: int = 0, stress_gc: bool = True) -> None:
         self.profile = profile
-        self.heap = Heap(profile)
+        self.heap = Heap(profile, reference=stress_gc)
         self.host = HostRegistry(profile.ptr_size)
-        self.stress_gc = stress_gc
+        self._stress_gc = stress_gc
         #: u16 heap indices, as the C; an ``array`` so the compiled kernel shares it
         self.stack = array("H", bytes(2 * profile.stack_size))
         self._stack_view = np.frombuffer(self.stack, np.uint16)
@@ -160,9 +125,9 @@ class VM:
         self.vstig = VstigStore()
         #: the queues and neighbor ring as arrays (fast mode's swarm step), and whether the
         #: arrays hold the truth now (packed_queues.py: one form is the truth at a time)
-        self._packed: PackedQueues | None = None
+        self._packed: packed_queues.PackedQueues | None = None
         self._packed_live = False
-        arrays_changed()
+        packed_queues.arrays_changed()
         self.neighbors = NeighborsState()
         self.queues = MessageQueues(profile.in_queue_cap, profile.out_queue_cap, profile.obj_size)
 
@@ -197,17 +162,28 @@ class VM:
         self._packed_live = False
         self._packed.unpack(self._queues, self._neighbors)  # type: ignore[union-attr]
 
-    def packed(self) -> PackedQueues:
+    def packed(self) -> packed_queues.PackedQueues:
         """The queues and neighbor ring as arrays that hold the truth from now until the
         next Python access to ``queues``/``neighbors`` (packed_queues.py)."""
         packed = self._packed
         if not self._packed_live:
             if packed is None:
-                packed = self._packed = PackedQueues(self.profile,
+                packed = self._packed = packed_queues.PackedQueues(self.profile,
                                                      len(self._queues.inbox.records[0]))
             packed.pack(self._queues, self._neighbors, self.robot)
             self._packed_live = True
         return packed  # type: ignore[return-value]
+
+    @property
+    def stress_gc(self) -> bool:
+        """The reference mode: the model's own Python routines, a collection before every
+        instruction, no compiled kernel (the heap's scans and table reads included)."""
+        return self._stress_gc
+
+    @stress_gc.setter
+    def stress_gc(self, on: bool) -> None:
+        self._stress_gc = on
+        self.heap.reference = on
 
     # =================================================================== construct
     def construct(self, robot: int | None = None) -> None:
@@ -216,7 +192,7 @@ class VM:
 
         if robot is not None:
             self.robot = robot
-        arrays_changed()
+        packed_queues.arrays_changed()
         self.bcode = b""
         self.bcode_size = 0
         self.pc = 0
@@ -252,7 +228,7 @@ class VM:
         """``bbzvm_set_bcode``: run the string-registration preamble up to its ``nop``."""
         self.bcode = bytes(bcode)
         self.bcode_size = len(self.bcode)
-        arrays_changed()
+        packed_queues.arrays_changed()
         self.state = State.READY
         self.error = Error.NONE
         self.pc = 2
@@ -297,7 +273,7 @@ class VM:
         h = self.heap
         h.gc_runs += 1
         sp = self.stackptr
-        r = _collect(h.view, self._stack_view, sp, h.rtobj, h.ltseg,
+        r = fastgc.collect(h.view, self._stack_view, sp, h.rtobj, h.ltseg,
                      h.gc_info, h.gc_traversed, *self._geometry)
         h.rtobj = r >> 16
         h.ltseg = r & 0xFFFF
@@ -546,7 +522,7 @@ class VM:
         self.swarm, self.vstig, self.neighbors, self.queues = recs
         self.bcode = bcode
         self.bcode_size = len(bcode)
-        arrays_changed()
+        packed_queues.arrays_changed()
 
     def _fits(self, snap: tuple[Any, ...]) -> bool:
         """Whether a decoded snapshot's registers index inside this VM's buffers.
@@ -1417,7 +1393,7 @@ class VM:
                 if t != TABLE and (t != CLOSURE or not m & FLAG2):
                     fixed = bool(m & GC_MARK)
                 else:
-                    fixed = bool(info[top] & PERMANENT_PHASE)
+                    fixed = bool(info[top] & fastgc.PERMANENT_PHASE)
             else:
                 fixed = rule == _PC_ONLY
             n += 1
@@ -1461,7 +1437,7 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 # instruction the kernel handed back, collects after them — always exact):
 # * _REPLACED_TOP: gload replaced the top root (a name string) by a global's value; the
 #   dropped root was first marked from the permanent roots (``gc_info``, exact for every
-#   object a skipped step did not allocate: those have no PERMANENT_PHASE), so as a stack
+#   object a skipped step did not allocate: those have no fastgc.PERMANENT_PHASE), so as a stack
 #   root it marked nothing, and the pushed value is accepted as by _PUSHED_OLD;
 # * _POPPED_TWO_NEW: a two-operand operation dropped two such roots and pushed its new
 #   result, a leaf accepted as by _PUSHED_NEW (pending mark included).

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 from bbzide.vm import messages
 from bbzide.vm.heap import STRING, TABLE, USERDATA, VALID, HeapFull
+from bbzide.vm.states import Error
 from bbzide.vm.tables import table_get
 
 if TYPE_CHECKING:
@@ -146,8 +147,6 @@ def vstig_put(vm: VM) -> None:
     key = vm.lsym(1)
     value = vm.lsym(2)
     if vm.heap.obj_type(value) == TABLE:
-        from bbzide.vm.vm import Error
-
         vm.seterror(Error.TYPE)
         return
     vm.gc()
@@ -170,8 +169,6 @@ def vstig_put(vm: VM) -> None:
         vm.vstig.entries.append(e)
         queue_vstig(vm, VSTIG_PUT, e.robot, e.key, e.value, e.timestamp)
     else:
-        from bbzide.vm.vm import Error
-
         vm.seterror(Error.VSTIG)
     vm.ret0()
     vm.gc()
@@ -192,8 +189,6 @@ def is_newer(vm: VM, lamport: int, old: int) -> bool:
 
 def _alloc_copy(vm: VM, obj: bytes) -> int | None:
     """Allocate a slot (as userdata) and overwrite it with the message's object copy."""
-    from bbzide.vm.vm import Error
-
     h = vm.heap
     try:
         o = h.obj_alloc(USERDATA)
@@ -249,8 +244,6 @@ def process_vstig(vm: VM, rec: bytearray) -> None:
 def _conflict(vm: VM, e: VstigEntry, rid: int, key: int, lamport: int, obj: bytes) -> bool:
     """Same timestamp, different robot. False when the C code returns early (an error)."""
     from bbzide.vm.messages import VSTIG_PUT
-    from bbzide.vm.vm import Error
-
     h = vm.heap
     handler = table_get(h, vm.vstig.hpos, vm.new_string_obj(STR_ONCONFLICT_FIELD))
     if handler is not None:

@@ -257,7 +257,7 @@ def heap_lines(sim: Any) -> list[str]:
     """Each robot's peak heap against its profile's heap (and the platform's RAM), with a
     warning naming the robots near the limit."""
     from bbzide.compiler.footprint import RAM_BYTES
-    from bbzide.vm.commands import HEAP_WARNING_SHARE  # the one-robot run's threshold too
+    from bbzide.vm.profiles import HEAP_WARNING_SHARE
 
     peaks = [(s.robot_id, int(s.robot.vm.heap.peak_used), s.robot.profile)
              for s in sim.robots if s.robot is not None]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bbzide.vm.input_log import (
+from bbzide.recording.input_log import (
     LAYOUT_COMPACT,
     LAYOUT_FULL,
     HostCallRecord,
@@ -114,7 +114,7 @@ def test_hooked_receives_are_noted_and_reach_the_robot_its_way() -> None:
     """An engine without `step_deliveries` calls each robot's `receive` or `receive_all`: the
     hooks must note both (forwarding `receive_all` unnoted would make every rebuild
     diverge) and pass the messages on as the robot takes them."""
-    from bbzide.vm.input_log import SwarmCapture
+    from bbzide.recording.input_log import SwarmCapture
 
     deliveries = [(7, b"\x00\x07\x00\x01", 1.5, -0.25, 0.0), (9, b"\x01\x09", 3.0, 0.5, 0.125)]
     for inner in (_BulkInner(), _Inner()):
@@ -142,7 +142,7 @@ def test_columns_encode_to_the_same_bytes_as_per_robot_records(layout: int) -> N
     bytes, the recorder's way at each flush) writes exactly `encode_step`'s layout for each
     step, so `decode_step` and every recording stay as they were; payloads longer than a VM
     reads are cut as `receive` cuts them; packed, hooked and missing deliveries mix."""
-    from bbzide.vm.input_log import (
+    from bbzide.recording.input_log import (
         HostCallRecord,
         ReceivedColumns,
         StepInputs,
@@ -189,7 +189,7 @@ def test_host_calls_are_written_as_they_happen_in_the_layout() -> None:
     (`CallLog`): the same bytes as the records would encode to, robots put in index order
     when an engine steps them out of order, and nothing noted while not capturing or while
     the robot boots."""
-    from bbzide.vm.input_log import HostCallRecord, SwarmCapture, encode_calls
+    from bbzide.recording.input_log import HostCallRecord, SwarmCapture, encode_calls
 
     class Call:  # the parts of HostCall a world host function uses
         def __init__(self, args: int) -> None:

@@ -88,7 +88,7 @@ def recorded(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFa
 def decoded_inputs(recording: Any) -> list[dict[int, Any]]:
     """Every step's decoded inputs, read the way the recording's format says."""
     from bbzide.recording.compression import decompress
-    from bbzide.vm.input_log import decode_step
+    from bbzide.recording.input_log import decode_step
 
     version = recording.meta["version"]
     return [decode_step(decompress(blob) if layout.inputs_compressed(version) else blob,

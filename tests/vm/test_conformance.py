@@ -1,6 +1,6 @@
 """The VM model against the corpus: every harness run of ``bbz/*.cmd`` (92 runs).
 
-Each run is replayed with :func:`bbzide.vm.harness.run_command_line` (the reference harness's
+Each run is replayed with :func:`bbzide.harness.runner.run_command_line` (the reference harness's
 options; ``bbzharness-pc`` → the PC profile, ``bbzavr.py`` → the Kilobot profile) and its
 ``#BBZDUMP 1`` text is compared with the reference dump by the corpus's own tool
 (``tools/bbzconf.py``): level (a) byte-exact (heap bytes except C-closure pointers) and level
@@ -25,8 +25,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 
 from corpus import BBZ_DIR, BBZCONF, report  # noqa: E402
 
-from bbzide.vm.harness import run_command_line  # noqa: E402
-from bbzide.vm.harness_options import split_command_line  # noqa: E402
+from bbzide.harness.options import split_command_line  # noqa: E402
+from bbzide.harness.runner import run_command_line  # noqa: E402
 from bbzide.vm.profiles import KILOBOT, PC  # noqa: E402
 
 HARNESSES = {"bbzharness-pc": PC, "bbzavr.py": KILOBOT}

@@ -1,4 +1,4 @@
-"""The compiled in-queue loop (``bbzide/vm/fastinbox.py``) against the reference routines.
+"""The compiled in-queue loop (``bbzide/vm/compiled/fastinbox.py``) against the reference routines.
 
 A robot in the fast mode processes its received broadcasts in compiled code and hands the
 rest back to Python; a robot in the reference mode (``stress_gc=True``) runs the Python
@@ -114,10 +114,10 @@ def test_inbox_identical_until_the_heap_is_full(profile) -> None:
 
 
 def test_receive_all_is_receive_after_receive() -> None:
-    """``Robot.receive_all`` (compiled for the Kilobot: ``bbzide/vm/fastreceive.py``) against
-    ``receive`` called per message: truncated and garbage payloads, duplicates of queued
-    broadcasts, a queue and a neighbor ring that overflow, situated values to round (ties
-    to even), clamp, NaN and infinities."""
+    """``Robot.receive_all`` (compiled for the Kilobot:
+    ``bbzide/vm/compiled/fastreceive.py``) against ``receive`` called per message: truncated
+    and garbage payloads, duplicates of queued broadcasts, a queue and a neighbor ring that
+    overflow, situated values to round (ties to even), clamp, NaN and infinities."""
     rng = random.Random(4)
     (_, batch), _logs = _pair(KILOBOT, 0)
     (_, single), _logs = _pair(KILOBOT, 0)

@@ -2,9 +2,9 @@
 
 ``VM(stress_gc=True)`` collects with the transcription of ``bbzheap_gc`` before every
 instruction, as the firmware does; ``VM(stress_gc=False)`` runs the compiled collector and
-skips the collections it proves changeless (ARCHITECTURE.md "vm speed"). Every observable
-state must be identical: heap bytes (stale bytes, mark and valid bits included), rtobj/ltseg,
-stack, pc, state, error events with their pc, the GC run count.
+skips the collections it proves changeless (ARCHITECTURE.md "Two modes, and the seam"). Every
+observable state must be identical: heap bytes (stale bytes, mark and valid bits included),
+rtobj/ltseg, stack, pc, state, error events with their pc, the GC run count.
 
 Observed: every dump of the 92 corpus harness runs (``tests/vm/test_core_corpus.py`` also
 compares the vm-core driver's dumps), and for generated
@@ -53,7 +53,7 @@ def _harness_lines() -> list[tuple[str, list[str]]]:
 def test_corpus_harness_runs_identical() -> None:
     """The whole firmware loop (messages, neighbors, stigmergy, swarms, injections) through
     vm-runtime's harness: every ``#BBZDUMP 1`` line (all heap bytes) equal in both modes."""
-    from bbzide.vm.harness import run_command_line
+    from bbzide.harness.runner import run_command_line
     from bbzide.vm.profiles import get_profile
 
     runs = _harness_lines()
@@ -68,7 +68,7 @@ def test_corpus_harness_runs_identical() -> None:
 
 def test_kernel_skip_rules_are_the_vm_rules() -> None:
     """The compiled kernel (fastloop.py) repeats the VM's skip-rule table."""
-    from bbzide.vm import fastloop
+    from bbzide.vm.compiled import fastloop
     from bbzide.vm.vm import _SKIP_RULES
 
     assert list(fastloop.RULES) == _SKIP_RULES

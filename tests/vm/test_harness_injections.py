@@ -7,7 +7,7 @@ from corpus import BBZ_DIR
 from hypothesis import given
 from hypothesis import strategies as st
 
-from bbzide.vm.injections import InjectionError, parse_injection_file, parse_injection_line
+from bbzide.harness.injections import InjectionError, parse_injection_file, parse_injection_line
 
 INJECTION_FILES = sorted(BBZ_DIR.glob("*.inj"))
 

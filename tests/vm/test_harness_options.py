@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from corpus import BBZ_DIR
 
-from bbzide.vm.harness_options import (
+from bbzide.harness.options import (
     HarnessOptionError,
     HostKind,
     group_registrations,

@@ -1,7 +1,7 @@
 """bbzide without numba: the fast mode runs its kernels as plain Python, with the same results.
 
 numba is an optional dependency (the `fast` extra in pyproject.toml): when `import numba` fails,
-`bbzide.vm.fastgc` hands the kernels back uncompiled and the VM, the in-queue and the swarm step
+`bbzide.vm.kernels` hands the kernels back uncompiled and the VM, the in-queue and the swarm step
 take their Python paths. This test blocks the import in a child process (``sys.modules["numba"]
 = None`` makes every ``import numba`` raise ImportError, as on a machine without it), runs a few
 steps of every world's default example there, and compares each run's fingerprint (everything
@@ -15,7 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from bbzide.vm import fastgc
+from bbzide.vm import kernels
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
@@ -33,8 +33,8 @@ import json, sys
 sys.modules["numba"] = None
 sys.path.insert(0, {str(REPO)!r})
 from tests.vm.test_without_numba import world_fingerprints
-from bbzide.vm import fastgc, vm
-print(json.dumps({{"compiled": fastgc.COMPILED, "kernel": vm._KERNEL is not None,
+from bbzide.vm import kernels, vm
+print(json.dumps({{"compiled": kernels.COMPILED, "kernel": vm._KERNEL is not None,
                   "numba_loaded": bool(sys.modules.get("numba")),
                   "fingerprints": world_fingerprints()}}))
 """
@@ -51,7 +51,7 @@ def world_fingerprints() -> dict[str, str]:
 
 
 def test_without_numba_every_world_runs_the_same() -> None:
-    assert fastgc.COMPILED, "this process is the compiled side of the comparison: install numba"
+    assert kernels.COMPILED, "this process is the compiled side of the comparison: install numba"
     child = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True,
                            cwd=REPO, timeout=600)
     assert child.returncode == 0, child.stderr

@@ -1,13 +1,13 @@
 """Whole swarms in the fast VM mode against the reference mode: identical robots, step by step.
 
-The fast mode processes a robot's in-queue in compiled code (``bbzide/vm/fastinbox.py``) and
-hands back to the Python routines whenever anything unusual happens: a stigmergy message, a
-listener that calls a host function or runs an instruction the kernel does not cover, an
-error or the budget inside a listener, a full stack or heap. Each scenario below runs the
-same swarm twice — robots built with ``stress_gc=True`` (the reference: Python routines, a
-collection before every instruction) and with the default fast mode — and compares every
-robot's observable state after every step: heap bytes, ROP/LSP, stack, registers, error
-events, collection count, queues and neighbor records, failure.
+The fast mode processes a robot's in-queue in compiled code
+(``bbzide/vm/compiled/fastinbox.py``) and hands back to the Python routines whenever anything
+unusual happens: a stigmergy message, a listener that calls a host function or runs an
+instruction the kernel does not cover, an error or the budget inside a listener, a full stack
+or heap. Each scenario below runs the same swarm twice — robots built with ``stress_gc=True``
+(the reference: Python routines, a collection before every instruction) and with the default
+fast mode — and compares every robot's observable state after every step: heap bytes, ROP/LSP,
+stack, registers, error events, collection count, queues and neighbor records, failure.
 """
 
 from __future__ import annotations
@@ -231,16 +231,14 @@ def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100
 def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  # noqa: ANN001
     """The gradient example runs wholly in the compiled step (no hand-over to Python:
     `neighbors.broadcast` and the latched `led` run in machine code) and stays identical."""
-    from bbzide.vm import swarm_batch_fast
-
     handed: list[int] = []
-    finish = swarm_batch_fast._finish
+    finish = Robot.finish_compiled_step
 
     def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
         handed.append(phase)
         return finish(robot, phase, regs, io)
 
-    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    monkeypatch.setattr(Robot, "finish_compiled_step", counted)
     program = load_script(REPO / "examples/kilobot/gradient.bzz",
                           WORLDS["kilobot"].host_names, [])
     seen = _run_batches(program, "kilobot", 20, 14, options={"width": 0.35, "height": 0.35})
@@ -250,16 +248,14 @@ def test_batch_gradient_identical_and_without_hand_over(monkeypatch) -> None:  #
 def test_batch_latching_switched_off_identical(monkeypatch) -> None:  # noqa: ANN001
     """`Robot.latch_host_calls = False` (a recorder logging every host call) sends the
     latched `led` to Python — a hand-over every step — with the same robots and LEDs."""
-    from bbzide.vm import swarm_batch_fast
-
     handed: list[int] = []
-    finish = swarm_batch_fast._finish
+    finish = Robot.finish_compiled_step
 
     def counted(robot, phase, regs, io):  # noqa: ANN001, ANN202
         handed.append(phase)
         return finish(robot, phase, regs, io)
 
-    monkeypatch.setattr(swarm_batch_fast, "_finish", counted)
+    monkeypatch.setattr(Robot, "finish_compiled_step", counted)
     build = _batch_swarms
 
     def swarms(*args):  # noqa: ANN002, ANN202
@@ -366,7 +362,7 @@ def test_batch_other_profiles_identical(tmp_path: Path, world: str) -> None:
 def test_batch_threads_identical(monkeypatch, tmp_path: Path) -> None:  # noqa: ANN001
     """The kernel part split over threads (contiguous robot ranges) leaves the same robots,
     outboxes and LEDs as the reference, hand-overs included."""
-    from bbzide.vm import swarm_batch_fast
+    from bbzide.vm.compiled import swarm_batch_fast
 
     monkeypatch.setattr(swarm_batch_fast, "THREADS", 3)
     monkeypatch.setattr(swarm_batch_fast, "MIN_ROBOTS_PER_THREAD", 4)

@@ -26,11 +26,11 @@ from pathlib import Path
 
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
+from bbzide.harness.injections import Injection, InjectionError
+from bbzide.harness.options import HostKind, Registration
 from bbzide.vm import messages, neighbors
 from bbzide.vm.dump import dump_block, format_value, header_lines
-from bbzide.vm.harness_options import HostKind, Registration
 from bbzide.vm.host import LIBRARY_ADDRESSES, HostCall
-from bbzide.vm.injections import Injection, InjectionError
 from bbzide.vm.profiles import Profile
 from bbzide.vm.robot import Robot
 from bbzide.vm.tables import compare
@@ -273,8 +273,8 @@ def run_command_line(argv: list[str], base: Path, profile: Profile,
     program name and output redirection); relative paths are taken from ``base``. The
     ``.bbo`` needs its ``.bo`` beside it (string names) and uses its ``.bdb`` when present."""
     from bbzide.compiler import load_program
-    from bbzide.vm.harness_options import parse_harness_arguments
-    from bbzide.vm.injections import parse_injection_file
+    from bbzide.harness.injections import parse_injection_file
+    from bbzide.harness.options import parse_harness_arguments
 
     options = parse_harness_arguments(argv, base)
     bbo = options.bytecode

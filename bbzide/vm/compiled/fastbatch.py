@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, _compile, _i
-from bbzide.vm.fasthost import HOST_COLUMNS
-from bbzide.vm.fastinbox import (
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fasthost import HOST_COLUMNS
+from bbzide.vm.compiled.fastinbox import (
     CALLED,
     DONE,
     NOT_DEFINED,
@@ -50,24 +50,11 @@ from bbzide.vm.fastinbox import (
     call_global,
     process_broadcasts,
 )
-from bbzide.vm.fastloop import R_SP
-from bbzide.vm.fastreceive import NB_MARK, _inmsg_append, _neighbors_add, _to_u8
-from bbzide.vm.fastring import ring_size
-from bbzide.vm.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
-from bbzide.vm.heap import TABLE
-from bbzide.vm.message_layout import (
-    BC_TOPIC,
-    BC_VALUE,
-    BROADCAST,
-    PAYLOAD_SIZE,
-    RID,
-    VS_DATA,
-    VS_KEY,
-    VS_LAMPORT,
-    VSTIG_PUT,
-    VSTIG_QUERY,
-)
-from bbzide.vm.packed_queues import (
+from bbzide.vm.compiled.fastloop import R_SP
+from bbzide.vm.compiled.fastreceive import NB_MARK, _inmsg_append, _neighbors_add, _to_u8
+from bbzide.vm.compiled.fastring import ring_size
+from bbzide.vm.compiled.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
+from bbzide.vm.compiled.packed_queues import (
     CLEAR_COUNTER,
     CLEAR_PERIOD,
     IN_END,
@@ -86,6 +73,19 @@ from bbzide.vm.packed_queues import (
     RECORD,
     RING_COLUMNS,
     XTREME,
+)
+from bbzide.vm.heap_layout import TABLE
+from bbzide.vm.message_layout import (
+    BC_TOPIC,
+    BC_VALUE,
+    BROADCAST,
+    PAYLOAD_SIZE,
+    RID,
+    VS_DATA,
+    VS_KEY,
+    VS_LAMPORT,
+    VSTIG_PUT,
+    VSTIG_QUERY,
 )
 
 __all__ = ["COMPILED", "robot_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS", "LATCHED"]

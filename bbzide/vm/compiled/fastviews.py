@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, _compile
+from bbzide.vm.compiled.fastgc import COMPILED, _compile
 
 __all__ = ["COMPILED", "view_u8", "view_u16", "view_i32", "view_i64", "view_i64_rows",
            "address_of"]

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import _compile
+from bbzide.vm.compiled.fastgc import _compile
 
 
 @_compile

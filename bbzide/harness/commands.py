@@ -23,12 +23,12 @@ from typing import TYPE_CHECKING, Any
 
 from bbzide.compiler.opcodes import Op
 from bbzide.diagnostics import UserError
-from bbzide.vm.harness_options import Registration, group_registrations
-from bbzide.vm.profiles import PROFILES
+from bbzide.harness.options import Registration, group_registrations
+from bbzide.vm.profiles import HEAP_WARNING_SHARE, PROFILES
 from bbzide.vm.robot import DEFAULT_BUDGET
 
 if TYPE_CHECKING:
-    from bbzide.vm.injections import Injection
+    from bbzide.harness.injections import Injection
 
 #: control steps when --steps is not given
 DEFAULT_STEPS = 10
@@ -43,9 +43,6 @@ MAX_ROBOT_ID = 0xFFFF
 DEFAULT_REGISTRATIONS: dict[str, tuple[str, ...]] = {
     "kilobot": ("log=print", "led=trace", "set_motor=trace", "delay=trace", "abs=abs"),
 }
-#: A heap whose peak reaches this share of the profile's heap gets a warning: the next
-#: allocation burst (a table, a message) may stop the robot with MEM.
-HEAP_WARNING_SHARE = 0.85
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -121,7 +118,7 @@ def load(script: Path, registrations: list[Registration], include: list[str]):  
 
 
 def run_single_robot(args: argparse.Namespace) -> int:
-    from bbzide.vm.harness import run_harness
+    from bbzide.harness.runner import run_harness
 
     script = Path(args.script)
     steps = DEFAULT_STEPS if args.steps is None else int(args.steps)
@@ -192,7 +189,7 @@ def _run_summary(robot: Any, profile: Any, steps: int) -> str:
 
 def _injections(path: Path) -> list[Injection]:
     """The injection file's messages, or a UserError naming what is wrong with the file."""
-    from bbzide.vm.injections import parse_injection_file
+    from bbzide.harness.injections import parse_injection_file
 
     if path.is_dir():
         raise UserError(f"--inject {path} is a folder, not an injection file")

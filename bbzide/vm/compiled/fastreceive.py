@@ -27,9 +27,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, _compile, _i
-from bbzide.vm.fastring import ring_size, sort_ring_by_type
-from bbzide.vm.heap import VALID
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
+from bbzide.vm.heap_layout import VALID
 from bbzide.vm.message_layout import (
     BC_TOPIC,
     BC_VALUE,

@@ -35,8 +35,8 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, _compile, _i
-from bbzide.vm.fastloop import (
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastloop import (
     HOST_CALL,
     NONE,
     R_BP,
@@ -54,11 +54,18 @@ from bbzide.vm.fastloop import (
     _s16,
     run,
 )
-from bbzide.vm.fastring import ring_size, sort_ring_by_type
-from bbzide.vm.fasttables import darray_get, darray_size
-from bbzide.vm.heap import INT
+from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
+from bbzide.vm.compiled.fasttables import darray_get, darray_size
+from bbzide.vm.compiled.packed_queues import (
+    CTL_SLOTS,
+    LATCH_ARGS,
+    OUT_END,
+    OUT_SLOTS,
+    OUT_START,
+    ROBOT,
+)
+from bbzide.vm.heap_layout import INT
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
-from bbzide.vm.packed_queues import CTL_SLOTS, LATCH_ARGS, OUT_END, OUT_SLOTS, OUT_START, ROBOT
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_COLUMNS", "NO_HOST_ARGS"]

@@ -1,12 +1,13 @@
 """Compiled table and darray reads (``bbztable_get``, ``bbzdarray_get/set/size``).
 
-These four routines run for nearly every instruction (global lookups walk ``gsyms``,
-every local access walks the activation-record darray), and written with one Python call
-per heap word they were a third of the interpreter's time. Here they are flat loops over
-the heap ``bytearray``, compiled by numba when it is installed (see :mod:`fastgc`), and
-:mod:`bbzide.vm.tables` calls them in both GC modes, so the reference-mode VM and the fast
-VM share one implementation. Each mirrors the routine named in its docstring word for
-word; the geometry comes from the heap itself (``size = len(d)``, ``G = 4E + 2``).
+These four routines run for nearly every instruction (global lookups walk ``gsyms``, every
+local access walks the activation-record darray), and written with one Python call per heap
+word they were a third of the interpreter's time. Here they are flat loops over the heap
+``bytearray``, compiled by numba when it is installed (see :mod:`fastgc`), and
+:mod:`bbzide.vm.tables` calls them in the fast mode; the reference mode walks the same
+chains in plain Python there, so the two modes share no code. Each mirrors the routine named
+in its docstring word for word; the geometry comes from the heap itself (``size = len(d)``,
+``G = 4E + 2``).
 
 Where C would read outside the heap (a stale payload, a corrupt chain) these stop: a
 segment whose bytes fall outside the heap counts as absent, and a walk stops after as many
@@ -15,7 +16,7 @@ segments as the heap holds (a cyclic chain would hang the firmware).
 
 from __future__ import annotations
 
-from bbzide.vm.fastgc import _compile, _i
+from bbzide.vm.compiled.fastgc import _compile, _i
 
 _NIL = 0
 _INT = 1

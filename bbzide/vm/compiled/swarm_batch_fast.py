@@ -19,8 +19,9 @@ queues, its outbox rows, its latch slots), never the world: so it may run for ev
 before any Python of the step. Then, in robot index order, Python runs what is left: the
 robots the kernel does not take (``control_step``) and the **hand-overs** — a robot whose
 kernel call stopped in a phase it does not cover (``fastbatch.P_*``) is finished by the
-reference routines from exactly there (its in-queue loop resumed, ``VM._loop`` resumed
-inside a call, ``step``'s pop, the out-queue), under the same guard as
+reference routines (``Robot.finish_compiled_step``, the model's side) from exactly there
+(its in-queue loop resumed, ``VM._loop`` resumed inside a call, ``step``'s pop, the
+out-queue), under the same guard as
 ``Robot.control_step`` (a Python exception becomes the robot's HOST failure). So host
 functions that touch the world run in the reference's order; a robot's receive before its
 own step is equivalent to all receives first (a receive touches only its own robot: see
@@ -42,24 +43,17 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm import fastbatch, fastinbox, fastloop, fastviews, messages, neighbors, packed_queues
-from bbzide.vm.fastbatch import (
+from bbzide.vm.compiled import fastbatch, fastloop, fastviews, packed_queues
+from bbzide.vm.compiled.fastbatch import (
     F_POP,
     F_RECEIVE,
     F_STEP,
-    IO_COLLECTED,
-    IO_COUNT,
-    IO_INNER,
     IO_SLOTS,
-    IO_STATUS,
-    P_INMSGS,
-    P_STEP,
 )
-from bbzide.vm.messages import PAYLOAD_SIZE
-from bbzide.vm.packed_queues import LATCH_ARGS, LATCH_SLOTS
-from bbzide.vm.robot import STR_STEP, Robot
-from bbzide.vm.swarm_batch import PackedMessages, StepResult
-from bbzide.vm.vm import State
+from bbzide.vm.compiled.packed_queues import LATCH_ARGS, LATCH_SLOTS
+from bbzide.vm.message_layout import PAYLOAD_SIZE
+from bbzide.vm.packed_messages import PackedMessages, StepResult
+from bbzide.vm.states import State
 
 #: outbox rows allocated beyond what the kernel's drains can write (each robot at most its
 #: out-queue's capacity, ``_SwarmTables.max_out``): room for a few Python rows before the
@@ -67,13 +61,14 @@ from bbzide.vm.vm import State
 _SPARE_ROWS = 4
 
 
-def covered(robot: Any) -> bool:
-    """Does the compiled step take this robot now? (See the module comment.)"""
-    return type(robot) is Robot and robot.failure is None and robot.booted \
+def covered(robot: Any, robot_type: type) -> bool:
+    """Does the compiled step take this robot now? (See the module comment.) ``robot_type``:
+    `robot.Robot`, passed in by `swarm_batch` (the model imports the kernels, not back)."""
+    return type(robot) is robot_type and robot.failure is None and robot.booted \
         and not robot.vm.stress_gc and robot.vm.state == State.READY
 
 
-def _receives_compiled(robot: Robot) -> bool:
+def _receives_compiled(robot: Any) -> bool:
     p = robot.profile
     return p.xtreme and not p.neighbors_floats
 
@@ -142,7 +137,7 @@ class _SwarmTables:
     are the same objects and no VM changed an array or constant
     (``packed_queues.GENERATION``)."""
 
-    def __init__(self, robots: Sequence[Any]) -> None:
+    def __init__(self, robots: Sequence[Any], robot_type: type) -> None:
         self.generation = packed_queues.GENERATION[0]
         self.robots = list(robots)
         count = len(robots)
@@ -160,9 +155,9 @@ class _SwarmTables:
         self.argcs: list[int] = []
         self.max_out = 1
         #: (VM, heap, robot) of each robot the kernel may take (None for the others)
-        self.machines: list[tuple[Any, Any, Robot] | None] = []
+        self.machines: list[tuple[Any, Any, Any] | None] = []
         for i, robot in enumerate(robots):
-            if type(robot) is not Robot or robot.vm.stress_gc or not robot.booted:
+            if type(robot) is not robot_type or robot.vm.stress_gc or not robot.booted:
                 self.machines.append(None)
                 continue
             vm = robot.vm
@@ -198,23 +193,24 @@ _TABLES: list[_SwarmTables] = []
 _TABLES_KEPT = 4
 
 
-def _tables_for(robots: Sequence[Any]) -> _SwarmTables:
+def _tables_for(robots: Sequence[Any], robot_type: type) -> _SwarmTables:
     for tables in _TABLES:
         if tables.valid_for(robots):
             return tables
-    tables = _SwarmTables(robots)
+    tables = _SwarmTables(robots, robot_type)
     _TABLES.insert(0, tables)
     del _TABLES[_TABLES_KEPT:]
     return tables
 
 
 def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
-                  stepping: np.ndarray) -> StepResult:
-    """`swarm_batch.control_steps`, compiled where covered (see the module comment)."""
+                  stepping: np.ndarray, robot_type: type) -> StepResult:
+    """`swarm_batch.control_steps`, compiled where covered (see the module comment);
+    ``robot_type``: `robot.Robot` (a wrapper of another type takes the reference calls)."""
     count = len(robots)
     failed_before = [r is not None and r.failure is not None for r in robots]
     ready = State.READY
-    is_covered = [type(r) is Robot and r.failure is None and r.booted
+    is_covered = [type(r) is robot_type and r.failure is None and r.booted
                   and not (vm := r.vm).stress_gc and vm.state is ready for r in robots]
     bounds = deliveries.bounds(count)
     starts = bounds.tolist()
@@ -227,16 +223,16 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
             deferred[index] = True
         else:
             robot.receive_all(deliveries.tuples_of(starts[index], starts[index + 1]))
-            is_covered[index] = covered(robot)  # a receive may fail the robot
+            is_covered[index] = covered(robot, robot_type)  # a receive may fail the robot
     stepping = np.asarray(stepping, dtype=bool)
     covered_mask = np.array(is_covered, dtype=bool)
     todo = np.flatnonzero(covered_mask & (stepping | deferred))
-    tables = _tables_for(robots) if len(todo) else None
+    tables = _tables_for(robots, robot_type) if len(todo) else None
     if tables is not None and any(tables.machines[i] is None for i in todo.tolist()):
         # a robot the tables left out is covered now (e.g. its stress mode switched off
         # without a new VM): build them again
         _TABLES.remove(tables)
-        tables = _tables_for(robots)
+        tables = _tables_for(robots, robot_type)
     outbox = _Outbox(len(todo) * (tables.max_out if tables else 1) + _SPARE_ROWS)
     phases = np.zeros(count, np.int64)
     ios = np.zeros((count, IO_SLOTS), np.int64)
@@ -250,8 +246,8 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
         if robot is None:
             continue
         if is_covered[index]:
-            outbox.add(index, _finish(robot, int(phases[index]), tables.registers[index],
-                                      ios[index]))
+            outbox.add(index, robot.finish_compiled_step(
+                int(phases[index]), tables.registers[index], ios[index]))
         else:
             outbox.add(index, robot.control_step())
     failed = np.array([r is not None and r.failure is not None and not was
@@ -348,42 +344,3 @@ def _chunks(todo: np.ndarray) -> list[np.ndarray]:
     """``todo`` in contiguous parts, one per thread (fewer for a small swarm)."""
     parts = max(1, min(THREADS, len(todo) // MIN_ROBOTS_PER_THREAD))
     return np.array_split(todo, parts)
-
-
-def _finish(robot: Robot, phase: int, regs: np.ndarray, io: np.ndarray) -> list[bytes]:
-    """The rest of a control step the kernel stopped in ``phase``, by the reference
-    routines (``Robot.control_step``'s, from that point; its ``_guard`` too)."""
-    vm = robot.vm
-    sent: list[bytes] = []
-    try:
-        io_status = int(io[IO_STATUS])
-        saved, budget = int(regs[fastloop.R_SAVED]), vm.instruction_budget
-        if phase == P_INMSGS:
-            count = int(io[IO_COUNT])
-            if io_status == fastinbox.IN_CALL:
-                vm._loop(saved, budget, resume=(int(io[IO_INNER]), regs))
-                vm.pop()
-                vm.gc()
-                messages.go_on_inmsgs(vm, count, True)
-            else:  # PYTHON_MESSAGE: message `count` collected, its extraction is next
-                messages.go_on_inmsgs(vm, count, bool(io[IO_COLLECTED]), taken=True)
-            if vm.state != State.ERROR:
-                robot.call_global(STR_STEP)
-        elif phase == P_STEP:
-            if io_status == fastinbox.PYTHON_MESSAGE:
-                robot.call_global(STR_STEP)
-            else:
-                if io_status >= fastinbox.CALL_UNDER_WAY:
-                    vm._loop(saved, budget,
-                             resume=(io_status - fastinbox.CALL_UNDER_WAY, regs))
-                if io_status != fastinbox.NOT_DEFINED and robot.loop == "pop" \
-                        and vm.state == State.READY:
-                    vm.pop()
-        # P_OUTMSGS (and after the above): the countdown is still to do
-        neighbors.process_outmsgs(vm)
-        sent = messages.drain_outbox(vm.queues)
-        robot.steps_done += 1
-        robot._check()
-    except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
-        robot._fail_host(exc)
-    return sent

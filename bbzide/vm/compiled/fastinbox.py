@@ -17,7 +17,7 @@ before any side effect it cannot hand over** — at two points of a message:
   extraction: a record that is not a broadcast (stigmergy), a stack without room for the
   six pushes (five arguments and ``closure_call``'s argument count), a heap without room
   for the four objects (topic string, userdata, sender id, argument count): the kernel
-  returns :data:`PYTHON_MESSAGE` and ``messages.process_inmsgs`` runs that message with
+  returns :data:`PYTHON_MESSAGE` and ``inmsgs.process_inmsgs`` runs that message with
   the reference routines, the collection already done;
 * during the listener call: whatever :func:`fastloop.run` hands back (a host function, an
   instruction it does not cover, an error, the budget, a C closure as listener) is
@@ -42,9 +42,9 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, _compile, _i, collect_with
-from bbzide.vm.fasthost import call_pushed
-from bbzide.vm.fastloop import (
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
+from bbzide.vm.compiled.fasthost import call_pushed
+from bbzide.vm.compiled.fastloop import (
     EXIT,
     NONE,
     R_GC_RUNS,
@@ -57,8 +57,8 @@ from bbzide.vm.fastloop import (
     R_STACK_SIZE,
     _obj_alloc,
 )
-from bbzide.vm.fasttables import table_lookup
-from bbzide.vm.heap import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
+from bbzide.vm.compiled.fasttables import table_lookup
+from bbzide.vm.heap_layout import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID
 
 # Slots of the ``inq`` array (in: the queue's values; out: the updated ones).

@@ -271,7 +271,7 @@ class SwarmCapture:
       call is written into it, encoded, in call order (a robot's calls all happen in its own
       control step, so they come robot after robot).
     * Received messages: an engine that hands a step's deliveries to its robots as one
-      `swarm_batch.PackedMessages` exposes them (`Simulation.step_deliveries`), and the
+      `packed_messages.PackedMessages` exposes them (`Simulation.step_deliveries`), and the
       recorder copies those columns. For an engine that calls each robot's `receive` /
       `receive_all` itself (asynchronous stepping, or an older engine), `hook_receive` puts
       capturing versions of those two on the robot instance; they append to the

@@ -37,9 +37,16 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.fastgc import COMPILED, PERMANENT_PHASE, _compile, _i, collect_with, first_free
-from bbzide.vm.fastgc import first_free_segment as _first_free_segment
-from bbzide.vm.fasttables import darray_get, darray_set, darray_size, table_lookup
+from bbzide.vm.compiled.fastgc import (
+    COMPILED,
+    PERMANENT_PHASE,
+    _compile,
+    _i,
+    collect_with,
+    first_free,
+)
+from bbzide.vm.compiled.fastgc import first_free_segment as _first_free_segment
+from bbzide.vm.compiled.fasttables import darray_get, darray_set, darray_size, table_lookup
 
 # Register slots of the ``regs`` array (in: the VM's values; out: the updated ones).
 R_PC, R_SP, R_BP, R_RTOBJ, R_LTSEG, R_LSYMS, R_GC_RUNS, R_EXECUTED = range(8)
