@@ -1,14 +1,15 @@
 # bbzide: two commands on a fresh machine.
 #   make run    set up (venv, pinned deps) and open the IDE on the default world
 #   make test   set up and run every test (lint, unit, corpus conformance, browser)
-# Also: make bench (benchmarks/*.py), make lint, make clean.
+# Also: make bench (benchmarks/*.py), make screenshots (docs/screenshots/*.png, the README's
+# pictures, taken in headless Chromium), make lint, make clean.
 
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: setup run test bench lint browser clean
+.PHONY: setup run test bench lint browser screenshots clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +34,9 @@ test: setup browser lint
 
 bench: setup
 	@set -e; for bench in benchmarks/*_bench.py; do echo "== $$bench"; $(PY) $$bench; done
+
+screenshots: setup browser
+	$(PY) scripts/screenshots.py docs/screenshots
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .ruff_cache

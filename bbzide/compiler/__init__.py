@@ -19,6 +19,8 @@ from pathlib import Path
 from bbzide.compiler.assembler import assemble
 from bbzide.compiler.bo2bbo import bo_to_bbo
 from bbzide.compiler.bytecode import read_bbo, read_bdb, read_bo
+from bbzide.compiler.call_sites import ScriptSymbols, call_sites_by_offset
+from bbzide.compiler.opcodes import Op
 from bbzide.compiler.program import BittyBuzzProgram, CompiledProgram
 from bbzide.compiler.string_table import base_strings_mismatch, bittybuzz_string_table
 from bbzide.diagnostics import BytecodeError, SourceLocation, UserError
@@ -64,7 +66,8 @@ def debug_map_from_records(
 
 
 def _program_from_basm(
-    basm: str, filename: str, warnings: list[str], source_file: str
+    basm: str, filename: str, warnings: list[str], source_file: str,
+    code_lines: Sequence[str] = (), symbols: ScriptSymbols | None = None,
 ) -> CompiledProgram:
     assembly = assemble(basm, filename)
     bytecode = read_bo(assembly.bo, filename)
@@ -77,6 +80,7 @@ def _program_from_basm(
     ]
     offsets = [i.offset for i in bytecode.instructions]
     debug_map = debug_map_from_records(records, offsets, SourceLocation(source_file, 1, 0))
+    callc_offsets = [i.offset for i in bytecode.instructions if i.opcode == Op.CALLC]
     return CompiledProgram(
         basm=basm,
         bo=assembly.bo,
@@ -85,6 +89,8 @@ def _program_from_basm(
         debug_map=debug_map,
         warnings=[*warnings, *assembly.warnings],
         filename=filename,
+        call_sites=call_sites_by_offset(code_lines, callc_offsets),
+        symbols=symbols or ScriptSymbols(),
     )
 
 
@@ -108,7 +114,8 @@ def compile_file(
     )
     name = Path(os.fspath(path)).stem + ".bo"
     source_file = os.path.realpath(os.fspath(path))
-    return _program_from_basm(result.basm, name, list(result.warnings), source_file)
+    return _program_from_basm(result.basm, name, list(result.warnings), source_file,
+                              result.code_lines, result.symbols)
 
 
 def compile_source(

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from bbzide.compiler.call_sites import CallLine, CallSite
 from bbzide.compiler.scanner import Token
 
 
@@ -74,6 +75,14 @@ class CodeGenerator:
 
     def emit(self, op: str, lookahead: Token) -> None:
         self.out.append(f"\t{op}\t|{lookahead.annotation}")
+
+    def emit_call(self, site: CallSite, lookahead: Token) -> None:
+        """A `callc`, its line carrying the call's site (see `call_sites.py`)."""
+        self.out.append(CallLine(f"\tcallc\t|{lookahead.annotation}", site))
+
+    def call_lines(self) -> list[str]:
+        """The chunk lines in `render` order (where the `CallLine`s are)."""
+        return [line for label in sorted(self.chunks) for line in self.chunks[label]]
 
     def emit_label(self, label: int, lookahead: Token) -> None:
         self.out.append(f"@__label_{label}\t|{lookahead.annotation}")

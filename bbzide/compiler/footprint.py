@@ -23,6 +23,13 @@ MINIMAL_VM_BYTES = round(17.1 * KIB)
 DEFAULT_VM_BYTES = round(19.3 * KIB)
 
 
+#: RAM of each platform's microcontroller, which the VM profiles do not carry (the heap is one
+#: part of it). Kilobot: ATmega328P, 2 KB SRAM; Zooids: STM32F051C8, 8 KB SRAM; Crazyflie 2.x:
+#: STM32F405RG, 192 KB SRAM (128 KB + 64 KB core-coupled). The M300's script runs on a
+#: companion computer (no meaningful RAM limit) and `pc` is a desktop: no figure.
+RAM_BYTES: dict[str, int] = {"kilobot": 2048, "zooids": 8192, "crazyflie": 196608}
+
+
 @dataclass(frozen=True, slots=True)
 class FlashBudget:
     platform: str

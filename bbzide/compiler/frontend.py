@@ -53,6 +53,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from bbzide.compiler import scanner as T
+from bbzide.compiler.call_sites import ScriptSymbols
 from bbzide.compiler.codegen import CodeGenerator
 from bbzide.compiler.parser import Parser
 from bbzide.compiler.scanner import Scanner, user_text
@@ -66,6 +67,9 @@ class FrontendResult:
     tree: Node
     warnings: list[str] = field(default_factory=list)
     included_files: list[str] = field(default_factory=list)
+    #: the chunk lines in `.basm` order; the `callc` ones carry their call site (call_sites.py)
+    code_lines: list[str] = field(default_factory=list)
+    symbols: ScriptSymbols = field(default_factory=ScriptSymbols)
 
 
 def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
@@ -102,7 +106,8 @@ def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
     # back from one-char-per-byte to text; bytes that are not UTF-8 survive as surrogates, so
     # `basm.encode("utf-8", "surrogateescape")` gives exactly the bytes bzzparse writes
     basm = codegen.render().encode("latin-1").decode("utf-8", errors="surrogateescape")
-    return FrontendResult(basm, tree, warnings, scanner.included_files)
+    return FrontendResult(basm, tree, warnings, scanner.included_files, codegen.call_lines(),
+                          parser.symbols)
 
 
 def _source_bytes(text: str) -> bytes:

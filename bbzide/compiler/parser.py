@@ -17,10 +17,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from bbzide.compiler import scanner as T
+from bbzide.compiler.call_sites import CallSite, ScriptSymbols
 from bbzide.compiler.codegen import CodeGenerator
 from bbzide.compiler.scanner import Scanner, Token, user_text
 from bbzide.compiler.syntax_tree import Node
-from bbzide.diagnostics import CompileError
+from bbzide.diagnostics import CompileError, SourceLocation
 
 # Sentinels for `idref`'s "what has been referenced so far" (reference: negative values).
 TABLE = -1
@@ -54,6 +55,7 @@ class Parser:
         self.scopes: list[dict[str, Symbol]] = []
         self.tok: Token = T.EOF_TOKEN
         self.nodes: list[list[Node]] = []
+        self.symbols = ScriptSymbols()
 
     # -- tokens and errors ---------------------------------------------------------------
 
@@ -81,6 +83,10 @@ class Parser:
 
     def emit(self, op: str) -> None:
         self.gen.emit(op, self.tok)
+
+    def location(self, tok: Token) -> SourceLocation:
+        return SourceLocation(user_text(tok.file) if tok.file else self.script_name, tok.line,
+                              tok.col)
 
     def node(self, kind: str, tok: Token, name: str | None = None) -> Node:
         node = Node(kind, tok.line, tok.col, user_text(tok.file) if tok.file else None, name)
@@ -191,6 +197,7 @@ class Parser:
                                                   "of that name is already visible here)")
         if len(self.scopes) == 1:
             symbol = self.global_symbol(name)
+            self.symbols.defined.add(name)
             self.emit(f"pushs {symbol.slot}")
         else:
             symbol = self.add_local(name)
@@ -220,6 +227,7 @@ class Parser:
                 f"the definition of function {name}() is nested within another scope. To define "
                 f"local functions, use the lambda syntax {name} = function() {{ ... }}.")
         symbol = self.global_symbol(name)
+        self.symbols.defined.add(name)
         label = self.gen.new_label()
         self.gen.register_function(symbol.slot, label)
         previous = self.gen.open_chunk(label)
@@ -356,6 +364,7 @@ class Parser:
                                  "a call's result cannot be assigned to")
             node.kind = "assign"
             if is_global:
+                self.symbols.defined.add(node.name or "")
                 self.emit(f"pushs {info}")
             self.advance()
             self.expression()
@@ -523,12 +532,18 @@ class Parser:
         if symbol is None:
             symbol = self.global_symbol(name)
         info, is_global = symbol.slot, symbol.is_global
-        ref = self.node("ref", self.tok, name)
+        start = self.tok
+        ref = self.node("ref", start, name)
         ref.scope = f"global (string id {info})" if is_global else f"local slot {info}"
         outer = self.gen.out
         own: list[str] = []
         self.gen.out = own
         self.advance()
+        if is_global and (not lvalue or self.tok.kind != T.ASSIGN):
+            self.symbols.read(name, self.location(start))
+        # the called expression as written, and the call whose `callc` comes next
+        callee_text = name
+        call: CallSite | None = None
         while self.tok.kind in (T.DOT, T.IDXOPEN, T.PAROPEN):
             kind = self.tok.kind
             if is_global:
@@ -543,13 +558,14 @@ class Parser:
             elif info == TABLE:
                 self.emit("tget")
             else:
-                self.emit("callc")
+                self.gen.emit_call(call or CallSite(self.location(start), callee_text), self.tok)
             is_global = False
             if kind == T.DOT:
                 info = TABLE
                 self.advance()
                 self.expect(T.ID)
                 sid = self.gen.string_id(self.tok.text)
+                callee_text += "." + self.tok.text
                 self.advance()
                 if self.tok.kind == T.PAROPEN:
                     self.emit("dup")
@@ -562,11 +578,15 @@ class Parser:
                 self.expression()
                 self.gen.out = own
                 self.expect(T.IDXCLOSE)
+                callee_text += "[…]"
                 self.advance()
                 if self.tok.kind == T.PAROPEN:
                     self.emit("dup")
                 own.extend(index)
             else:
+                bare_global = callee_text == name and symbol.is_global
+                call = CallSite(self.location(start), callee_text, name if bare_global else None)
+                callee_text += "(…)"
                 info = CLOSURE
                 self.advance()
                 count = 0
@@ -592,7 +612,7 @@ class Parser:
             elif info == TABLE:
                 self.emit("tget")
             else:
-                self.emit("callc")
+                self.gen.emit_call(call or CallSite(self.location(start), callee_text), self.tok)
         outer.extend(own)
         self.gen.out = outer
         return info, is_global

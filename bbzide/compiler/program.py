@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from bbzide.compiler.bo2bbo import bo_to_bbo
+from bbzide.compiler.call_sites import CallSite, ScriptSymbols
 from bbzide.diagnostics import SourceLocation
 
 
@@ -22,6 +23,10 @@ class BittyBuzzProgram:
     debug_map: dict[int, SourceLocation] = field(default_factory=dict)
     bo_to_bbo: dict[int, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    #: `.bbo` offset of each `callc` -> the call as written (empty for a stored `.bbo`)
+    call_sites: dict[int, CallSite] = field(default_factory=dict)
+    #: the globals the script defines and reads (empty for a stored `.bbo`)
+    symbols: ScriptSymbols = field(default_factory=ScriptSymbols)
 
     def location_of(self, pc: int) -> SourceLocation | None:
         return self.debug_map.get(pc)
@@ -44,6 +49,9 @@ class CompiledProgram:
     debug_map: dict[int, SourceLocation] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     filename: str = "<bo>"
+    #: `.bo` offset of each `callc` -> the call as written (see `call_sites.py`)
+    call_sites: dict[int, CallSite] = field(default_factory=dict)
+    symbols: ScriptSymbols = field(default_factory=ScriptSymbols)
 
     def to_bbo(self) -> BittyBuzzProgram:
         conversion = bo_to_bbo(self.bo, self.filename)
@@ -52,6 +60,12 @@ class CompiledProgram:
             for offset, location in self.debug_map.items()
             if offset in conversion.bo_to_bbo
         }
+        call_sites = {
+            conversion.bo_to_bbo[offset]: site
+            for offset, site in self.call_sites.items()
+            if offset in conversion.bo_to_bbo
+        }
         return BittyBuzzProgram(
-            conversion.bbo, list(self.strings), debug_map, conversion.bo_to_bbo, conversion.warnings
+            conversion.bbo, list(self.strings), debug_map, conversion.bo_to_bbo,
+            conversion.warnings, call_sites, self.symbols,
         )

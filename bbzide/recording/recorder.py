@@ -717,7 +717,9 @@ class MissionRecorder:
         window.links.append(self._link_indexes(sim.links) if pairs is None else pairs)
         window.inputs.append(inputs)
         self._keyframe(due, step)
-        if not first and (self._has_targets or step >= self._overlays_due):
+        if first:  # a replay starts with the world's overlays (belief map, light field...)
+            self._record_overlays(step, due=True)
+        elif self._has_targets or step >= self._overlays_due:
             self._record_overlays(step)
 
     def _step_inputs(self, stepped: np.ndarray) -> tuple[Any, ...]:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import viser
 
+from bbzide.compiler.call_sites import lint_globals, robot_phrase
 from bbzide.ui.access import new_token
 from bbzide.ui.build_panel import footprint_markdown, listing_html
 from bbzide.ui.controls import RunControls
@@ -141,9 +142,14 @@ class IdeApp:
     def _compile(self, text: str, path: Path) -> tuple[object, object]:
         return self.backend.compile(text, path, self.controller.settings.world)
 
-    def _pitfalls(self, text: str) -> list[Diagnostic]:
-        platform = self.backend.platform(self.controller.settings.world)
-        return find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+    def _pitfalls(self, text: str, program: object) -> list[Diagnostic]:
+        """BittyBuzz pitfalls of the text and the globals it uses but nothing defines."""
+        world = self.controller.settings.world
+        platform = self.backend.platform(world)
+        found = find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
+        undefined = lint_globals(program, self.backend.host_names(world), robot_phrase(world))
+        return found + [Diagnostic(where.line, where.col, message, "warning")
+                        for where, message in undefined if where.file == str(self.session.path)]
 
     def _toggle_recording(self, on: bool) -> None:
         if not on:
@@ -190,7 +196,7 @@ class IdeApp:
             footprint_markdown(good.compiled, good.program, name, budget) + note
         )
         self.listing.content = listing_html(
-            good.compiled.basm, self.session.text, self.session.path
+            good.compiled, good.program, self.session.text, self.session.path
         )
 
     # ---- frames and selection -------------------------------------------------------------------
@@ -245,6 +251,24 @@ class IdeApp:
         frame = self.controller.last_frame
         self.overlays.show(overlays, positions=None if frame is None else frame.positions)
 
+    def _refresh_runtime_errors(self) -> None:
+        """The swarm's failures in this file, grouped by place, as the editor's runtime markers
+        (for the revision of the program the robots run)."""
+        good = self.session.last_good
+        try:
+            with self.controller.locked(timeout=INSPECT_LOCK_TIMEOUT) as sim:
+                read = getattr(sim, "runtime_errors", None)
+                found = read() if read is not None else []
+        except StepInProgress:
+            return
+        path = str(self.session.path)
+        markers = [
+            Diagnostic(where.line, where.col, message, "runtime", robots)
+            for where, message, robots in found
+            if where is not None and where.file == path
+        ]
+        self.session.set_runtime_errors(good.revision if good is not None else -1, markers)
+
     def _program_warnings(self) -> list[str]:
         """The running program's compiler warnings and pitfalls, as `line:col: message`."""
         good = self.session.last_good
@@ -273,6 +297,7 @@ class IdeApp:
         self._overlay_ticks += 1
         if self._overlay_ticks % OVERLAY_TICKS == 1:
             self._refresh_overlays()
+        self._refresh_runtime_errors()
         busy_since = self.controller.status.step_started_at
         step_is_long = (
             busy_since is not None and time.monotonic() - busy_since > INSPECT_LOCK_TIMEOUT

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from bbzide.diagnostics import UserError
 from bbzide.ui.access import TOKEN_ENV, TokenError, choose_token
+from bbzide.worlds.registry import DEFAULT_SEED
 
 if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
     from bbzide.ui.app import IdeApp
@@ -53,7 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ide.add_argument("--world", help="world to open (default: the Kilobot table)")
     ide.add_argument("--robots", type=int, help="number of robots (default: the world's)")
     ide.add_argument("--seed", type=int, default=None,
-                     help="world seed (default: the scenario's, else 1)")
+                     help=f"world seed (default: the scenario's, else {DEFAULT_SEED} "
+                          "as bbzide run --world)")
     ide.add_argument(
         "--speed",
         type=float,
@@ -143,10 +145,6 @@ def run_replay(args: argparse.Namespace) -> int:
         flush=True,
     )
     return serve_until_interrupted(app, open_browser=not args.no_browser)
-
-
-#: The seed of an IDE world when neither --seed nor a scenario gives one.
-DEFAULT_SEED = 1
 
 
 def ide_scenario(path: Path, args: argparse.Namespace, script: Path | None = None) -> Any:

@@ -134,6 +134,22 @@ def _list_markdown(title: str, items: list[str]) -> str:
     return f"**{title}**\n\n" + "\n".join(f"- `{item}`" for item in items)
 
 
+def _prose_list_markdown(title: str, items: list[str]) -> str:
+    """Sentences that already mark their code with backticks (warnings, errors): shown as
+    text, with `*` and `_` escaped so a message never turns into emphasis."""
+    if not items:
+        return f"**{title}**: none"
+    return f"**{title}**\n\n" + "\n".join(f"- {_escape_emphasis(item)}" for item in items)
+
+
+def _escape_emphasis(text: str) -> str:
+    """Escape markdown emphasis outside `code` spans (inside them it is literal already)."""
+    pieces = text.split("`")
+    for index in range(0, len(pieces), 2):  # even pieces are outside code spans
+        pieces[index] = pieces[index].replace("*", "\\*").replace("_", "\\_")
+    return "`".join(pieces)
+
+
 def _pairs_markdown(title: str, pairs: list[tuple[str, str]]) -> str:
     if not pairs:
         return f"**{title}**: none"
@@ -144,12 +160,12 @@ def _pairs_markdown(title: str, pairs: list[tuple[str, str]]) -> str:
 def _problems_markdown(view: RobotInspection) -> str:
     parts = []
     if view.last_error:
-        parts.append(f"**Last error:** {view.last_error}")
+        parts.append(f"**Last error:** {_escape_emphasis(view.last_error)}")
         if view.last_error_line:
             parts.append(f"```\n{view.last_error_line}\n```")
     else:
         parts.append("**Last error:** none")
-    parts.append(_list_markdown("Warnings", view.warnings))
+    parts.append(_prose_list_markdown("Warnings", view.warnings))
     if view.notes:
         parts.append("*" + "; ".join(view.notes) + "*")
     return "\n\n".join(parts)

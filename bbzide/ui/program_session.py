@@ -44,7 +44,8 @@ class Diagnostic:
     line: int
     col: int
     message: str
-    severity: str = "error"  # "error" | "warning"
+    severity: str = "error"  # "error" | "warning" | "runtime" (robots stopped there)
+    robots: int = 0  # a runtime error: how many robots hit it
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -52,6 +53,7 @@ class Diagnostic:
             "col": self.col,
             "message": self.message,
             "severity": self.severity,
+            "robots": self.robots,
         }
 
 
@@ -111,7 +113,7 @@ class ProgramSession:
         path: Path,
         compile_fn: CompileFunction,
         on_program: Callable[[Any], None] | None = None,
-        lint_fn: Callable[[str], list[Diagnostic]] | None = None,
+        lint_fn: Callable[[str, Any], list[Diagnostic]] | None = None,
     ) -> None:
         self.path = path.resolve()
         self._compile_fn = compile_fn
@@ -126,6 +128,8 @@ class ProgramSession:
         self.outcome: CompileOutcome | None = None
         self.last_good: CompileOutcome | None = None
         self.compiling = False
+        # errors of the running robots, for the revision of the program they run
+        self._runtime: tuple[int, list[Diagnostic]] = (-1, [])
 
     # ---- observers -------------------------------------------------------------------------
     def add_listener(self, listener: Callable[[CompileOutcome], None]) -> None:
@@ -221,7 +225,7 @@ class ProgramSession:
                 compiled, program = self._compile_fn(text, self.path)
                 warnings = _warnings_of(compiled, program)
                 if self._lint_fn is not None:
-                    warnings += self._lint_fn(text)
+                    warnings += self._lint_fn(text, program)
                 outcome = CompileOutcome(revision, True, warnings, compiled, program)
             except UserError as error:
                 outcome = CompileOutcome(revision, False, diagnostics_from_error(error, self.path))
@@ -241,6 +245,12 @@ class ProgramSession:
             listener(outcome)
         return outcome
 
+    def set_runtime_errors(self, revision: int, errors: list[Diagnostic]) -> None:
+        """The robots' runtime errors in this file, for the program of `revision` (the editor
+        marks them only while it shows that revision: positions in other text would lie)."""
+        with self._lock:
+            self._runtime = (revision, list(errors))
+
     # ---- what the editor polls ---------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         with self._lock:
@@ -258,6 +268,8 @@ class ProgramSession:
                 "summary": summary,
                 "diagnostics_revision": outcome.revision if outcome else -1,
                 "diagnostics": [d.as_json() for d in outcome.diagnostics] if outcome else [],
+                "runtime_revision": self._runtime[0],
+                "runtime": [d.as_json() for d in self._runtime[1]],
             }
 
     def source(self) -> dict[str, Any]:
@@ -265,9 +277,16 @@ class ProgramSession:
             return {"revision": self.revision, "text": self.text}
 
 
+#: bo2bbo's warning for an integer outside int16, which names a `.bo` offset: the editor's
+#: pitfall check already marks the literal itself (`pitfalls.py`), so the IDE shows that one.
+BO2BBO_INT16_WARNING = "out of 16 bit integer range"
+
+
 def _warnings_of(compiled: Any, program: Any) -> list[Diagnostic]:
-    """Compiler and bo2bbo warnings as line-1 markers (they carry no location in the contract)."""
-    messages = list(getattr(compiled, "warnings", []) or []) + list(
-        getattr(program, "warnings", []) or []
-    )
+    """Compiler and bo2bbo warnings as line-1 markers (they carry no location in the contract),
+    except bo2bbo's int16 warnings: one warning per problem, at the literal (pitfalls)."""
+    messages = list(getattr(compiled, "warnings", []) or []) + [
+        message for message in getattr(program, "warnings", []) or []
+        if BO2BBO_INT16_WARNING not in str(message)
+    ]
     return [Diagnostic(1, 0, str(message), "warning") for message in messages]

@@ -23,6 +23,7 @@ from bbzide.recording.rebuild import RobotRebuilder
 from bbzide.ui.inspection import RobotInspection
 from bbzide.ui.world_adapter import inspect_robot, world_geometry
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
+from bbzide.worlds.registry import WORLDS
 
 #: The jump buttons, in the order shown: (event kind, button label).
 JUMP_KINDS = (
@@ -82,7 +83,11 @@ class ReplaySession:
             robot = self.rebuilder.robot_at(index, step)
             program = self.rebuilder.program_at(index, step)
             profile = PROFILES[self.recording.meta["profiles"][index]]
-            view = inspect_robot(robot, profile, program, index, step)
+            world_name = str(self.recording.meta.get("world", ""))
+            spec = WORLDS.get(world_name)
+            view = inspect_robot(robot, profile, program, index, step,
+                                 host_names=spec.host_names if spec else (),
+                                 world_name=world_name)
         row = self.recording.row(step)
         view.notes.append(
             f"rebuilt from the keyframe at step {self.rebuilder.keyframe(index, step).step}; "

@@ -11,13 +11,16 @@ added. Everything shared is in `server.scene` and updated in one `server.atomic(
 frame (viser itself skips arrays that did not change); the selection ring and label live in each
 client's own scene, so every tab has its own selection (and camera).
 
-When a world is loaded the default camera, and every open tab's camera, frames the swarm (its
-bounding box plus one radio range), not the whole world: an M300 swarm starts in a corner of a
-36 m field.
+When a world is loaded, and when the number of robots changes, the default camera and every
+open tab's camera frame the world's area of interest (its bounds and every robot), fitted to the
+tab's canvas (the 3D view between the docked panels is tall and narrow at 1400 x 900). Robots
+are drawn at least `MIN_DRAWN_RADIUS_SHARE` of that view wide, so a Crazyflie in its 6 m lab is
+a disc one can see and click, not a dot.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 from collections.abc import Callable
@@ -37,9 +40,20 @@ TRAIL_SAMPLE_FRAMES = 3
 TRAIL_SAMPLES = 15
 #: A range ring's width, as a share of the radio range: thin, yet visible from above.
 RANGE_RING_WIDTH = 0.03
-#: The camera frames the swarm's box grown by this many radio ranges (at least 6 robot radii),
-#: so the robots' neighbourhood is in view.
-CAMERA_MARGIN_RANGES = 1.0
+#: The camera frames the world's area of interest: its bounds and every robot (drones may fly
+#: outside the bounds), grown by this many robot radii so a robot on the edge is whole.
+CAMERA_MARGIN_RADII = 6.0
+#: The box must fit the view with this much room to spare (10 %).
+CAMERA_SLACK = 1.1
+#: A tab whose canvas size is not known yet (the first camera message has not arrived) is
+#: assumed this narrow: the 3D view between the docked editor (600 px) and control panel at a
+#: 1400 x 900 window is about 420 x 880 px. A wider view then just shows more around the box.
+ASSUMED_ASPECT = 0.45
+#: A robot is drawn with a radius of at least this share of the framed box's larger side: at
+#: the narrowest view (about 420 px for 1.1 times the box) a disc of about 14 px, visible and
+#: clickable on a light floor. Crazyflies (4.6 cm in a 6 m lab) are drawn 2.5 times their size;
+#: Kilobots (1.65 cm on a 1 m table) 1.3 times, 4.3 cm: still apart on the 5 cm lattice.
+MIN_DRAWN_RADIUS_SHARE = 0.018
 #: Robots in error get a red ring; links and ranges are drawn in these colours (RGB 0..255).
 FAILED_COLOR = (224, 49, 49)
 LINK_COLOR = (60, 140, 230)
@@ -93,25 +107,40 @@ def ring_mesh(
 
 
 def camera_pose(
-    box: tuple[float, float, float, float], z: float
+    box: tuple[float, float, float, float], z: float, aspect: float = ASSUMED_ASPECT,
+    fov: float = math.radians(75.0),
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """(position, look_at) of a camera above and a little south of `box`, seeing all of it."""
+    """(position, look_at) of a camera above and a little south of `box`, seeing all of it in a
+    view of `aspect` (width / height) and vertical field of view `fov` (radians): the box's width
+    must fit the horizontal field of view, its depth the vertical one."""
     xmin, ymin, xmax, ymax = box
-    distance = 1.1 * max(xmax - xmin, ymax - ymin)
+    half_vertical = math.tan(fov / 2)
+    half_horizontal = half_vertical * max(aspect, 1e-3)
+    distance = CAMERA_SLACK * max((xmax - xmin) / (2 * half_horizontal),
+                                  (ymax - ymin) / (2 * half_vertical))
     centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
     return (centre[0], centre[1] - 0.35 * distance, z + distance), (centre[0], centre[1], z)
 
 
-def swarm_box(
+def view_box(
     positions: np.ndarray | None, geometry: WorldGeometry
 ) -> tuple[float, float, float, float]:
-    """The box the camera frames: the robots plus a margin, or the world when there are none."""
-    if positions is None or len(positions) == 0:
-        return geometry.bounds
-    points = np.asarray(positions, dtype=np.float64)
-    margin = max(CAMERA_MARGIN_RANGES * geometry.comm_range, 6 * geometry.robot_radius)
-    (xmin, ymin), (xmax, ymax) = points.min(axis=0) - margin, points.max(axis=0) + margin
-    return float(xmin), float(ymin), float(xmax), float(ymax)
+    """The box the camera frames: the world's bounds and every robot, with a margin."""
+    xmin, ymin, xmax, ymax = geometry.bounds
+    if positions is not None and len(positions):
+        points = np.asarray(positions, dtype=np.float64)
+        (pxmin, pymin), (pxmax, pymax) = points.min(axis=0), points.max(axis=0)
+        xmin, ymin = min(xmin, float(pxmin)), min(ymin, float(pymin))
+        xmax, ymax = max(xmax, float(pxmax)), max(ymax, float(pymax))
+    margin = CAMERA_MARGIN_RADII * geometry.robot_radius
+    return xmin - margin, ymin - margin, xmax + margin, ymax + margin
+
+
+def drawn_radius(box: tuple[float, float, float, float], robot_radius: float) -> float:
+    """The radius robots are drawn with in a view of `box`: their own, or large enough to see
+    and click (`MIN_DRAWN_RADIUS_SHARE`)."""
+    xmin, ymin, xmax, ymax = box
+    return max(robot_radius, MIN_DRAWN_RADIUS_SHARE * max(xmax - xmin, ymax - ymin))
 
 
 def circle_segments(centres: np.ndarray, radius: float, z: float) -> np.ndarray:
@@ -149,6 +178,7 @@ class SwarmScene:
         self.server = server
         self._on_robot_click = on_robot_click
         self._lock = threading.Lock()
+        self._selection_lock = threading.Lock()  # see `select`
         self.geometry: WorldGeometry | None = None
         self.show_links = True
         self.show_ranges = False
@@ -161,6 +191,7 @@ class SwarmScene:
         self._view_box: tuple[float, float, float, float] | None = None
         self._selection: dict[int, int] = {}  # client id -> selected robot index
         self._selection_marks: dict[int, tuple[viser.LineSegmentsHandle, viser.LabelHandle]] = {}
+        self._canvas_sizes: dict[int, tuple[int, int]] = {}  # client id -> last canvas size
         self.last_frame: SwarmFrame | None = None
         server.scene.set_up_direction("+z")
         self._headings = server.scene.add_line_segments(
@@ -186,10 +217,12 @@ class SwarmScene:
         """Draw the floor, grid and overlay of a world, and frame the swarm at `positions`
         (N, 2) with the default camera and every open tab's camera."""
         with self._lock:
-            self.geometry = geometry
+            self._view_box = view_box(positions, geometry)
+            # robots (and their rings, headings, selection) drawn at a visible size
+            self.geometry = dataclasses.replace(
+                geometry, robot_radius=drawn_radius(self._view_box, geometry.robot_radius))
             self._robot_count = -1  # rebuild the robot and range meshes at the new size
             self._trail = None
-            self._view_box = swarm_box(positions, geometry)
         xmin, ymin, xmax, ymax = geometry.bounds
         width, depth = xmax - xmin, ymax - ymin
         centre = ((xmin + xmax) / 2, (ymin + ymax) / 2)
@@ -213,18 +246,42 @@ class SwarmScene:
             )
         else:
             scene.add_line_segments("/world/overlay", _NO_SEGMENTS, (90, 90, 110), visible=False)
-        position, look_at = camera_pose(self._view_box, geometry.height)
-        self.server.initial_camera.position = position
-        self.server.initial_camera.look_at = look_at
-        self.server.initial_camera.up = (0.0, 0.0, 1.0)
+        self._aim_every_camera()
+
+    def _aim_every_camera(self) -> None:
+        """The default camera (new tabs) and every open tab's camera onto the view box."""
+        if self.geometry is None or self._view_box is None:
+            return
+        initial = self.server.initial_camera
+        position, look_at = camera_pose(self._view_box, self.geometry.height,
+                                        fov=float(initial.fov))
+        initial.position = position
+        initial.look_at = look_at
+        initial.up = (0.0, 0.0, 1.0)
         for client in list(self.server.get_clients().values()):
             self.aim_camera(client)
 
     def aim_camera(self, client: viser.ClientHandle) -> None:
-        """Point this tab's camera at the swarm as it was when the world was loaded."""
+        """Point this tab's camera at the world's area of interest, fitted to its canvas; again
+        whenever the tab reports another canvas size (its first real size arrives after it
+        connects; a resized window)."""
+        if client.client_id not in self._canvas_sizes:
+            self._canvas_sizes[client.client_id] = (0, 0)
+
+            @client.camera.on_update
+            def _(camera: viser.CameraHandle) -> None:
+                size = (int(camera.image_width), int(camera.image_height))
+                if self._canvas_sizes.get(client.client_id) not in (None, size):
+                    self._canvas_sizes[client.client_id] = size
+                    self.aim_camera(client)
+
         if self.geometry is None or self._view_box is None:
             return
-        position, look_at = camera_pose(self._view_box, self.geometry.height)
+        try:  # viser knows a tab's canvas once its first camera message has arrived
+            aspect, fov = float(client.camera.aspect), float(client.camera.fov)
+        except (AssertionError, ZeroDivisionError):
+            aspect, fov = ASSUMED_ASPECT, float(self.server.initial_camera.fov)
+        position, look_at = camera_pose(self._view_box, self.geometry.height, aspect, fov)
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
             client.camera.position = position
@@ -260,6 +317,9 @@ class SwarmScene:
             positions = _lift(frame.positions, z)
             wxyzs = heading_quaternions(frame.headings)
             colors = led_colors_to_rgb(frame.led_colors)
+            reframe = self._robots is not None and self._robot_count != frame.count
+            if reframe:  # more or fewer robots: frame them all again (bounds and robots)
+                self._view_box = view_box(frame.positions, geometry)
             with self.server.atomic():
                 if self._robots is None or self._robot_count != frame.count:
                     self._build_robot_meshes(frame.count, geometry, wxyzs, positions, colors)
@@ -283,6 +343,8 @@ class SwarmScene:
                     )
                 self._sample_trail(frame, z + 0.0002, resend_trail)
             self._draw_selections(frame)
+        if reframe:
+            self._aim_every_camera()
 
     def _sample_trail(self, frame: SwarmFrame, z: float, resend: bool) -> None:
         """Keep one position sample every `TRAIL_SAMPLE_FRAMES` frames; send the trail only
@@ -361,27 +423,38 @@ class SwarmScene:
                 self._on_robot_click(event.client, int(index))
 
     # ---- per-client selection ----------------------------------------------------------------
+    # A click arrives on viser's thread while frames are drawn on the simulation thread: both
+    # move the selection marks, and both would create `/selection/ring` if they found none (the
+    # second creation removes the first handle, which the other thread then updates: "Cannot
+    # assign to 'points' on a removed LineSegmentsHandle"). `_selection_lock` makes "find or
+    # create, then update" one step.
+
     def select(self, client: viser.ClientHandle, index: int | None) -> None:
-        if index is None:
-            self._selection.pop(client.client_id, None)
-        else:
-            self._selection[client.client_id] = index
-        if self.last_frame is not None:
-            self._draw_selection(client, self.last_frame)
+        with self._selection_lock:
+            if index is None:
+                self._selection.pop(client.client_id, None)
+            else:
+                self._selection[client.client_id] = index
+            if self.last_frame is not None:
+                self._draw_selection(client, self.last_frame)
 
     def forget_client(self, client_id: int) -> None:
-        self._selection.pop(client_id, None)
-        self._selection_marks.pop(client_id, None)
+        self._canvas_sizes.pop(client_id, None)
+        with self._selection_lock:
+            self._selection.pop(client_id, None)
+            self._selection_marks.pop(client_id, None)
 
     def _draw_selections(self, frame: SwarmFrame) -> None:
         clients = self.server.get_clients()
-        for client_id in list(self._selection):
-            client = clients.get(client_id)
-            if client is not None:
-                self._draw_selection(client, frame)
+        with self._selection_lock:
+            for client_id in list(self._selection):
+                client = clients.get(client_id)
+                if client is not None:
+                    self._draw_selection(client, frame)
 
     def _draw_selection(self, client: viser.ClientHandle, frame: SwarmFrame) -> None:
-        """Move this tab's ring and label onto its robot (created once, then only updated)."""
+        """Move this tab's ring and label onto its robot (created once, then only updated);
+        called with `_selection_lock` held."""
         index = self._selection.get(client.client_id)
         geometry = self.geometry
         marks = self._selection_marks.get(client.client_id)

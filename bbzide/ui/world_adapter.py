@@ -48,19 +48,6 @@ DEFAULT_ROBOTS = 25
 #: the Robot's default budget: the swarm reloads in seconds after the fix.
 IDE_INSTRUCTION_BUDGET = 5_000
 
-#: Microcontroller memories the VM profiles do not carry: (RAM bytes, flash bytes). Kilobot:
-#: ATmega328P, 2 KB SRAM and 32 KB flash (the firmware and the .bbo share the flash; the build
-#: view's budget for the .bbo is the compiler room's FLASH_BUDGETS).
-#: Zooids: STM32F051C8, 8 KB SRAM / 64 KB flash; Crazyflie 2.x: STM32F405RG, 192 KB SRAM
-#: (128 KB + 64 KB core-coupled) / 1 MB flash. The M300's script runs on a companion computer
-#: (no meaningful RAM limit) and `pc` is a desktop: no figure.
-PLATFORM_MEMORY = {
-    "kilobot": (2048, 32768),
-    "zooids": (8192, 65536),
-    "crazyflie": (196608, 1048576),
-}
-
-
 class MissingRoomError(UserError):
     """A room the IDE needs (compiler, VM, worlds) is not in this build."""
 
@@ -247,8 +234,23 @@ class WorldsSimulation:
         state = self.sim.robots[index]
         if state.robot is None:
             raise UserError(f"robot #{index} has no VM (a passive body)")
+        world = self.sim.world
         return inspect_robot(state.robot, self.profile, state.program or self.program, index,
-                             self.step_count, _sent_last_step(self.sim, index))
+                             self.step_count, _sent_last_step(self.sim, index),
+                             world.host_names, world.name)
+
+    def runtime_errors(self) -> list[tuple[Any, str, int]]:
+        """The swarm's failures grouped by place and message: (location, message, robots),
+        for the editor's markers (one marker per line however many robots hit it)."""
+        world = self.sim.world
+        counts: dict[tuple[Any, str], int] = {}
+        for state in self.sim.failures:
+            program = state.program or self.program
+            where, message = explain_robot_failure(state.failure, program, world.host_names,
+                                                   world.name)
+            text = f"{getattr(state.failure, 'reason', 'error')}: {message}"
+            counts[(where, text)] = counts.get((where, text), 0) + 1
+        return [(where, text, count) for (where, text), count in counts.items()]
 
 
 def world_geometry(world: Any) -> WorldGeometry:
@@ -264,10 +266,26 @@ def world_geometry(world: Any) -> WorldGeometry:
     )
 
 
+def explain_robot_failure(failure: Any, program: Any, host_names: Sequence[str],
+                          world_name: str) -> tuple[Any, str]:
+    """(location, message) of a robot's failure: in the student's terms at the call itself
+    when the compiler knows the failing call (`bbzide.compiler.call_sites`), else the debug
+    map's location and the VM's message."""
+    reason = getattr(failure, "reason", "error")
+    call_sites = _import("bbzide.compiler.call_sites")
+    explained = call_sites.explain_failure(program, reason, int(getattr(failure, "pc", -1)),
+                                           host_names, call_sites.robot_phrase(world_name))
+    if explained is not None:
+        return explained
+    return getattr(failure, "location", None), str(getattr(failure, "message", ""))
+
+
 def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
-                  last_sent: Sequence[bytes] = ()) -> RobotInspection:
+                  last_sent: Sequence[bytes] = (), host_names: Sequence[str] = (),
+                  world_name: str = "") -> RobotInspection:
     """The inspector's view of one robot's VM (a live robot, or one rebuilt from a recording).
-    `last_sent`: the payloads it sent in its last step (the out-queue is drained by then)."""
+    `last_sent`: the payloads it sent in its last step (the out-queue is drained by then);
+    `host_names`, `world_name`: the world's, to explain a failed call in the student's terms."""
     vm = robot.vm
     heap = vm.heap
     geometry = HeapGeometry(
@@ -284,8 +302,8 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
     error_text = None
     error_line = None
     if failure is not None:
-        where = getattr(failure, "location", None)
-        error_text = f"{getattr(failure, 'reason', 'error')}: {getattr(failure, 'message', '')}"
+        where, message = explain_robot_failure(failure, program, host_names, world_name)
+        error_text = f"{getattr(failure, 'reason', 'error')}: {message}"
         if where is not None:
             error_text += f" at {where}"
             error_line = _source_line(where)
@@ -306,7 +324,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         free_bytes=decoded.free_bytes,
         peak_bytes=int(heap.peak_used),
         gc_runs=int(heap.gc_runs),
-        ram_bytes=PLATFORM_MEMORY.get(profile.name, (None, None))[0],
+        ram_bytes=_import("bbzide.compiler.footprint").RAM_BYTES.get(profile.name),
         objects=decoded.objects,
         frames=_frame_rows(vm, program) + _stack_rows(vm, reader),
         globals=globals_,

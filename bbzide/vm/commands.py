@@ -37,6 +37,17 @@ DEFAULT_STEPS = 10
 MAX_ROBOT_ID = 0xFFFF
 
 
+#: What a one-robot run registers when no --reg is given: `log` (the harness's `print`) and the
+#: platform firmware's host functions, so a world's example runs here too: Kilobot `led`,
+#: `set_motor`, `delay` are shown as calls (`led(1)`), `abs` computes (the Kilobot `.bst`).
+DEFAULT_REGISTRATIONS: dict[str, tuple[str, ...]] = {
+    "kilobot": ("log=print", "led=trace", "set_motor=trace", "delay=trace", "abs=abs"),
+}
+#: A heap whose peak reaches this share of the profile's heap gets a warning: the next
+#: allocation burst (a table, a message) may stop the robot with MEM.
+HEAP_WARNING_SHARE = 0.85
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """No subcommand of its own: ``run`` is registered by ``bbzide/cli.py``."""
 
@@ -61,8 +72,9 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="pop the value step() returns (default) or keep it, like the "
                             "Kilobot firmware (the stack grows)")
     group.add_argument("--reg", action="append", default=[], metavar="NAME=KIND",
-                       help="host closure: print|log|ret0|ret0/N|retnil|rand|min|reti:V "
-                            "(default: log=print)")
+                       help="host closure: print|log|ret0|ret0/N|retnil|rand|min|trace|abs|"
+                            "reti:V (default: log=print and, on kilobot, the firmware's "
+                            "led/set_motor/delay traced and abs)")
     group.add_argument("--inject", type=Path, help="message injection file (corpus format)")
     group.add_argument("--dump", action="store_true", help="print #BBZDUMP 1 dumps")
     group.add_argument("--budget", type=int, default=DEFAULT_BUDGET,
@@ -118,8 +130,14 @@ def run_single_robot(args: argparse.Namespace) -> int:
     if not 0 <= args.robot <= MAX_ROBOT_ID:
         raise UserError(f"--robot must be a robot id in 0..{MAX_ROBOT_ID} (BittyBuzz ids are "
                         f"16-bit), got {args.robot}")
-    registrations = group_registrations(args.reg or ["log=print"])
+    registrations = group_registrations(
+        args.reg or list(DEFAULT_REGISTRATIONS.get(args.platform, ("log=print",))))
     program = load(script, registrations, list(getattr(args, "include", []) or []))
+    from bbzide.compiler.call_sites import lint_globals
+
+    names = host_names(registrations)
+    for where, message in lint_globals(program, names, f"this run (--reg {', '.join(names)})"):
+        print(f"{where}: warning: {message}", file=sys.stderr)
     injections = _injections(Path(args.inject)) if args.inject else []
     run = run_harness(program, PROFILES[args.platform], robot_id=args.robot, steps=steps,
                       seed=int(args.seed or 0), loop=args.loop, registrations=registrations,
@@ -134,12 +152,39 @@ def run_single_robot(args: argparse.Namespace) -> int:
             if line == "out" or line.startswith("out "):
                 out.write(line[4:] + "\n")
     out.flush()
+    if not args.dump:
+        print(_run_summary(run.robot, PROFILES[args.platform], steps), file=sys.stderr)
     failure = run.robot.failure
     if failure is not None:
+        from bbzide.compiler.call_sites import explain_failure
+
+        explained = explain_failure(program, failure.reason, failure.pc, names,
+                                    f"this run (--reg {', '.join(names)})")
+        if explained is not None:
+            location, message = explained
+            raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
+                            f"{message}", location, hint=_REG_HINT)
         raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
                         f"{failure.message}", failure.location,
                         hint=_call_hint(run.robot, failure))
     return 0
+
+
+#: What to do about a call of a host function that a one-robot run does not register.
+_REG_HINT = ("a host function such as led() exists only where it is registered: "
+             "--reg NAME=ACTION here, or run the script in its world "
+             "(--world kilobot|crazyflie|m300)")
+
+
+def _run_summary(robot: Any, profile: Any, steps: int) -> str:
+    """After a run: steps, heap peak against the profile's heap, and a warning near the limit."""
+    peak, size = int(robot.vm.heap.peak_used), int(profile.heap_size)
+    text = (f"robot {robot.robot_id}: {steps} step(s) on the {profile.name} profile; heap peak "
+            f"{peak} of {size} B ({100 * peak / size:.0f} %)")
+    if peak >= HEAP_WARNING_SHARE * size:
+        text += (f"\nwarning: the heap peaked at {100 * peak / size:.0f} % of the {profile.name} "
+                 "heap: a larger table or more messages may stop the robot with MEM")
+    return text
 
 
 def _injections(path: Path) -> list[Injection]:
@@ -166,6 +211,4 @@ def _call_hint(robot: Any, failure: Any) -> str | None:
             or bcode[failure.pc] != Op.CALLC:
         return None
     return ("the value called is not a function (the call can be on the line before "
-            "the one shown). A host function such as led() exists only where it is "
-            "registered: --reg NAME=ACTION here, or run the script in its world "
-            "(--world kilobot|crazyflie|m300).")
+            f"the one shown). {_REG_HINT[0].upper()}{_REG_HINT[1:]}.")

@@ -63,9 +63,22 @@ def kind_symbol(kind: HostKind) -> str:
 
 
 def kind_function(kind: HostKind, events: list[str], strings: list[str],
-                  seed: int) -> Callable[[HostCall], None]:
-    """A host function behaving like the harness kind (README §1 "--reg NAME=KIND")."""
+                  seed: int, registered_as: str = "") -> Callable[[HostCall], None]:
+    """A host function behaving like the harness kind (README §1 "--reg NAME=KIND");
+    `registered_as`: the global name, which the ``trace`` kind prints."""
     name, param = kind.name, kind.parameter
+    if name == "trace":
+        def trace(call: HostCall) -> None:
+            vm = call.vm
+            args = [format_value(vm, call.arg_index(i), strings)
+                    for i in range(1, call.arg_count + 1)]
+            events.append(f"out {registered_as}({', '.join(args)})")
+        return trace
+    if name == "abs":
+        def absolute(call: HostCall) -> None:
+            if call.expect_args(1):
+                call.ret(abs(call.vm.heap.int_value(call.arg_index(1))))
+        return absolute
     if name in ("print", "log"):
         def print_(call: HostCall) -> None:
             vm = call.vm
@@ -112,7 +125,7 @@ def _host_table(registrations: list[Registration], events: list[str], strings: l
         pairs = [(reg.name, reg.kind)] if reg.kind is not None else \
             [(f"{reg.name}.{f}", k) for f, k in reg.fields]
         for name, kind in pairs:
-            functions[name] = kind_function(kind, events, strings, seed)
+            functions[name] = kind_function(kind, events, strings, seed, name)
             symbols[name] = kind_symbol(kind)
             flat.append((name, kind))
     return functions, symbols, flat

@@ -15,7 +15,9 @@ from pathlib import Path
 
 from bbzide.diagnostics import UserError
 
-SIMPLE_KINDS = ("print", "log", "ret0", "retnil", "rand", "min")
+#: ``trace`` and ``abs`` are ours (not the reference harness's): a firmware function shown as
+#: ``name(args)``, and the absolute value of an int (the Kilobot firmware's ``abs``).
+SIMPLE_KINDS = ("print", "log", "ret0", "retnil", "rand", "min", "trace", "abs")
 
 
 class HarnessOptionError(UserError):
@@ -51,7 +53,7 @@ def parse_kind(text: str) -> HostKind:
     except ValueError:
         pass
     raise HarnessOptionError(f"unknown --reg kind {text!r} (print, log, ret0, ret0/N, retnil, "
-                             "rand, min, reti:V)")
+                             "rand, min, trace, abs, reti:V)")
 
 
 def group_registrations(options: list[str]) -> list[Registration]:

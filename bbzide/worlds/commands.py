@@ -19,13 +19,15 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
+from bbzide.compiler.call_sites import explain_failure, lint_globals, robot_phrase
 from bbzide.diagnostics import UserError
 from bbzide.worlds.radio import WorldConfigError
-from bbzide.worlds.registry import WORLDS, world_spec
+from bbzide.worlds.registry import DEFAULT_SEED, WORLDS, world_spec
 
 #: Steps of a headless run when neither room's parser gives a default: 10 s of Kilobot time.
 DEFAULT_STEPS = 100
@@ -174,6 +176,8 @@ def run_world(args: argparse.Namespace) -> int:
     engine_options = vm_options_for_world(args)
     program = load_script(Path(args.script), spec.host_names, list(getattr(args, "include", [])
                                                                     or []))
+    for where, message in lint_globals(program, spec.host_names, robot_phrase(spec.name)):
+        print(f"{where}: warning: {message}", file=sys.stderr)
     radio: dict[str, Any] = {}
     if args.comm_range is not None:
         radio["comm_range"] = args.comm_range
@@ -198,8 +202,9 @@ SINGLE_ROBOT_ONLY = (("dump", "--dump"), ("inject", "--inject"), ("reg", "--reg"
 
 
 def seed_of(args: argparse.Namespace) -> int:
-    """The run's `--seed` (0 when not given), refused when negative."""
-    seed = int(getattr(args, "seed", None) or 0)
+    """The run's `--seed` (`DEFAULT_SEED` when not given), refused when negative."""
+    given = getattr(args, "seed", None)
+    seed = DEFAULT_SEED if given is None else int(given)
     if seed < 0:  # numpy's seed sequences take non-negative integers only
         raise WorldConfigError(f"--seed must be >= 0, got {seed}")
     return seed
@@ -238,6 +243,7 @@ def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> st
     if spent > 0:
         shares = ", ".join(f"{name} {100 * t / spent:.0f} %" for name, t in sim.timings.items())
         lines.append(f"time: {shares}")
+    lines.extend(heap_lines(sim))
     failures = sim.failures
     lines.append(f"errors: {len(failures)} robot(s)" if failures else "errors: none")
     # Robots that fail the same way (same error at the same place) are listed together, so
@@ -254,6 +260,43 @@ def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> st
     return "\n".join(lines)
 
 
+#: A robot whose heap peak reaches this share of its profile's heap gets a warning: the next
+#: burst of allocations (a larger table, more messages in a step) may stop it with MEM.
+HEAP_WARNING_SHARE = 0.85
+#: Up to this many robots, each robot's peak is listed; a larger swarm gets the range.
+LISTED_ROBOTS = 12
+
+
+def heap_lines(sim: Any) -> list[str]:
+    """Each robot's peak heap against its profile's heap (and the platform's RAM), with a
+    warning naming the robots near the limit."""
+    from bbzide.compiler.footprint import RAM_BYTES
+
+    peaks = [(s.robot_id, int(s.robot.vm.heap.peak_used), s.robot.profile)
+             for s in sim.robots if s.robot is not None]
+    if not peaks:
+        return []
+    profile = peaks[0][2]
+    size = int(profile.heap_size)
+    ram = RAM_BYTES.get(profile.name)
+    of = f"of the {size} B heap ({profile.name} profile" + \
+         (f", {ram} B of RAM)" if ram else ")")
+    values = [peak for _, peak, _ in peaks]
+    if len(peaks) <= LISTED_ROBOTS:
+        each = ", ".join(f"robot {robot} {peak} B" for robot, peak, _ in peaks)
+        lines = [f"heap peak: {each} {of}"]
+    else:
+        lines = [f"heap peak: {min(values)}-{max(values)} B over {len(values)} robots {of}"]
+    near = [(robot, peak) for robot, peak, p in peaks if peak >= HEAP_WARNING_SHARE * p.heap_size]
+    if near:
+        names = ", ".join(str(robot) for robot, _ in near[:LISTED_ROBOTS])
+        more = f" and {len(near) - LISTED_ROBOTS} more" if len(near) > LISTED_ROBOTS else ""
+        top = max(peak for _, peak in near)
+        lines.append(f"warning: robot(s) {names}{more} used up to {100 * top / size:.0f} % of "
+                     f"the heap: a larger table or more messages may stop them with MEM")
+    return lines
+
+
 def describe_failure(state: Any, others: int = 0, world: str | None = None) -> str:
     """`robot 3 (step 12): MEM at gradient.bzz:14:2, pc 37: <message>` plus the source line
     (`robot 3 and 4 others ...` when `others` robots failed the same way). A TYPE error on a
@@ -263,6 +306,13 @@ def describe_failure(state: Any, others: int = 0, world: str | None = None) -> s
     location = getattr(failure, "location", None)
     pc = getattr(failure, "pc", None)
     message = getattr(failure, "message", "")
+    explained = None
+    if world is not None and pc is not None and state.robot is not None:
+        spec = world_spec(world)
+        explained = explain_failure(state.robot.program, reason, pc, spec.host_names,
+                                    robot_phrase(spec.name))
+    if explained is not None:
+        location, message = explained
     who = f"robot {state.robot_id}" + (f" and {others} other(s)" if others else "")
     text = f"{who} (step {state.failure_step}): {reason}"
     if location is not None:
@@ -275,9 +325,9 @@ def describe_failure(state: Any, others: int = 0, world: str | None = None) -> s
     if line is not None:
         text += f"\n      {line.strip()}"
         if reason == "TYPE" and world is not None:
-            # bzzparse's debug positions point at the token after a statement (often the next
-            # line's `}`), so the call can be on the line before.
-            before = _source_line(location, offset=-1) or ""
+            # without the call's own position, bzzparse's debug position points at the token
+            # after the call (often the next line's `}`), so the call can be on the line before
+            before = "" if explained else _source_line(location, offset=-1) or ""
             hints = _other_world_calls(before + "\n" + line, world)
             text += "".join(f"\n      hint: {hint}" for hint in hints)
     return text

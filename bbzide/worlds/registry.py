@@ -70,6 +70,10 @@ def _lazy(module: str, cls: str) -> Any:
     return build
 
 
+#: The seed of a world when none is given, the same for `bbzide run --world` and the IDE, so a
+#: run seen in the IDE repeats on the command line (0: the engine's and the harness's default).
+DEFAULT_SEED = 0
+
 #: Host names of the Kilobot world, in string-table order. The first four are the BittyBuzz
 #: Kilobot firmware's (`KILOBOT_HOST_NAMES`, compiler string table); the rest are ours.
 KILOBOT_HOST_NAMES = ("led", "set_motor", "delay", "abs", "rand", "light", "motion")

@@ -101,3 +101,17 @@ def test_a_scenario_run_can_be_recorded_with_its_script_source(tmp_path: Path,
     assert recording.meta["watch"] == ["leader"] and recording.meta["seed"] == 2
     sources = [program["source"] for program in recording.programs.values()]
     assert sources == [(REPO / "examples/kilobot/leader.bzz").read_text()]
+
+
+@pytest.mark.skipif(not HAS_ROBOT, reason="needs the VM room's Robot")
+def test_a_replay_has_the_world_overlays_from_its_first_step(tmp_path: Path) -> None:
+    """The belief map, targets and rendezvous of an M300 field at the first recorded step
+    (they were missing until the first look, ten steps in)."""
+    path = tmp_path / "field.rrd"
+    flocking = str(REPO / "examples/m300/flocking.bzz")
+    assert main(["run", flocking, "--world", "m300", "--robots", "3", "--steps", "4",
+                 "--record", str(path)]) == 0
+    recording = read_recording(path)
+    first = recording.overlays_at(recording.first_step)
+    assert {"belief_map", "targets", "rendezvous"} <= set(first)
+    assert len(first["targets"]) == 3

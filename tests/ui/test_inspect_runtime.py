@@ -83,3 +83,54 @@ def test_frame_links_are_the_engine_links_as_indexes(tmp_path: Path) -> None:
     engine = sim.sim
     by_id = [(frame.robot_ids[a], frame.robot_ids[b]) for a, b in frame.links.tolist()]
     assert by_id == engine.links and len(by_id) > 0
+
+
+def test_an_undefined_call_is_explained_at_its_line(tmp_path: Path) -> None:
+    """The inspector and the editor's runtime markers name the call at its own line."""
+    assert BACKEND is not None
+    path = tmp_path / "student.bzz"
+    text = "function init() {}\nfunction step() {\n  led(1)\n  nosuchfunction(id)\n}\n"
+    path.write_text(text)
+    _, program = BACKEND.compile(text, path, "kilobot")
+    sim = BACKEND.create("kilobot", program, 3, 1)
+    sim.step()
+    view = sim.inspect(1)
+    assert view.last_error == (
+        "TYPE: `nosuchfunction` is nil here: it is not defined, and no host function of the "
+        f"Kilobot has that name at {path.resolve()}:4:2")
+    assert view.last_error_line is not None and "nosuchfunction(id)" in view.last_error_line
+    [(where, message, robots)] = sim.runtime_errors()
+    assert (where.line, where.col, robots) == (4, 2, 3)
+    assert message.startswith("TYPE: `nosuchfunction` is nil here")
+
+
+def test_problem_messages_keep_their_inline_code(tmp_path: Path) -> None:
+    """Warnings are sentences with `code` in them: shown as text (not one code span, which
+    glued "`not x` gives" into "not xgives"), emphasis characters escaped outside the code."""
+    from bbzide.ui.inspection import RobotInspection
+    from bbzide.ui.inspector_panel import _problems_markdown
+
+    view = RobotInspection(0, 0, 1, "error", 0, 1088, 0, 1088, 0, [], 0, 1088, None, None, None,
+                           last_error="TYPE: `my_func` is nil here",
+                           warnings=["11:4: BittyBuzz `not x` gives the truth value of x: "
+                                     "write `x == 0`", "a_b * c"])
+    text = _problems_markdown(view)
+    assert "**Last error:** TYPE: `my_func` is nil here" in text
+    assert "- 11:4: BittyBuzz `not x` gives the truth value of x: write `x == 0`" in text
+    assert "- a\\_b \\* c" in text
+
+
+def test_an_int16_overflow_is_warned_once_at_the_literal(tmp_path: Path) -> None:
+    """`var big = 40000`: the pitfall at 1:10, not also bo2bbo's warning naming a .bo offset."""
+    from bbzide.ui.pitfalls import find_pitfalls
+    from bbzide.ui.program_session import _warnings_of
+
+    assert BACKEND is not None
+    path = tmp_path / "big.bzz"
+    text = "var big = 40000\nfunction step() {}\n"
+    path.write_text(text)
+    compiled, program = BACKEND.compile(text, path, "kilobot")
+    assert any("16 bit integer range" in w for w in program.warnings)  # bo2bbo still says it
+    shown = _warnings_of(compiled, program) + find_pitfalls(text)
+    assert [(d.line, d.col) for d in shown] == [(1, 10)]
+    assert "int16" in shown[0].message

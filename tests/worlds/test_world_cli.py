@@ -1,5 +1,6 @@
 """`bbzide run --world` and `bbzide worlds`: bad input is a one-line error, never a traceback."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -137,3 +138,42 @@ def test_a_bbo_compiled_for_another_string_table_is_refused(tmp_path, capsys):
     capsys.readouterr()
     assert main(run) == 0
     assert "messages: 0 sent" not in capsys.readouterr().out
+
+
+def test_an_undefined_call_is_reported_at_its_line_in_plain_words(tmp_path, capsys):
+    """The call's own line and column (bzzparse's debug info would say the `}` after it)."""
+    script = tmp_path / "student.bzz"
+    script.write_text("function init() {}\nfunction step() {\n  led(1)\n  nosuchfunction(id)\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "2", "--steps", "2"]) == 0
+    out = capsys.readouterr().out
+    assert (f"robot 0 and 1 other(s) (step 0): TYPE at {script}:4:2, pc ") in out
+    assert "`nosuchfunction` is nil here: it is not defined, and no host function of the " \
+           "Kilobot has that name\n      nosuchfunction(id)" in out
+
+
+def test_globals_read_but_never_defined_are_warned_before_the_run(tmp_path, capsys):
+    script = tmp_path / "typo.bzz"
+    script.write_text("var gradient = 1\nfunction init() {}\nfunction step() {\n"
+                      "  lde(gradiant)\n  led(gradient)\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "1", "--steps", "1"]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warnings) == 2
+    assert warnings[0].startswith(f"{script}:4:2: warning: `lde` is never defined: it is not a "
+                                  "global of the script, nor a host function of the Kilobot")
+    assert "Known names: `led`, " in warnings[0]          # the close match first
+    assert warnings[1].startswith(f"{script}:4:6: warning: `gradiant` is never defined")
+    assert "Known names: `gradient`, " in warnings[1]
+
+
+def test_a_run_prints_each_robots_heap_peak_and_warns_near_the_limit(tmp_path, capsys):
+    script = tmp_path / "grow.bzz"
+    script.write_text("t = {}\nfunction init() {}\nfunction step() {\n"
+                      "  if (id == 1) {\n    t[size(t)] = size(t)\n  }\n}\n")
+    assert main(["run", str(script), "--world", "kilobot", "--robots", "3", "--steps", "60"]) == 0
+    out = capsys.readouterr().out
+    [heap] = [line for line in out.splitlines() if line.startswith("heap peak: ")]
+    peaks = {int(robot): int(peak) for robot, peak in re.findall(r"robot (\d+) (\d+) B", heap)}
+    assert sorted(peaks) == [0, 1, 2] and heap.endswith(
+        "of the 1088 B heap (kilobot profile, 2048 B of RAM)")
+    assert peaks[1] > peaks[0] == peaks[2]      # only robot 1 grows its table
+    assert "warning: robot(s) 1 used up to " in out and "may stop them with MEM" in out

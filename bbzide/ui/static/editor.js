@@ -112,8 +112,18 @@ function diagnosticOffset(diag, starts, text) {
 }
 
 function currentDiagnostics() {
-  if (!lastState || lastState.diagnostics_revision !== localRevision) return [];
-  return lastState.diagnostics || [];
+  if (!lastState) return [];
+  const compiled = lastState.diagnostics_revision === localRevision ? lastState.diagnostics || [] : [];
+  // runtime errors of the robots: only on the text of the program they run
+  const runtime = lastState.runtime_revision === localRevision ? lastState.runtime || [] : [];
+  return [...runtime, ...compiled];
+}
+
+// How a diagnostic reads in the list and the gutter tooltip.
+function diagnosticText(d) {
+  if (d.severity !== "runtime") return `${d.severity} ${d.line}:${d.col}: ${d.message}`;
+  const robots = d.robots === 1 ? "1 robot" : `${d.robots} robots`;
+  return `runtime error ${d.line}:${d.col} (${robots} stopped here): ${d.message}`;
 }
 
 // ---- rendering -----------------------------------------------------------------------------
@@ -123,11 +133,15 @@ function render() {
   const diags = currentDiagnostics();
   const errorOffsets = new Map();     // offset -> message (errors underline the token there)
   const markedLines = new Map();      // line -> messages
+  const robotsOnLine = new Map();     // line -> robots stopped by a runtime error there
   for (const d of diags) {
     const where = diagnosticOffset(d, starts, text);
-    if (d.severity === "error") errorOffsets.set(where.offset, d.message);
+    if (d.severity !== "warning") errorOffsets.set(where.offset, d.message);
+    if (d.severity === "runtime") {
+      robotsOnLine.set(where.line, (robotsOnLine.get(where.line) || 0) + d.robots);
+    }
     const list = markedLines.get(where.line) || [];
-    list.push(`${d.severity} ${d.line}:${d.col}: ${d.message}`);
+    list.push(diagnosticText(d));
     markedLines.set(where.line, list);
   }
   let html = "";
@@ -156,16 +170,19 @@ function render() {
   let gutterHtml = "";
   for (let line = 1; line <= starts.length; line++) {
     const marks = markedLines.get(line);
-    const kind = marks && marks.some((m) => m.startsWith("error")) ? "error-line" : "warning-line";
+    const robots = robotsOnLine.get(line);
+    const kind = robots ? "runtime-line"
+      : marks && marks.some((m) => m.startsWith("error")) ? "error-line" : "warning-line";
+    const badge = robots ? `<span class="robot-count">${robots}</span>` : "";
     gutterHtml += marks
-      ? `<div class="${kind}" data-line="${line}" title="${escapeHtml(marks.join("\n"))}">${line}</div>`
+      ? `<div class="${kind}" data-line="${line}" title="${escapeHtml(marks.join("\n"))}">${badge}${line}</div>`
       : `<div>${line}</div>`;
   }
   gutter.innerHTML = gutterHtml;
 
   diagnosticsBox.innerHTML = diags.map((d) =>
     `<div class="diag-${d.severity}" data-line="${d.line}" data-col="${d.col}">` +
-    `${escapeHtml(d.severity)} ${d.line}:${d.col}: ${escapeHtml(d.message)}</div>`).join("");
+    `${escapeHtml(diagnosticText(d))}</div>`).join("");
   // Size the textarea to its content so the outer box scrolls both layers together.
   source.style.height = highlightPre.offsetHeight + "px";
   source.style.width = Math.max(highlightPre.offsetWidth, source.parentElement.clientWidth) + "px";

@@ -1,0 +1,108 @@
+"""`make screenshots`: the README's pictures of the IDE, taken in headless Chromium at 1400 x 900.
+
+Design: each picture is one journey's moment, staged through the IDE's own objects (an
+`IdeApp` on the real worlds, a tab opened by Playwright with the browser tests' helpers,
+tests/ui/browser.py) and photographed as a user would see it. Nothing is drawn by hand, so the
+pictures follow the code: run the script again after a UI change. Each shot waits for what it
+shows (the compile, the runtime marker, the inspector) before the capture; software WebGL then
+needs a moment to draw the last frame (`SETTLE_SECONDS`).
+
+    .venv/bin/python scripts/screenshots.py [OUT_DIR]     (default docs/screenshots)
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "tests" / "ui"))
+
+from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until  # noqa: E402
+
+from bbzide.ui.app import IdeApp  # noqa: E402
+from bbzide.ui.run_controller import RunSettings  # noqa: E402
+from bbzide.ui.world_adapter import WorldsBackend  # noqa: E402
+
+#: The page size the README's pictures show: a 14-inch laptop's browser window.
+PAGE = (1400, 900)
+#: Seconds for software WebGL to draw the frame after the last change (first frames take 3-13 s
+#: on two shared cores; later ones well under a second).
+SETTLE_SECONDS = 2.0
+#: Steps each world runs before its picture: the gradient has spread, the drones took off.
+WARM_STEPS = 40
+
+#: The student's first program: a call of a function that does not exist.
+STUDENT_SCRIPT = """\
+# My first Buzz program: every Kilobot shows its id's colour.
+var colour = 0
+
+function init() {
+  colour = id % 7 + 1
+}
+
+function step() {
+  led(colour)
+  blink(colour)
+}
+"""
+
+
+def _shoot(world: str, script: Path, out: Path, robots: int | None = None,
+           stage: Callable[[IdeApp, object, object], None] | None = None) -> None:
+    backend = WorldsBackend()
+    settings = RunSettings(world, robots or backend.default_robots(world), 0, 0.0)
+    app = IdeApp(script, backend, settings, port=free_port()).start(run=True)
+    try:
+        with chromium_context(*PAGE) as context:
+            page = open_app_page(context, app)
+            wait_until(lambda: app.controller.status.step >= WARM_STEPS, UI_WAIT_S,
+                       message=f"{WARM_STEPS} steps")
+            client = next(iter(app.server.get_clients().values()))
+            if stage is not None:
+                stage(app, page, client)
+            time.sleep(SETTLE_SECONDS)
+            page.screenshot(path=str(out))  # type: ignore[attr-defined]
+    finally:
+        app.stop()
+    print(out)
+
+
+def _select_robot(index: int) -> Callable[[IdeApp, object, object], None]:
+    def stage(app: IdeApp, page: object, client: object) -> None:
+        app.controller.pause()
+        app._select(client, index)  # noqa: SLF001 - what a click on the robot does
+        inspector = app._inspectors[client.client_id]  # noqa: SLF001  # type: ignore[attr-defined]
+        wait_until(lambda: inspector.selected == index, UI_WAIT_S, message="the inspector")
+    return stage
+
+
+def _wait_for_runtime_marker(app: IdeApp, page: object, client: object) -> None:
+    editor = page.frame_locator("iframe.bbzide-editor")  # type: ignore[attr-defined]
+    editor.locator("#gutter div.runtime-line").wait_for(timeout=UI_WAIT_S * 1000)
+
+
+def main(out_dir: Path) -> None:
+    out_dir.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as folder:
+        scratch = Path(folder)
+        for world, example in (("kilobot", "examples/kilobot/gradient.bzz"),
+                               ("crazyflie", "examples/crazyflie/consensus.bzz"),
+                               ("m300", "examples/m300/flocking.bzz")):
+            script = scratch / world / Path(example).name
+            script.parent.mkdir()
+            shutil.copy(REPO / example, script)
+            _shoot(world, script, out_dir / f"ide-{world}.png", stage=_select_robot(0))
+        student = scratch / "student" / "first.bzz"
+        student.parent.mkdir()
+        student.write_text(STUDENT_SCRIPT)
+        _shoot("kilobot", student, out_dir / "student-runtime-error.png", robots=9,
+               stage=_wait_for_runtime_marker)
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else REPO / "docs" / "screenshots")
