@@ -39,9 +39,9 @@ from __future__ import annotations
 import asyncio
 import json
 import sys
+from collections.abc import Callable
 from http import HTTPStatus
 from pathlib import Path
-from collections.abc import Callable
 from typing import Any
 
 from websockets.asyncio.server import ServerConnection

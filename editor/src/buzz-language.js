@@ -52,7 +52,7 @@ export function buzzLanguage(builtins) {
         const word = stream.current();
         if (KEYWORDS.has(word)) return "keyword";
         const afterDot = stream.start > 0 && stream.string[stream.start - 1] === ".";
-        return !afterDot && builtins.has(word) ? "builtin" : "variableName";
+        return !afterDot && builtins.has(word) ? "buzzBuiltin" : "variableName";
       }
       if (OPENING.includes(c)) { state.depth++; return "bracket"; }
       if (CLOSING.includes(c)) { state.depth = Math.max(0, state.depth - 1); return "bracket"; }
@@ -64,7 +64,8 @@ export function buzzLanguage(builtins) {
       const closes = CLOSING.includes(textAfter.trimStart().charAt(0)) ? 1 : 0;
       return Math.max(0, state.depth - closes) * context.unit;
     },
-    tokenTable: { builtin: builtinTag },
+    // (not "builtin": CodeMirror reads that legacy name as variableName.standard)
+    tokenTable: { buzzBuiltin: builtinTag },
     languageData: {
       commentTokens: { line: "#" },
       indentOnInput: /^\s*[}\])]$/,
