@@ -50,7 +50,7 @@ async (ide) => {
     await fetch(ide + "/editor/socket", {method: "POST", mode: "no-cors", body});
     results.blind_post = "sent";
   } catch (error) { results.blind_post = "failed"; }
-  for (const path of ["/editor/", "/", "/editor/editor.js"]) {
+  for (const path of ["/editor/", "/", "/editor/dist/editor.js", "/editor/reference.md"]) {
     try {
       const answer = await fetch(ide + path);
       results["read " + path] = "READ " + answer.status + " " + (await answer.text()).slice(0, 30);
@@ -202,8 +202,8 @@ def raw_status(port: int, request: bytes, host: str = "127.0.0.1") -> str:
 def test_without_the_token_a_plain_client_gets_nothing(ide: IdeSession) -> None:
     app = ide.app
     port = app.server.get_port()
-    for path in ("/", "/index.html", "/editor/", "/editor/editor.js", "/editor/socket",
-                 "/no-such-file"):
+    for path in ("/", "/index.html", "/editor/", "/editor/dist/editor.js", "/editor/reference",
+                 "/editor/socket", "/no-such-file"):
         status, text = plain_get(port, path)
         assert status == 403 and "token" in text, (path, status, text)
     assert plain_get(port, "/?token=not-the-token")[0] == 403

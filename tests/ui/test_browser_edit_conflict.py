@@ -21,7 +21,7 @@ from ide_harness import SCREENSHOT_DIR, IdeSession, editor_text, running_ide
 from bbzide.ui.program_session import write_atomically
 
 SCRIPT = "# shared\nfunction init() {\n  x = 1\n}\n"
-#: Past the editor's typing debounce (EDIT_DEBOUNCE_MS = 400 in editor.js) and a poll.
+#: Past the editor's typing debounce (EDIT_DEBOUNCE_MS = 400 in editor/src/editor.js) and a poll.
 PAST_DEBOUNCE_MS = 1000
 
 
