@@ -68,6 +68,7 @@ def debug_map_from_records(
 def _program_from_basm(
     basm: str, filename: str, warnings: list[str], source_file: str,
     code_lines: Sequence[str] = (), symbols: ScriptSymbols | None = None,
+    source_text: str | None = None,
 ) -> CompiledProgram:
     assembly = assemble(basm, filename)
     bytecode = read_bo(assembly.bo, filename)
@@ -91,6 +92,8 @@ def _program_from_basm(
         filename=filename,
         call_sites=call_sites_by_offset(code_lines, callc_offsets),
         symbols=symbols or ScriptSymbols(),
+        source_file=source_file,
+        source_text=source_text,
     )
 
 
@@ -115,7 +118,7 @@ def compile_file(
     name = Path(os.fspath(path)).stem + ".bo"
     source_file = os.path.realpath(os.fspath(path))
     return _program_from_basm(result.basm, name, list(result.warnings), source_file,
-                              result.code_lines, result.symbols)
+                              result.code_lines, result.symbols, result.source_text)
 
 
 def compile_source(

@@ -70,6 +70,8 @@ class FrontendResult:
     #: the chunk lines in `.basm` order; the `callc` ones carry their call site (call_sites.py)
     code_lines: list[str] = field(default_factory=list)
     symbols: ScriptSymbols = field(default_factory=ScriptSymbols)
+    #: the main script's text as compiled (error lines are read from it, not from the disk)
+    source_text: str = ""
 
 
 def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
@@ -106,8 +108,9 @@ def compile_to_basm(path: str | os.PathLike, *, source: str | None = None,
     # back from one-char-per-byte to text; bytes that are not UTF-8 survive as surrogates, so
     # `basm.encode("utf-8", "surrogateescape")` gives exactly the bytes bzzparse writes
     basm = codegen.render().encode("latin-1").decode("utf-8", errors="surrogateescape")
+    text = source if source is not None else data.decode("utf-8", errors="replace")
     return FrontendResult(basm, tree, warnings, scanner.included_files, codegen.call_lines(),
-                          parser.symbols)
+                          parser.symbols, text)
 
 
 def _source_bytes(text: str) -> bytes:

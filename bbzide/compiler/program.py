@@ -27,6 +27,17 @@ class BittyBuzzProgram:
     call_sites: dict[int, CallSite] = field(default_factory=dict)
     #: the globals the script defines and reads (empty for a stored `.bbo`)
     symbols: ScriptSymbols = field(default_factory=ScriptSymbols)
+    #: the main script (its path as in the debug map) and its text as compiled, if known
+    source_file: str | None = None
+    source_text: str | None = None
+
+    def source_line(self, location: SourceLocation) -> str | None:
+        """The text of `location`'s line in the script as it was compiled (None for another
+        file, or when the text is not known): what a robot runs, even if the file changed."""
+        if self.source_text is None or location.file != self.source_file:
+            return None
+        lines = self.source_text.splitlines()
+        return lines[location.line - 1] if 1 <= location.line <= len(lines) else None
 
     def location_of(self, pc: int) -> SourceLocation | None:
         return self.debug_map.get(pc)
@@ -52,6 +63,8 @@ class CompiledProgram:
     #: `.bo` offset of each `callc` -> the call as written (see `call_sites.py`)
     call_sites: dict[int, CallSite] = field(default_factory=dict)
     symbols: ScriptSymbols = field(default_factory=ScriptSymbols)
+    source_file: str | None = None
+    source_text: str | None = None
 
     def to_bbo(self) -> BittyBuzzProgram:
         conversion = bo_to_bbo(self.bo, self.filename)
@@ -67,5 +80,5 @@ class CompiledProgram:
         }
         return BittyBuzzProgram(
             conversion.bbo, list(self.strings), debug_map, conversion.bo_to_bbo,
-            conversion.warnings, call_sites, self.symbols,
+            conversion.warnings, call_sites, self.symbols, self.source_file, self.source_text,
         )

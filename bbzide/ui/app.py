@@ -71,6 +71,7 @@ class IdeApp:
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
         self.controls.world.on_update(lambda _: self._change_world(str(self.controls.world.value)))
         self.controls.record.on_update(lambda _: self._toggle_recording(self.controls.record.value))
+        self.controls.load_example.on_click(lambda _: self.load_world_example())
         self.controls.overlays.on_update(
             lambda _: self.overlays.set_visible(bool(self.controls.overlays.value))
         )
@@ -150,7 +151,10 @@ class IdeApp:
         world = self.controller.settings.world
         platform = self.backend.platform(world)
         found = find_pitfalls(text, floats_supported=bool(getattr(platform, "float_ops", True)))
-        undefined = lint_globals(program, self.backend.host_names(world), robot_phrase(world))
+        names = getattr(self.backend, "host_names", None)  # not every backend names them
+        if names is None:
+            return found
+        undefined = lint_globals(program, names(world), robot_phrase(world))
         return found + [Diagnostic(where.line, where.col, message, "warning")
                         for where, message in undefined if where.file == str(self.session.path)]
 
@@ -172,6 +176,17 @@ class IdeApp:
         self.controller.update_settings(world=world, robots=self.backend.default_robots(world))
         self.controls.robots.value = self.backend.default_robots(world)
         self.session.compile_now()  # host functions differ per platform
+
+    def load_world_example(self) -> bool:
+        """Put the current world's example into the editor (saved and compiled like an edit);
+        False when the world has none."""
+        # the dropdown's world: the controller applies a world change on its own thread
+        example = self.backend.example_path(str(self.controls.world.value))
+        if example is None or not example.is_file():
+            self.controller.status.error = "this world has no example script"
+            return False
+        self.session.edit_from_browser(example.read_text(encoding="utf-8"))
+        return True
 
     def _refresh_build_view(self) -> None:
         self._build_dirty = False

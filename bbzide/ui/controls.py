@@ -59,6 +59,12 @@ class RunControls:
                 initial_value=int(settings.steps_per_second),
             )
             self.world = gui.add_dropdown("World", tuple(world_names), initial_value=settings.world)
+            self.load_example = gui.add_button(
+                "Open this world's example",
+                icon=viser.Icon.FILE_IMPORT,
+                hint="Replace the editor's text with the example script of the world chosen "
+                "above (the file is saved)",
+            )
             self.robots = gui.add_number(
                 "Robots", initial_value=settings.robots, min=1, max=max_robots, step=1
             )

@@ -4,6 +4,11 @@ The heap is wrapped into rows of `bytes_per_row` bytes (a Kilobot's 1,088-byte h
 rows of 64). Reserved activation records are hatched grey, objects are coloured by type, table
 and darray segments by their own colour, freed slots inside the used areas are pale, and the gap
 between ROP and LSP is white. ROP and LSP are marked with their byte offsets.
+
+A large heap (an M300's 60,000 bytes) would need rows so wide that its 9-byte objects become
+stripes. When the used areas fit `MAX_DETAIL_ROWS` rows of 64 bytes, the map shows them at that
+scale and folds the free gap between them into one row that says how many bytes it holds: rows
+are `spans` of the heap, each row labelled with its real offset.
 """
 
 from __future__ import annotations
@@ -30,8 +35,14 @@ TYPE_COLORS = {
 BYTE_PX = 7
 ROW_PX = 14
 ROW_GAP_PX = 5
-#: Never more rows than this: larger heaps get wider rows (fewer pixels per byte).
+#: Never more rows than this: larger heaps get wider rows (fewer pixels per byte), unless
+#: their used areas fit `MAX_DETAIL_ROWS` rows at `DETAIL_BYTES_PER_ROW` (module docstring).
 MAX_ROWS = 28
+#: The folded map's limit: 48 rows of 19 px are ~900 px, one scroll of the inspector panel
+#: (an M300 drone of the flocking example uses ~2,700 bytes: 43 rows).
+MAX_DETAIL_ROWS = 48
+#: Bytes per row at the map's full scale (7 px a byte: a 9-byte M300 object is 63 px wide).
+DETAIL_BYTES_PER_ROW = 64
 
 
 def layout_bytes_per_row(heap_size: int) -> int:
@@ -41,11 +52,59 @@ def layout_bytes_per_row(heap_size: int) -> int:
     return per_row
 
 
+class _Rows:
+    """Where each heap byte is drawn: spans of the heap, each laid out in rows of `per_row`
+    bytes one after the other, with one folded row between two spans."""
+
+    def __init__(self, spans: list[tuple[int, int]], per_row: int) -> None:
+        self.spans = spans
+        self.per_row = per_row
+        self.first_rows: list[int] = []  # row of each span's first byte
+        row = 0
+        for start, end in spans:
+            self.first_rows.append(row)
+            row += (end - start + per_row - 1) // per_row + 1  # + the folded row after it
+        self.count = row - 1
+
+    def place(self, offset: int) -> tuple[int, int] | None:
+        """(row, column) of a byte offset, or None inside a folded gap."""
+        for (start, end), first in zip(self.spans, self.first_rows, strict=True):
+            if start <= offset < end:
+                row, column = divmod(offset - start, self.per_row)
+                return first + row, column
+        return None
+
+    def pieces(self, start: int, size: int) -> list[tuple[int, int, int]]:
+        """(row, column, length) pieces of the bytes start..start+size that are shown."""
+        out = []
+        for span_start, span_end in self.spans:
+            low, high = max(start, span_start), min(start + size, span_end)
+            while low < high:
+                row, column = self.place(low)  # type: ignore[misc]
+                length = min(high - low, self.per_row - column)
+                out.append((row, column, length))
+                low += length
+        return out
+
+
+def _rows_for(inspection: RobotInspection) -> _Rows:
+    """The whole heap, or its two used areas at 64 bytes a row with the gap folded."""
+    size, per_row = inspection.heap_size, layout_bytes_per_row(inspection.heap_size)
+    if per_row == DETAIL_BYTES_PER_ROW:
+        return _Rows([(0, size)], per_row)
+    left_end = -(-min(inspection.rop, size) // DETAIL_BYTES_PER_ROW) * DETAIL_BYTES_PER_ROW
+    right_start = max(left_end, inspection.lsp // DETAIL_BYTES_PER_ROW * DETAIL_BYTES_PER_ROW)
+    shown_rows = (left_end + size - right_start) / DETAIL_BYTES_PER_ROW
+    if shown_rows > MAX_DETAIL_ROWS or right_start - left_end < 2 * DETAIL_BYTES_PER_ROW:
+        return _Rows([(0, size)], per_row)  # the used areas are large: the overview
+    return _Rows([(0, left_end), (right_start, size)], DETAIL_BYTES_PER_ROW)
+
+
 def render_heap_svg(inspection: RobotInspection) -> str:
-    size = inspection.heap_size
-    per_row = layout_bytes_per_row(size)
+    layout = _rows_for(inspection)
+    per_row = layout.per_row
     byte_px = BYTE_PX * 64 / per_row
-    rows = (size + per_row - 1) // per_row
+    rows = layout.count
     width = per_row * byte_px + 60
     height = rows * (ROW_PX + ROW_GAP_PX) + 24
     parts = [
@@ -54,18 +113,33 @@ def render_heap_svg(inspection: RobotInspection) -> str:
         f'class="heap-map" data-rop="{inspection.rop}" data-lsp="{inspection.lsp}" '
         'font-family="monospace" font-size="10">'
     ]
-    for row in range(rows):
+    for (start, end), first in zip(layout.spans, layout.first_rows, strict=True):
+        for offset in range(start, end, per_row):
+            y = (first + (offset - start) // per_row) * (ROW_PX + ROW_GAP_PX)
+            parts.append(f'<text x="0" y="{y + ROW_PX - 3}" fill="#868e96">{offset}</text>')
+    for index in range(len(layout.spans) - 1):
+        (span_start, end), (start, _) = layout.spans[index], layout.spans[index + 1]
+        row = layout.first_rows[index] + -(-(end - span_start) // per_row)
         y = row * (ROW_PX + ROW_GAP_PX)
-        parts.append(f'<text x="0" y="{y + ROW_PX - 3}" fill="#868e96">{row * per_row}</text>')
+        parts.append(
+            f'<text x="34" y="{y + ROW_PX - 3}" fill="#868e96" font-style="italic" '
+            f'class="heap-folded">⋯ {start - end:,} bytes not drawn ({end}..{start}: free) '
+            f"⋯</text>")
     for block in inspection.blocks:
-        parts.extend(_block_rects(block, per_row, byte_px))
+        parts.extend(_block_rects(block, layout, byte_px))
     for name, offset, color in (
         ("ROP", inspection.rop, "#e8590c"),
         ("LSP", inspection.lsp, "#1971c2"),
     ):
-        row, column = divmod(min(offset, size), per_row)
-        if offset == size and column == 0 and row > 0:
-            row, column = row - 1, per_row
+        # at the left edge of byte `offset`, or the right edge of the byte before it when
+        # `offset` is not drawn (the heap's end, or the first byte of a folded gap)
+        place = layout.place(offset)
+        if place is None:
+            before = layout.place(offset - 1)
+            if before is None:
+                continue
+            place = (before[0], before[1] + 1)
+        row, column = place
         x = 34 + column * byte_px
         y = row * (ROW_PX + ROW_GAP_PX)
         parts.append(
@@ -81,7 +155,7 @@ def render_heap_svg(inspection: RobotInspection) -> str:
     return "".join(parts)
 
 
-def _block_rects(block: HeapBlock, per_row: int, byte_px: float) -> list[str]:
+def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
     """A block may cross row ends: one rectangle per row piece, all with the same tooltip."""
     color = _color_of(block)
     title = html.escape(
@@ -89,19 +163,14 @@ def _block_rects(block: HeapBlock, per_row: int, byte_px: float) -> list[str]:
     )
     stroke = "#495057" if block.kind in ("object", "segment") and block.valid else "#dee2e6"
     rects = []
-    start, remaining = block.start, block.size
-    while remaining > 0:
-        row, column = divmod(start, per_row)
-        length = min(remaining, per_row - column)
+    for row, column, length in layout.pieces(block.start, block.size):
         x = 34 + column * byte_px
         y = row * (ROW_PX + ROW_GAP_PX)
         rects.append(
             f'<rect x="{x:.1f}" y="{y}" width="{length * byte_px:.1f}" height="{ROW_PX}" '
-            f'fill="{color}" stroke="{stroke}" stroke-width="0.5" class="heap-{block.kind}">'
-            f"<title>{title}</title></rect>"
+            f'fill="{color}" stroke="{stroke}" stroke-width="0.5" class="heap-{block.kind}" '
+            f'data-start="{block.start}"><title>{title}</title></rect>'
         )
-        start += length
-        remaining -= length
     return rects
 
 

@@ -70,6 +70,7 @@ class RobotInspection:
     last_error_line: str | None = None
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)  # what could not be read (API gaps)
+    pc_line: int | None = None  # the source line of `pc` (the debug map's)
 
 
 def value_text(value: Any) -> str:

@@ -56,6 +56,8 @@ class InspectorPanel:
         self.deselect.visible = True
         state = view.state if view.last_error is None else "error"
         pc = f" · pc {view.pc}" if view.pc is not None else ""
+        if view.pc is not None and view.pc_line is not None:
+            pc += f" (line {view.pc_line})"
         _set(
             self.header,
             f"**Robot {view.robot_id}** (#{view.robot_index}) · step {view.step} · "

@@ -23,7 +23,7 @@ import viser
 from bbzide.ui.access import new_token
 from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
-from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
+from bbzide.ui.replay_session import ReplaySession
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.viser_server import open_server, page_url
 
@@ -33,6 +33,22 @@ SPEEDS = {"0.25×": 0.25, "0.5×": 0.5, "1×": 1.0, "2×": 2.0, "4×": 4.0, "8×
 FRAME_HZ = 30.0
 #: Width of the source panel (same as the live IDE's editor).
 SOURCE_PANEL_WIDTH = 560
+
+
+def numbered_source_html(source: str | None) -> str:
+    """The recorded program with its line numbers (grey), as the editor numbers them."""
+    if not source:
+        return "(the recording has no source text)"
+    lines = source.splitlines()
+    width = len(str(len(lines)))
+    return "\n".join(
+        f'<span style="color:#868e96;user-select:none">{number:>{width}} │ </span>'
+        f"{html.escape(line)}"
+        for number, line in enumerate(lines, start=1))
+
+
+#: The event list's first entry, which seeks nowhere.
+NO_EVENT = "— choose an event to go to its step —"
 
 
 class ReplayApp:
@@ -99,7 +115,7 @@ class ReplayApp:
             self.stepper = gui.add_button_group("Step", ("−1", "+1"))
             self.speed_choice = gui.add_dropdown("Speed", tuple(SPEEDS), initial_value="1×")
             self.jumps = {}
-            for kind, label in JUMP_KINDS:
+            for kind, label in session.jump_kinds():
                 count = len(session.event_steps(kind))
                 self.jumps[kind] = gui.add_button_group(
                     f"{label} ({count})", ("◀ previous", "next ▶"), disabled=count == 0)
@@ -120,15 +136,20 @@ class ReplayApp:
                 f"**{html.escape(recording.path.name)}** · world `{meta['world']}` · "
                 f"{meta['robots']} robots · seed {meta['seed']} · steps "
                 f"{session.first_step}..{session.last_step}{truncated}")
-            events = session.events_text()
-            gui.add_markdown("**Events**\n\n" + ("\n".join(f"- {html.escape(e)}" for e in events)
-                                                 or "*none*"))
+            choices = session.event_choices()
+            self._event_steps = dict(choices)
+            if choices:  # a dropdown: choosing an event seeks to its step
+                self.event_choice = gui.add_dropdown(
+                    "Go to event", (NO_EVENT, *self._event_steps), initial_value=NO_EVENT)
+                self.event_choice.on_update(lambda _: self._event_chosen())
+            else:
+                gui.add_markdown("**Events**: *none*")
         source = session.source()
         with panel.add_tab("Program", icon=viser.Icon.CODE):
             gui.add_html(
                 "<pre class='bbzide-replay-source' style='font-size:12px;line-height:1.35;"
                 "white-space:pre;overflow:auto;max-height:calc(100vh - 160px)'>"
-                + html.escape(source or "(the recording has no source text)") + "</pre>")
+                + numbered_source_html(source) + "</pre>")
         panel.dock_left()
         panel.set_width(SOURCE_PANEL_WIDTH)
         self.slider.on_update(lambda _: self._slider_moved())
@@ -167,6 +188,12 @@ class ReplayApp:
                 self._refresh_inspector(inspector)
             self._refresh_status()
         self.last_seek_seconds = time.perf_counter() - started
+
+    def _event_chosen(self) -> None:
+        step = self._event_steps.get(str(self.event_choice.value))
+        if step is not None:
+            self.playing = False
+            self.seek(step)
 
     def step_by(self, delta: int) -> None:
         self.playing = False

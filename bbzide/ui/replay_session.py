@@ -38,6 +38,7 @@ class ReplaySession:
         self.recording = recording
         self.rebuilder = rebuilder or RobotRebuilder(recording)
         self._lock = threading.Lock()  # one rebuild at a time (the cache is not thread-safe)
+        self._compiled_programs: dict[int, Any] = {}  # program id -> with call sites (inspect)
         self._warmed: set[int] = set()  # robots `warm_up` has done
         self._event_steps = {
             kind: sorted({e.step for e in recording.events if e.kind == kind})
@@ -85,14 +86,43 @@ class ReplaySession:
             profile = PROFILES[self.recording.meta["profiles"][index]]
             world_name = str(self.recording.meta.get("world", ""))
             spec = WORLDS.get(world_name)
+            program_id = self.rebuilder.keyframe(index, step).program
+            recorded = self.recording.programs.get(program_id) or {}
+            host_names = spec.host_names if spec else ()
+            program = self._with_call_sites(program_id, program, recorded.get("source"),
+                                            host_names)
             view = inspect_robot(robot, profile, program, index, step,
-                                 host_names=spec.host_names if spec else (),
-                                 world_name=world_name)
+                                 host_names=host_names, world_name=world_name,
+                                 recorded_source=recorded.get("source"))
         row = self.recording.row(step)
         view.notes.append(
             f"rebuilt from the keyframe at step {self.rebuilder.keyframe(index, step).step}; "
             f"heap used {self.recording.heap['used'][row][index]} B as recorded")
         return view
+
+    def _with_call_sites(self, program_id: int, program: Any, source: str | None,
+                         host_names: tuple[str, ...]) -> Any:
+        """The recorded program with what the compiler knows beside the bytecode (call sites,
+        globals, source lines), by compiling the recorded source again: used only when that
+        gives the very `.bbo` the robots ran. Once per program."""
+        cache = self._compiled_programs
+        if program_id not in cache:
+            cache[program_id] = program
+            files = {location.file for location in getattr(program, "debug_map", {}).values()
+                     if location.file != "(null)"}  # (the end-of-file token's annotation)
+            if source is not None and len(files) == 1:
+                from bbzide.compiler import bittybuzz_string_table, compile_source
+                from bbzide.diagnostics import UserError
+
+                try:
+                    again = compile_source(source, files.pop(),
+                                           string_table=bittybuzz_string_table(host_names))
+                    rebuilt = again.to_bbo()
+                    if rebuilt.bbo == program.bbo:
+                        cache[program_id] = rebuilt
+                except UserError:
+                    pass  # an include that is not here any more: keep the recorded program
+        return cache[program_id]
 
     def warm_up(self, stop: threading.Event | None = None, count: int | None = None) -> None:
         """Get every robot's rebuild ready ahead of its first click (call from a background
@@ -167,3 +197,14 @@ class ReplaySession:
 
     def events_text(self, limit: int = 200) -> list[str]:
         return [f"step {e.step}: {e.text}" for e in self.recording.events[:limit]]
+
+    def event_choices(self, limit: int = 200) -> list[tuple[str, int]]:
+        """(text, step) of each event, in order, for a list that seeks to the chosen one."""
+        return [(f"step {e.step}: {e.text}", int(e.step)) for e in self.recording.events[:limit]]
+
+    def jump_kinds(self) -> list[tuple[str, str]]:
+        """The jump rows that apply to this recording: robot errors always (none is news too);
+        found targets and role changes only when the recording has some (a Kilobot run has no
+        targets and no roles)."""
+        return [(kind, label) for kind, label in JUMP_KINDS
+                if kind == layout.EVENT_ERROR or self.event_steps(kind)]

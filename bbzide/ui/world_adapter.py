@@ -282,10 +282,11 @@ def explain_robot_failure(failure: Any, program: Any, host_names: Sequence[str],
 
 def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
                   last_sent: Sequence[bytes] = (), host_names: Sequence[str] = (),
-                  world_name: str = "") -> RobotInspection:
+                  world_name: str = "", recorded_source: str | None = None) -> RobotInspection:
     """The inspector's view of one robot's VM (a live robot, or one rebuilt from a recording).
     `last_sent`: the payloads it sent in its last step (the out-queue is drained by then);
-    `host_names`, `world_name`: the world's, to explain a failed call in the student's terms."""
+    `host_names`, `world_name`: the world's, to explain a failed call in the student's terms;
+    `recorded_source`: a recording's copy of the program's source (for the error's line)."""
     vm = robot.vm
     heap = vm.heap
     geometry = HeapGeometry(
@@ -306,7 +307,11 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         error_text = f"{getattr(failure, 'reason', 'error')}: {message}"
         if where is not None:
             error_text += f" at {where}"
-            error_line = _source_line(where)
+            error_line = _line_of(program, where, recorded_source)
+    # the line of the pc: a call's own line when the compiler kept it (call_sites.py)
+    site = getattr(program, "call_sites", {}).get(int(vm.pc))
+    at_pc = site.location if site is not None else (
+        program.location_of(int(vm.pc)) if hasattr(program, "location_of") else None)
     gsyms = int(vm.gsyms)
     globals_ = reader.named_entries(gsyms)
     return RobotInspection(
@@ -336,6 +341,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         last_error=error_text,
         last_error_line=error_line,
         warnings=_runtime_warnings(vm, last_sent),
+        pc_line=at_pc.line if at_pc is not None and at_pc.line else None,
     )
 
 
@@ -433,6 +439,18 @@ def _message_text(message: Any) -> str:
     if isinstance(message, bytes | bytearray):
         return f"{len(message)} B: {bytes(message).hex(' ')}"
     return str(message)
+
+
+def _line_of(program: Any, location: Any, recorded_source: str | None = None) -> str | None:
+    """The source line of `location` as the robot's program was compiled (the file on disk may
+    have changed since): from the program, else from the recording's copy of its source, else
+    from the disk (an included file)."""
+    line_of = getattr(program, "source_line", None)
+    line = line_of(location) if line_of is not None else None
+    if line is None and recorded_source is not None:
+        lines = recorded_source.splitlines()
+        line = lines[location.line - 1] if 1 <= location.line <= len(lines) else None
+    return line if line is not None else _source_line(location)
 
 
 def _source_line(location: Any) -> str | None:

@@ -163,7 +163,8 @@ def run_single_robot(args: argparse.Namespace) -> int:
         if explained is not None:
             location, message = explained
             raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
-                            f"{message}", location, hint=_REG_HINT)
+                            f"{message}", location, program.source_line(location),
+                            hint=_REG_HINT)
         raise UserError(f"robot {args.robot} stopped: {failure.reason} at pc {failure.pc}: "
                         f"{failure.message}", failure.location,
                         hint=_call_hint(run.robot, failure))

@@ -321,7 +321,11 @@ def describe_failure(state: Any, others: int = 0, world: str | None = None) -> s
         text += f", pc {pc}"
     if message:
         text += f": {message}"
-    line = _source_line(location)
+    program = state.robot.program if state.robot is not None else None
+    line = program.source_line(location) if program is not None and location is not None \
+        and hasattr(program, "source_line") else None
+    if line is None:
+        line = _source_line(location)
     if line is not None:
         text += f"\n      {line.strip()}"
         if reason == "TYPE" and world is not None:

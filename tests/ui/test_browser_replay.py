@@ -113,7 +113,10 @@ def test_jump_to_the_robot_error(replay: tuple) -> None:
     wait_until(lambda: shown_step(page) == 10, UI_WAIT_S, message="seek 10")
     errors = app.session.event_steps("error")
     assert len(errors) == 1
-    kinds = [kind for kind, _ in JUMP_KINDS]
+    kinds = [kind for kind, _ in app.session.jump_kinds()]
+    assert kinds == ["error"]  # the toy run has no targets and no roles: those rows are hidden
+    assert all(label not in page.locator("body").inner_text()
+               for kind, label in JUMP_KINDS if kind != "error")
     page.get_by_role("button", name="next ▶").nth(kinds.index("error")).click()
     wait_until(lambda: shown_step(page) == errors[0], UI_WAIT_S, message="jump to the error")
     assert "1 in error" in page.locator("text=/of \\d+\\.\\.\\d+/").first.inner_text()
@@ -136,3 +139,17 @@ def test_replay_command_rejects_foreign_files(tmp_path: Path) -> None:
     foreign = tmp_path / "x.rrd"
     foreign.write_text("hello")
     assert main(["replay", str(foreign), "--no-browser"]) == 1
+
+
+def test_choosing_an_event_seeks_to_its_step(replay: tuple) -> None:
+    app, page = replay
+    app.seek(3)
+    wait_until(lambda: shown_step(page) == 3, UI_WAIT_S, message="seek 3")
+    [error_step] = app.session.event_steps("error")
+    [(text, step)] = [(t, s) for t, s in app.session.event_choices() if s == error_step]
+    page.get_by_role("tab", name="Mission").click()
+    page.get_by_role("combobox", name="Go to event").click()
+    page.get_by_role("option", name=text).click()
+    wait_until(lambda: shown_step(page) == step, UI_WAIT_S, message="the event's step")
+    assert_scene_shows(app, step)
+    page.screenshot(path="/tmp/bbzide-ui-screenshots/replay_event_list.png")

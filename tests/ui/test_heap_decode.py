@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import struct
 
 from bbzide.ui.heap_decode import HeapGeometry, HeapReader
@@ -88,3 +89,22 @@ def test_heap_svg_marks_rop_and_lsp_to_scale() -> None:
     assert "ROP 102" in svg and "LSP 1022" in svg
     # 64 bytes per row at 7 px per byte: the free gap's first piece (102..128) is 26 bytes wide.
     assert 'width="182.0" height="14" fill="#ffffff"' in svg
+
+
+def test_a_large_heap_shows_its_used_areas_at_full_scale() -> None:
+    """An M300's 60,000-byte heap: the objects and the segments drawn 64 bytes a row (7 px a
+    byte, not stripes), the free gap between them folded into one row that says its size."""
+    from bbzide.ui.inspection import HeapBlock
+
+    size, rop, lsp = 60000, 1971, 59296
+    blocks = [HeapBlock(0, 90, "actrec"), HeapBlock(90, 9, "object", "int"),
+              HeapBlock(99, rop - 99, "object", "string"), HeapBlock(rop, lsp - rop, "free"),
+              HeapBlock(lsp, size - lsp, "segment", "segment")]
+    view = RobotInspection(0, 0, 0, "running", 0, size, rop, lsp, 90, blocks, 2675, 57325, None,
+                           None, None)
+    svg = render_heap_svg(view)
+    assert 'width="63.0" height="14" fill="#4dabf7"' in svg   # the 9-byte int at 7 px a byte
+    assert f"{lsp // 64 * 64 - 1984:,} bytes not drawn (1984..{lsp // 64 * 64}: free)" in svg
+    assert "ROP 1971" in svg and "LSP 59296" in svg
+    row_labels = re.findall(r'fill="#868e96">(\d+)</text>', svg)
+    assert row_labels[0] == "0" and row_labels[-1] == str(59968) and len(row_labels) == 31 + 12

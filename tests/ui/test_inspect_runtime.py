@@ -8,12 +8,15 @@ table goes out as its type only (BittyBuzz's 9-byte payload carries one 3-byte v
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+
+REPO = Path(__file__).resolve().parents[2]
 
 try:
     BACKEND: WorldsBackend | None = WorldsBackend()
@@ -99,6 +102,7 @@ def test_an_undefined_call_is_explained_at_its_line(tmp_path: Path) -> None:
         "TYPE: `nosuchfunction` is nil here: it is not defined, and no host function of the "
         f"Kilobot has that name at {path.resolve()}:4:2")
     assert view.last_error_line is not None and "nosuchfunction(id)" in view.last_error_line
+    assert view.pc_line == 4  # the header's "pc N (line 4)": the call's line, not the `}`
     [(where, message, robots)] = sim.runtime_errors()
     assert (where.line, where.col, robots) == (4, 2, 3)
     assert message.startswith("TYPE: `nosuchfunction` is nil here")
@@ -134,3 +138,65 @@ def test_an_int16_overflow_is_warned_once_at_the_literal(tmp_path: Path) -> None
     shown = _warnings_of(compiled, program) + find_pitfalls(text)
     assert [(d.line, d.col) for d in shown] == [(1, 10)]
     assert "int16" in shown[0].message
+
+
+def test_switching_world_then_opening_its_example(tmp_path: Path) -> None:
+    """After the World dropdown changes, one click puts that world's example in the editor
+    (saved and compiled for the new world), instead of the old world's script."""
+    from browser import free_port
+
+    from bbzide.ui.app import IdeApp
+    from bbzide.ui.run_controller import RunSettings
+
+    assert BACKEND is not None
+    script = tmp_path / "mine.bzz"
+    script.write_text((REPO / "examples/kilobot/gradient.bzz").read_text())
+    app = IdeApp(script, BACKEND, RunSettings("kilobot", 4, 0), port=free_port()).start(run=False)
+    try:
+        app.controls.world.value = "crazyflie"
+        app._change_world("crazyflie")  # what choosing it in the World dropdown does
+        assert app.load_world_example()
+        example = BACKEND.example_path("crazyflie")
+        assert example is not None
+        assert script.read_text() == example.read_text() == app.session.text
+        assert app.session.outcome is not None and app.session.outcome.ok
+    finally:
+        app.stop()
+
+
+STUDENT = "function init() {}\nfunction step() {\n  led(1)\n  nosuchfunction(id)\n}\n"
+
+
+def test_the_error_line_is_the_compiled_one_not_the_file_on_disk(tmp_path: Path) -> None:
+    """The file changed after the robots got their program: the inspector shows the line the
+    robots run, live and in a replay of a recording."""
+    from bbzide.cli import main
+    from bbzide.recording.reader import read_recording
+    from bbzide.recording.rebuild import RobotRebuilder
+    from bbzide.ui.replay_session import ReplaySession
+
+    assert BACKEND is not None
+    path = tmp_path / "student.bzz"
+    path.write_text(STUDENT)
+    _, program = BACKEND.compile(STUDENT, path, "kilobot")
+    sim = BACKEND.create("kilobot", program, 2, 1)
+    sim.step()
+    recording_path = tmp_path / "student.rrd"
+    assert main(["run", str(path), "--world", "kilobot", "--robots", "2", "--steps", "3",
+                 "--record", str(recording_path)]) == 0
+    path.write_text("# rewritten\n" * 10)  # the file on disk moves on
+    assert sim.inspect(0).last_error_line == "  nosuchfunction(id)"
+    recording = read_recording(recording_path)
+    session = ReplaySession(recording, RobotRebuilder(recording))
+    view = session.inspect(0, recording.last_step)
+    assert view.last_error is not None and "`nosuchfunction` is nil here" in view.last_error
+    assert view.last_error_line == "  nosuchfunction(id)"
+
+
+def test_the_replay_program_tab_numbers_the_lines() -> None:
+    from bbzide.ui.replay_app import numbered_source_html
+
+    text = numbered_source_html("var a = 1\n\nfunction step() { a = a < 2 }\n")
+    rows = [re.sub(r"<[^>]+>", "", row) for row in text.split("\n")]
+    assert rows == ["1 │ var a = 1", "2 │ ", "3 │ function step() { a = a &lt; 2 }"]
+    assert numbered_source_html(None) == "(the recording has no source text)"
