@@ -1,13 +1,13 @@
 // The Buzz language for CodeMirror: a stream tokenizer (our own, no grammar generator) that
-// colours Buzz, tracks bracket depth for auto-indent, and a lexer over a whole text that the
-// completion's scope scan (completion.js) reads.
+// colours Buzz, an auto-indent, and a lexer over a whole text that the
+// completion's scope scan (completion.js) and the auto-indent read.
 //
 // Design: Buzz's lexical rules are few ('#' comments to the end of the line, strings in either
 // quote with backslash escapes and raw newlines, numbers = a digit then digits and dots,
 // names = a letter or '_' then letters, digits, '_'), so one hand-written tokenizer serves both
 // the highlighter (line by line, through StreamLanguage) and the scope scan (whole text).
 
-import { StreamLanguage } from "@codemirror/language";
+import { StreamLanguage, indentService } from "@codemirror/language";
 import { Tag, tags, tagHighlighter } from "@lezer/highlight";
 
 export const KEYWORDS = new Set(["var", "if", "else", "function", "return", "for", "while",
@@ -38,7 +38,7 @@ export const buzzHighlighter = tagHighlighter([
 export function buzzLanguage(builtins) {
   return StreamLanguage.define({
     name: "buzz",
-    startState: () => ({ depth: 0, quote: null }),
+    startState: () => ({ quote: null }),  // the quote of a string still open at a line's end
     copyState: (state) => ({ ...state }),
     token(stream, state) {
       if (state.quote !== null) return continueString(stream, state);
@@ -54,15 +54,9 @@ export function buzzLanguage(builtins) {
         const afterDot = stream.start > 0 && stream.string[stream.start - 1] === ".";
         return !afterDot && builtins.has(word) ? "buzzBuiltin" : "variableName";
       }
-      if (OPENING.includes(c)) { state.depth++; return "bracket"; }
-      if (CLOSING.includes(c)) { state.depth = Math.max(0, state.depth - 1); return "bracket"; }
+      if (OPENING.includes(c) || CLOSING.includes(c)) return "bracket";
       if (OPERATORS.test(c)) { stream.eatWhile(OPERATORS); return "operator"; }
       return "punctuation";
-    },
-    // One indent unit per open bracket; a line starting with a closing one goes back a level.
-    indent(state, textAfter, context) {
-      const closes = CLOSING.includes(textAfter.trimStart().charAt(0)) ? 1 : 0;
-      return Math.max(0, state.depth - closes) * context.unit;
     },
     // (not "builtin": CodeMirror reads that legacy name as variableName.standard)
     tokenTable: { buzzBuiltin: builtinTag },
@@ -72,6 +66,23 @@ export function buzzLanguage(builtins) {
     },
   });
 }
+
+/**
+ * Auto-indent: one unit per bracket left open before the line (strings and comments aside); a
+ * line starting with a closing bracket goes back a level. Read from the whole text before the
+ * line, so it holds wherever the editor asks (Enter, a typed "}", a paste).
+ */
+export const buzzIndentation = indentService.of((context, pos) => {
+  let depth = 0;
+  for (const token of lexBuzz(context.state.doc.sliceString(0, pos))) {
+    if (token.kind !== "punct") continue;
+    if (OPENING.includes(token.text)) depth++;
+    else if (CLOSING.includes(token.text)) depth = Math.max(0, depth - 1);
+  }
+  const first = context.textAfterPos(pos).trimStart().charAt(0);
+  const closes = first !== "" && CLOSING.includes(first) ? 1 : 0;
+  return Math.max(0, depth - closes) * context.unit;
+});
 
 function continueString(stream, state) {
   while (!stream.eol()) {

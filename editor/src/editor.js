@@ -30,7 +30,7 @@ import {
   hoverTooltip, keymap, lineNumbers,
 } from "@codemirror/view";
 
-import { buzzHighlighter, buzzLanguage } from "./buzz-language.js";
+import { buzzHighlighter, buzzIndentation, buzzLanguage } from "./buzz-language.js";
 import { builtinNames, buzzCompletions, hoverDoc, setReferenceItems } from "./completion.js";
 import { diagnosticPlace, diagnosticText, diagnosticsExtension, showDiagnostics } from "./diagnostics.js";
 
@@ -69,6 +69,7 @@ const view = new EditorView({
       history(),
       drawSelection(),
       indentUnit.of(INDENT),
+      buzzIndentation,
       indentOnInput(),
       languageSlot.of(buzzLanguage(new Set())),
       syntaxHighlighting(buzzHighlighter),

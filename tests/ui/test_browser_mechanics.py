@@ -41,7 +41,7 @@ def test_page_loads_and_scene_renders(ide: IdeSession) -> None:
     x0, y0 = int(canvas["x"]), int(canvas["y"])
     scene = pixels[y0 : y0 + int(canvas["height"]), x0 : x0 + int(canvas["width"])]
     assert scene.std() > 10, "the 3D view is blank"
-    editor_lines = ide.editor.locator("#gutter div")
+    editor_lines = ide.editor.locator(".cm-line")
     assert editor_lines.count() == SCRIPT.count("\n") + 1
     assert ide.editor.locator(".tok-keyword").first.inner_text() == "function"
     assert ide.context.foreign_requests == []  # nothing leaves the machine
