@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 import pytest
 from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
-from ide_harness import IdeSession, editor_text, running_ide
+from ide_harness import SCREENSHOT_DIR, IdeSession, editor_text, running_ide
 
 from bbzide.compiler.reference import BUILTINS
 from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
@@ -150,6 +150,8 @@ def test_reference_page_in_the_ide(ide: IdeSession) -> None:
         signature, _doc = host_doc("kilobot", "motion")
         assert signature in page.locator("#reference").inner_text()
         assert page.locator("#built-ins").count() == 1  # sections can be linked to
+        SCREENSHOT_DIR.mkdir(parents=True, exist_ok=True)
+        page.screenshot(path=str(SCREENSHOT_DIR / "editor_reference_page.png"))
     finally:
         page.close()
     link = ide.editor.locator("#reference-link")
