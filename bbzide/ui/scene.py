@@ -49,6 +49,10 @@ CAMERA_SLACK = 1.1
 #: assumed this narrow: the 3D view between the docked editor (600 px) and control panel at a
 #: 1400 x 900 window is about 420 x 880 px. A wider view then just shows more around the box.
 ASSUMED_ASPECT = 0.45
+#: A tab's camera is aimed again when its canvas's width/height differs from the one it was
+#: aimed for by more than this share (10 %): a resized window, or a first real size far from
+#: the assumed one; not for every camera message, so a camera the user moved stays.
+REAIM_ASPECT_CHANGE = 0.1
 #: A robot is drawn with a radius of at least this share of the framed box's larger side: at
 #: the narrowest view (about 420 px for 1.1 times the box) a disc of about 14 px, visible and
 #: clickable on a light floor. Crazyflies (4.6 cm in a 6 m lab) are drawn 2.5 times their size;
@@ -191,7 +195,7 @@ class SwarmScene:
         self._view_box: tuple[float, float, float, float] | None = None
         self._selection: dict[int, int] = {}  # client id -> selected robot index
         self._selection_marks: dict[int, tuple[viser.LineSegmentsHandle, viser.LabelHandle]] = {}
-        self._canvas_sizes: dict[int, tuple[int, int]] = {}  # client id -> last canvas size
+        self._aimed_aspects: dict[int, float] = {}  # client id -> canvas aspect last aimed for
         self.last_frame: SwarmFrame | None = None
         server.scene.set_up_direction("+z")
         self._headings = server.scene.add_line_segments(
@@ -263,17 +267,19 @@ class SwarmScene:
 
     def aim_camera(self, client: viser.ClientHandle) -> None:
         """Point this tab's camera at the world's area of interest, fitted to its canvas; again
-        whenever the tab reports another canvas size (its first real size arrives after it
-        connects; a resized window)."""
-        if client.client_id not in self._canvas_sizes:
-            self._canvas_sizes[client.client_id] = (0, 0)
+        when the tab reports a canvas whose shape differs from the one aimed for (its real size
+        arrives after it connects; a resized window)."""
+        if client.client_id not in self._aimed_aspects:
+            self._aimed_aspects[client.client_id] = ASSUMED_ASPECT
 
             @client.camera.on_update
             def _(camera: viser.CameraHandle) -> None:
-                size = (int(camera.image_width), int(camera.image_height))
-                if self._canvas_sizes.get(client.client_id) not in (None, size):
-                    self._canvas_sizes[client.client_id] = size
-                    self.aim_camera(client)
+                aimed = self._aimed_aspects.get(client.client_id)
+                if aimed is None or camera.image_height <= 0:
+                    return
+                aspect = camera.image_width / camera.image_height
+                if abs(aspect / aimed - 1.0) > REAIM_ASPECT_CHANGE:
+                    self.aim_camera(client)  # (a camera the user moved is left alone)
 
         if self.geometry is None or self._view_box is None:
             return
@@ -281,6 +287,7 @@ class SwarmScene:
             aspect, fov = float(client.camera.aspect), float(client.camera.fov)
         except (AssertionError, ZeroDivisionError):
             aspect, fov = ASSUMED_ASPECT, float(self.server.initial_camera.fov)
+        self._aimed_aspects[client.client_id] = aspect
         position, look_at = camera_pose(self._view_box, self.geometry.height, aspect, fov)
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
@@ -439,7 +446,7 @@ class SwarmScene:
                 self._draw_selection(client, self.last_frame)
 
     def forget_client(self, client_id: int) -> None:
-        self._canvas_sizes.pop(client_id, None)
+        self._aimed_aspects.pop(client_id, None)
         with self._selection_lock:
             self._selection.pop(client_id, None)
             self._selection_marks.pop(client_id, None)

@@ -260,9 +260,6 @@ def summary(sim: Any, steps: int, boot_seconds: float, run_seconds: float) -> st
     return "\n".join(lines)
 
 
-#: A robot whose heap peak reaches this share of its profile's heap gets a warning: the next
-#: burst of allocations (a larger table, more messages in a step) may stop it with MEM.
-HEAP_WARNING_SHARE = 0.85
 #: Up to this many robots, each robot's peak is listed; a larger swarm gets the range.
 LISTED_ROBOTS = 12
 
@@ -271,6 +268,7 @@ def heap_lines(sim: Any) -> list[str]:
     """Each robot's peak heap against its profile's heap (and the platform's RAM), with a
     warning naming the robots near the limit."""
     from bbzide.compiler.footprint import RAM_BYTES
+    from bbzide.vm.commands import HEAP_WARNING_SHARE  # the one-robot run's threshold too
 
     peaks = [(s.robot_id, int(s.robot.vm.heap.peak_used), s.robot.profile)
              for s in sim.robots if s.robot is not None]
