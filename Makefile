@@ -1,5 +1,5 @@
 # bbzide: two commands on a fresh machine.
-#   make run    set up (venv, pinned deps) and open the IDE on the default world
+#   make run    set up (venv, pinned deps, the editor bundle) and open the IDE on the default world
 #   make test   set up and run every test (lint, unit, corpus conformance, browser)
 # Also: make bench (benchmarks/*.py), make screenshots (docs/screenshots/*.png, the README's
 # pictures, taken in headless Chromium), make lint, make lock, make clean.
@@ -8,6 +8,10 @@ PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
+# The editor page's bundle: CodeMirror 6 and our Buzz mode (editor/src/), installed from the npm
+# registry at the versions of editor/package-lock.json and bundled by esbuild; never committed.
+BUNDLE := bbzide/ui/static/dist/editor.js
+EDITOR_SOURCES := $(wildcard editor/src/*.js) editor/build.mjs editor/package-lock.json
 
 # The lock: every package of the whole transitive set (all extras, pip and setuptools too) at an
 # exact version with its sha256 hashes, so two fresh machines install the same files. `make lock`
@@ -36,7 +40,10 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(PY) scripts/warm_kernels.py
 	touch $(STAMP)
 
-setup: $(STAMP)
+$(BUNDLE): $(EDITOR_SOURCES)
+	cd editor && npm ci --no-audit --no-fund --loglevel=error && node build.mjs
+
+setup: $(STAMP) $(BUNDLE)
 
 # Debian's Chromium drives the browser tests (Playwright never downloads a browser here).
 browser:
@@ -68,4 +75,5 @@ screenshots: setup browser
 	$(PY) scripts/screenshots.py docs/screenshots
 
 clean:
-	rm -rf $(VENV) $(LOCK_VENV) build *.egg-info .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(LOCK_VENV) editor/node_modules bbzide/ui/static/dist build *.egg-info .pytest_cache \
+		.ruff_cache

@@ -83,7 +83,7 @@ def _select_robot(index: int) -> Callable[[IdeApp, object, object], None]:
 
 def _wait_for_runtime_marker(app: IdeApp, page: object, client: object) -> None:
     editor = page.frame_locator("iframe.bbzide-editor")  # type: ignore[attr-defined]
-    editor.locator("#gutter div.runtime-line").wait_for(timeout=UI_WAIT_S * 1000)
+    editor.locator(".bbz-markers .runtime-line").wait_for(timeout=UI_WAIT_S * 1000)
 
 
 def main(out_dir: Path) -> None:

@@ -61,7 +61,10 @@ class IdeApp:
         self.session = ProgramSession(
             source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls
         )
-        self.server = open_server(host, port, self.token, editor_routes(self.session))
+        self.server = open_server(
+            host, port, self.token,
+            editor_routes(self.session, lambda: self.controller.settings.world),
+        )
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.overlays = OverlayView(self.server)
         self._overlay_ticks = 0

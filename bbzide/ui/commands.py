@@ -54,7 +54,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     ide.add_argument("--world", help="world to open (default: the Kilobot table)")
     ide.add_argument("--robots", type=int, help="number of robots (default: the world's)")
     ide.add_argument("--seed", type=int, default=None,
-                     help=f"world seed (default: the scenario's, else {DEFAULT_SEED} as in run)")
+                     help=f"world seed (default: the scenario's, else {DEFAULT_SEED} "
+                          "as bbzide run --world)")
     ide.add_argument(
         "--speed",
         type=float,
@@ -144,9 +145,6 @@ def run_replay(args: argparse.Namespace) -> int:
         flush=True,
     )
     return serve_until_interrupted(app, open_browser=not args.no_browser)
-
-
-#: The seed of an IDE world when neither --seed nor a scenario gives one.
 
 
 def ide_scenario(path: Path, args: argparse.Namespace, script: Path | None = None) -> Any:

@@ -1,10 +1,13 @@
 """The Buzz editor's page and its websocket, served on the IDE's own (viser's) port.
 
 viser 1.1.1 has no code-editor widget (its multiline text input is a plain textarea without
-line numbers, highlighting or markers), so the editor is our own page (`static/editor.html|
-css|js`), shown inside the viser panel in an <iframe src="/editor/">. `editor_routes` hands the
-page's three files and its websocket, ``/editor/socket``, to `bbzide.ui.viser_server`, which
-checks every request (token, origin, host) before they get here.
+line numbers, highlighting or markers), so the editor is our own page: `static/editor.html|css`
+and CodeMirror 6 with our Buzz mode, completion and hover (editor/src/), which `make setup`
+bundles into `static/dist/` (`npm ci` + editor/build.mjs; never committed). It is shown inside
+the viser panel in an <iframe src="/editor/">. `editor_routes` hands the page's files, the Buzz
+reference page (``/editor/reference``, from the same tables as the completion) and the
+websocket, ``/editor/socket``, to `bbzide.ui.viser_server`, which checks every request (token,
+origin, host) before they get here. Without a built bundle the page says how to build it.
 
 The page and `ProgramSession` talk over that websocket in JSON: the page sends
 ``{"id": n, "op": ..., ...}`` and gets ``{"id": n, "code": <HTTP status>, ...}`` back, where
@@ -16,6 +19,12 @@ the code keeps HTTP's meaning (200 done, 400 malformed, 409 conflict, 413 too la
                                                      holding s), or 409 with the current
                                                      {revision, text}
     {"op": "compile"}                             -> state
+    {"op": "reference"}                           -> {world, items}: the built-ins and the
+                                                     world's host functions for completion and
+                                                     hover (`completion_items`)
+
+Every state carries ``world``, the world the program runs in, so the page asks for the
+reference again when the user switches worlds.
 
 A save names the revision it was based on; if the file changed since (another tab, an external
 editor), nothing is written and the page shows both texts (`ProgramSession.edit_from_browser`).
@@ -29,6 +38,8 @@ from __future__ import annotations
 
 import asyncio
 import json
+import sys
+from collections.abc import Callable
 from http import HTTPStatus
 from pathlib import Path
 from typing import Any
@@ -38,16 +49,29 @@ from websockets.exceptions import ConnectionClosed
 
 from bbzide.ui.program_session import EditConflict, ProgramSession
 from bbzide.ui.viser_server import Page, Routes
+from bbzide.worlds.reference import completion_items, reference_markdown
 
 STATIC_DIR = Path(__file__).resolve().parent / "static"
 #: Where the editor lives on the IDE's port (viser's own client owns "/").
 EDITOR_PATH = "/editor/"
 SOCKET_PATH = EDITOR_PATH + "socket"
+REFERENCE_PATH = EDITOR_PATH + "reference"
+HTML = "text/html; charset=utf-8"
+SCRIPT = "application/javascript; charset=utf-8"
 STATIC_FILES = {
-    EDITOR_PATH: ("editor.html", "text/html; charset=utf-8"),
+    EDITOR_PATH: ("editor.html", HTML),
     EDITOR_PATH + "editor.css": ("editor.css", "text/css; charset=utf-8"),
-    EDITOR_PATH + "editor.js": ("editor.js", "application/javascript; charset=utf-8"),
+    REFERENCE_PATH: ("reference.html", HTML),
 }
+#: The bundles `make setup` builds (editor/build.mjs): path on the IDE's port -> file in dist/.
+BUNDLE_DIR = STATIC_DIR / "dist"
+BUNDLES = {
+    EDITOR_PATH + "dist/editor.js": "editor.js",
+    EDITOR_PATH + "dist/reference.js": "reference.js",
+}
+#: What a missing bundle says, in the page and once on the terminal.
+BUNDLE_MISSING = ("bbzide: the editor bundle is not built (bbzide/ui/static/dist/): run "
+                  "`make setup` (it runs npm ci and editor/build.mjs)")
 #: Largest message accepted: a generous bound for a Buzz script (the Kilobot flash is 32 KB);
 #: a larger one closes the connection (websocket close code 1009) before it is read whole.
 MAX_MESSAGE_BYTES = 2 * 1024 * 1024
@@ -61,19 +85,43 @@ class BadMessage(ValueError):
         self.status = status
 
 
-def editor_routes(session: ProgramSession) -> Routes:
+def editor_routes(session: ProgramSession, world: Callable[[], str | None] = lambda: None
+                  ) -> Routes:
+    """The editor's pages and socket; `world()` names the world the program runs in now."""
     pages = {
         path: Page((STATIC_DIR / name).read_bytes(), mime)
         for path, (name, mime) in STATIC_FILES.items()
     }
-    return Routes(pages=pages, sockets={SOCKET_PATH: EditorSocket(session).serve})
+    pages.update(bundle_pages())
+    pages[REFERENCE_PATH + ".md"] = Page(reference_markdown().encode(),
+                                         "text/markdown; charset=utf-8")
+    return Routes(pages=pages, sockets={SOCKET_PATH: EditorSocket(session, world).serve})
+
+
+def bundle_pages() -> dict[str, Page]:
+    """The built bundles; a missing one is replaced by a script that shows `BUNDLE_MISSING` in
+    the page (and the terminal says it once), so the IDE still runs and says what to do."""
+    pages = {}
+    missing = False
+    for path, name in BUNDLES.items():
+        try:
+            body = (BUNDLE_DIR / name).read_bytes()
+        except OSError:
+            missing = True
+            body = ("document.body.textContent = " + json.dumps(BUNDLE_MISSING) + ";").encode()
+        pages[path] = Page(body, SCRIPT)
+    if missing:
+        print(BUNDLE_MISSING, file=sys.stderr)
+    return pages
 
 
 class EditorSocket:
     """Answers one editor page's messages for as long as its websocket is open."""
 
-    def __init__(self, session: ProgramSession) -> None:
+    def __init__(self, session: ProgramSession,
+                 world: Callable[[], str | None] = lambda: None) -> None:
         self.session = session
+        self.world = world
 
     async def serve(self, connection: ServerConnection) -> None:
         connection.protocol.max_message_size = MAX_MESSAGE_BYTES
@@ -107,24 +155,27 @@ class EditorSocket:
             return {"id": request_id, "code": int(HTTPStatus.CONFLICT),
                     "error": "the file changed since this text was loaded",
                     "revision": conflict.revision, "text": conflict.text,
-                    **self.session.state()}
+                    **self._state()}
         except BadMessage as bad:
             return {"id": request_id, "code": int(bad.status), "error": str(bad)}
         except OSError as error:  # the disk refused the save: the page shows why
             return {"id": request_id, "code": int(HTTPStatus.INTERNAL_SERVER_ERROR),
                     "error": f"could not save: {error.strerror or error}",
-                    **self.session.state()}
+                    **self._state()}
 
     def _do(self, request: dict[str, Any]) -> dict[str, Any]:
         session = self.session
         op = request.get("op")
         if op == "state":
-            return session.state()
+            return self._state()
         if op == "source":
             return session.source()
         if op == "compile":
             session.compile_now()
-            return session.state()
+            return self._state()
+        if op == "reference":
+            world = self.world()
+            return {"world": world, "items": completion_items(world)}
         if op == "save":
             text = request.get("text")
             base = request.get("base_revision")
@@ -134,8 +185,11 @@ class EditorSocket:
                 raise BadMessage("save needs \"base_revision\": the revision the text is based on")
             saved = session.save_from_browser(text, base_revision=base)
             session.ensure_compiled(saved)
-            return {**session.state(), "saved_revision": saved}
-        raise BadMessage(f"unknown op {op!r}: state, source, save or compile")
+            return {**self._state(), "saved_revision": saved}
+        raise BadMessage(f"unknown op {op!r}: state, source, save, compile or reference")
+
+    def _state(self) -> dict[str, Any]:
+        return {**self.session.state(), "world": self.world()}
 
 
 def parse_message(message: str | bytes) -> dict[str, Any]:

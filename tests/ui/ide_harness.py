@@ -175,3 +175,9 @@ def running_ide(
             yield IdeSession(app, context, open_app_page(context, app))
     finally:
         app.stop()
+
+
+def editor_text(source: object) -> str:
+    """The text the CodeMirror editor shows; `source` is its `#source` locator (the editor
+    draws only the visible lines, so the DOM's text is not the document's)."""
+    return source.evaluate("() => window.buzzEditor.text()")  # type: ignore[attr-defined]

@@ -25,7 +25,7 @@ import pytest
 import websockets.sync.client
 from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until
 from doubles import FakeBackend
-from ide_harness import SCREENSHOT_DIR, IdeSession
+from ide_harness import SCREENSHOT_DIR, IdeSession, editor_text
 
 from bbzide.recording.reader import read_recording
 from bbzide.recording.rebuild import RobotRebuilder
@@ -50,7 +50,7 @@ async (ide) => {
     await fetch(ide + "/editor/socket", {method: "POST", mode: "no-cors", body});
     results.blind_post = "sent";
   } catch (error) { results.blind_post = "failed"; }
-  for (const path of ["/editor/", "/", "/editor/editor.js"]) {
+  for (const path of ["/editor/", "/", "/editor/dist/editor.js", "/editor/reference.md"]) {
     try {
       const answer = await fetch(ide + path);
       results["read " + path] = "READ " + answer.status + " " + (await answer.text()).slice(0, 30);
@@ -202,8 +202,8 @@ def raw_status(port: int, request: bytes, host: str = "127.0.0.1") -> str:
 def test_without_the_token_a_plain_client_gets_nothing(ide: IdeSession) -> None:
     app = ide.app
     port = app.server.get_port()
-    for path in ("/", "/index.html", "/editor/", "/editor/editor.js", "/editor/socket",
-                 "/no-such-file"):
+    for path in ("/", "/index.html", "/editor/", "/editor/dist/editor.js", "/editor/reference",
+                 "/editor/socket", "/no-such-file"):
         status, text = plain_get(port, path)
         assert status == 403 and "token" in text, (path, status, text)
     assert plain_get(port, "/?token=not-the-token")[0] == 403
@@ -248,7 +248,7 @@ def test_with_the_token_a_script_can_use_the_editor_socket(ide: IdeSession) -> N
 def test_the_ide_works_with_the_token_and_sets_its_cookie(ide: IdeSession) -> None:
     editor = ide.editor
     source = editor.locator("#source")  # type: ignore[attr-defined]
-    wait_until(lambda: source.input_value() == SCRIPT, UI_WAIT_S, message="script in the editor")
+    wait_until(lambda: editor_text(source) == SCRIPT, UI_WAIT_S, message="script in the editor")
     cookies = {c["name"]: c for c in ide.context.cookies()}  # type: ignore[attr-defined]
     cookie = cookies[cookie_name(ide.app.server.get_port())]
     assert cookie["value"] == ide.app.token and cookie["httpOnly"]
@@ -297,7 +297,7 @@ def test_bound_on_every_interface_the_ide_works_through_the_machines_address(
         try:
             frame = page.frame_locator("iframe.bbzide-editor")
             source = frame.locator("#source")
-            wait_until(lambda: source.input_value() == SCRIPT, UI_WAIT_S,
+            wait_until(lambda: editor_text(source) == SCRIPT, UI_WAIT_S,
                        message="script in the editor loaded through " + address)
             source.click()
             page.keyboard.press("Control+End")

@@ -44,7 +44,7 @@ def test_real_syntax_error_marker_and_fix(ide: IdeSession) -> None:
     ide.page.keyboard.press("Control+End")
     ide.page.keyboard.type("if count > 10 {\n")  # Buzz needs parentheses: error at line 11
     ide.settled("if count > 10 {")  # a half-typed "i" may have compiled and reloaded on the way
-    marker = ide.editor.locator("#gutter div.error-line")
+    marker = ide.editor.locator(".bbz-markers .error-line")
     marker.wait_for(timeout=UI_WAIT_MS)
     first = app.session.outcome.diagnostics[0]
     assert (first.line, first.col) == (11, 3) and "expected (" in first.message
@@ -77,6 +77,6 @@ def test_pitfall_warning_shows_in_the_editor(ide: IdeSession) -> None:
     warning = ide.editor.locator("#diagnostics .diag-warning")
     warning.wait_for(timeout=UI_WAIT_MS)
     assert "11:4:" in warning.first.inner_text() and "truth value" in warning.first.inner_text()
-    assert ide.editor.locator('#gutter div.warning-line[data-line="11"]').count() == 1
-    assert ide.editor.locator("#gutter div.error-line").count() == 0
+    assert ide.editor.locator('.bbz-markers .warning-line[data-line="11"]').count() == 1
+    assert ide.editor.locator(".bbz-markers .error-line").count() == 0
     ide.screenshot("buzz_pitfall_warning")

@@ -16,12 +16,12 @@ from pathlib import Path
 import pytest
 from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from doubles import FakeBackend
-from ide_harness import SCREENSHOT_DIR, IdeSession, running_ide
+from ide_harness import SCREENSHOT_DIR, IdeSession, editor_text, running_ide
 
 from bbzide.ui.program_session import write_atomically
 
 SCRIPT = "# shared\nfunction init() {\n  x = 1\n}\n"
-#: Past the editor's typing debounce (EDIT_DEBOUNCE_MS = 400 in editor.js) and a poll.
+#: Past the editor's typing debounce (EDIT_DEBOUNCE_MS = 400 in editor/src/editor.js) and a poll.
 PAST_DEBOUNCE_MS = 1000
 
 
@@ -41,7 +41,7 @@ def stale_tab(ide: IdeSession) -> object:
     page.goto(ide.app.editor_url)  # the IDE's cookie (set by the main tab) lets it in
     source = page.locator("#source")
     text = ide.app.session.text
-    wait_until(lambda: source.input_value() == text, UI_WAIT_S, message="the tab loaded")
+    wait_until(lambda: editor_text(source) == text, UI_WAIT_S, message="the tab loaded")
     return page
 
 
@@ -67,7 +67,7 @@ def test_a_stale_tab_keeps_both_texts_and_overwrites_only_when_told(ide: IdeSess
         page.clock.run_for(PAST_DEBOUNCE_MS)  # type: ignore[attr-defined]  # the upload goes
         notice = page.locator("#conflict")  # type: ignore[attr-defined]
         notice.wait_for(state="visible", timeout=UI_WAIT_MS)
-        mine = page.locator("#source").input_value()  # type: ignore[attr-defined]
+        mine = editor_text(page.locator("#source"))  # type: ignore[attr-defined]
         assert mine.endswith("# mine\n") and "# theirs" not in mine  # the user's text stays
         assert Path(session.path).read_text() == theirs  # the newer text was not overwritten
         assert session.revision == revision
@@ -75,7 +75,7 @@ def test_a_stale_tab_keeps_both_texts_and_overwrites_only_when_told(ide: IdeSess
         SCREENSHOT_DIR.mkdir(parents=True, exist_ok=True)
         page.screenshot(path=str(SCREENSHOT_DIR / "edit_conflict_notice.png"))  # type: ignore[attr-defined]
         page.clock.run_for(PAST_DEBOUNCE_MS)  # type: ignore[attr-defined]  # polls: no reload
-        assert page.locator("#source").input_value() == mine  # type: ignore[attr-defined]
+        assert editor_text(page.locator("#source")) == mine  # type: ignore[attr-defined]
         page.locator("#overwrite").click()  # type: ignore[attr-defined]
         wait_until(lambda: session.text == mine, UI_WAIT_S, message="overwrite saved")
         assert Path(session.path).read_text() == mine
@@ -96,7 +96,7 @@ def test_a_stale_tab_can_take_the_disk_version(ide: IdeSession) -> None:
         assert Path(session.path).read_text() == theirs
         page.locator("#take-disk").click()  # type: ignore[attr-defined]
         source = page.locator("#source")  # type: ignore[attr-defined]
-        wait_until(lambda: source.input_value() == theirs, UI_WAIT_S, message="disk text shown")
+        wait_until(lambda: editor_text(source) == theirs, UI_WAIT_S, message="disk text shown")
         page.clock.run_for(PAST_DEBOUNCE_MS)  # type: ignore[attr-defined]
         type_at_end(page, "# next\n")  # the tab is in step again: its next save goes through
         page.clock.run_for(PAST_DEBOUNCE_MS)  # type: ignore[attr-defined]

@@ -84,7 +84,7 @@ def test_compile_error_marks_the_line_and_the_fix_reloads(ide: IdeSession) -> No
     assert session.outcome is not None and not session.outcome.ok
     broken_line = session.text.splitlines().index("x = = 1") + 1
     assert broken_line == len(original.splitlines()) + (2 if original.endswith("\n") else 1)
-    marker = ide.editor.locator("#gutter div.error-line")
+    marker = ide.editor.locator(".bbz-markers .error-line")
     wait_until(
         lambda: marker.get_attribute("data-line") == str(broken_line),
         UI_WAIT_S,
