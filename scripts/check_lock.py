@@ -19,12 +19,14 @@ LOCK_NAME = "requirements.lock"
 
 
 def pinned_requirements(pyproject: dict) -> list[str]:
-    """Every requirement string of the project, its extras included."""
+    """Every requirement string of the project, its extras included. An extra that names the
+    project itself (`bbzide[cluster]` in `dev`) adds that extra's pins, which are read anyway."""
     project = pyproject["project"]
     requirements = list(project.get("dependencies", []))
     for extra in project.get("optional-dependencies", {}).values():
         requirements.extend(extra)
-    return requirements
+    own = project.get("name")
+    return [r for r in requirements if r.partition("[")[0].strip() != own]
 
 
 def mismatches(requirements: list[str]) -> list[str]:

@@ -23,6 +23,13 @@ def test_every_pin_of_pyproject_and_its_extras_is_read() -> None:
         "numpy==2.4.6", "numba==0.68.1", "pytest==9.2.0"]
 
 
+def test_an_extra_naming_the_project_itself_adds_no_requirement_of_its_own() -> None:
+    pyproject = {"project": {"name": "bbzide", "dependencies": [],
+                             "optional-dependencies": {"cluster": ["dask==2026.8.0"],
+                                                       "dev": ["bbzide[cluster]"]}}}
+    assert check_lock.pinned_requirements(pyproject) == ["dask==2026.8.0"]
+
+
 def test_a_missing_package_another_version_and_a_loose_pin_are_each_named() -> None:
     installed_numpy = check_lock.metadata.version("numpy")
     problems = check_lock.mismatches([
