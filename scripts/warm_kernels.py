@@ -14,7 +14,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from bbzide.vm import fastgc
+from bbzide.vm import kernels
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
@@ -27,7 +27,7 @@ ROBOTS = 4
 
 
 def main() -> None:
-    if not fastgc.COMPILED:
+    if not kernels.COMPILED:
         print("numba is not installed: the VM's kernels run as plain Python (slower); "
               "nothing to compile", flush=True)
         return
