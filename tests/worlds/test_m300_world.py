@@ -143,8 +143,9 @@ def test_max_cells_is_the_sar_scripts_key_table():
 
 
 def test_a_threshold_no_cell_reaches_names_the_threshold():
+    """Targets drawn only where the prior reaches the threshold (`likely`) need such a cell."""
     with pytest.raises(WorldConfigError, match="no belief cell reaches 50 % "):
-        one_drone({}, belief_map=[[0.1, 0.1], [0.1, 0.1]], threshold=50)
+        one_drone({}, belief_map=[[0.1, 0.1], [0.1, 0.1]], threshold=50, targets_where="likely")
 
 
 def test_doze_skips_steps_until_the_drone_changes_cell():
