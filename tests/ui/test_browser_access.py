@@ -26,17 +26,12 @@ import websockets.sync.client
 from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until
 from doubles import FakeBackend
 from ide_harness import SCREENSHOT_DIR, IdeSession, editor_text
+from test_browser_replay import toy_replay_session
 
-from bbzide.recording.reader import read_recording
-from bbzide.recording.rebuild import RobotRebuilder
-from bbzide.recording.recorder import MissionRecorder
 from bbzide.ui.access import cookie_name
 from bbzide.ui.app import IdeApp
 from bbzide.ui.replay_app import ReplayApp
-from bbzide.ui.replay_session import ReplaySession
 from bbzide.ui.run_controller import RunSettings
-from tests.recording.doubles import ToyRobot
-from tests.recording.test_recording import toy_swarm
 
 SCRIPT = "# guarded\nfunction init() {\n  x = 1\n}\n\nfunction step() {\n  x = x + 1\n}\n"
 VISER_PROTOCOL = "viser-v1.1.1"  # the subprotocol viser's own client asks for
@@ -323,14 +318,7 @@ class _At:
 
 def test_the_replay_is_guarded_the_same_way(tmp_path: Path) -> None:
     """`bbzide replay` stands on the same server: no token, a forged host, another origin: 403."""
-    path = tmp_path / "toy.rrd"
-    sim, recordable = toy_swarm()
-    with MissionRecorder(path, sim, recordable) as recorder:
-        for _ in range(5):
-            sim.step()
-            recorder.record_step()
-    recording = read_recording(path)
-    session = ReplaySession(recording, RobotRebuilder(recording, build=ToyRobot))
+    session = toy_replay_session(tmp_path / "toy.rrd", steps=5)
     app = ReplayApp(session, port=free_port()).start()
     try:
         port = app.server.get_port()

@@ -27,16 +27,20 @@ from tests.recording.test_recording import toy_swarm
 STEPS = 150
 
 
-@pytest.fixture(scope="module")
-def replay(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ReplayApp, object]]:
-    path = tmp_path_factory.mktemp("replay") / "toy.rrd"
+def toy_replay_session(path: Path, steps: int) -> ReplaySession:
+    """A replay of the toy swarm recorded for `steps` steps at `path` (rebuilt as ToyRobots)."""
     sim, recordable = toy_swarm()
     with MissionRecorder(path, sim, recordable) as recorder:
-        for _ in range(STEPS):
+        for _ in range(steps):
             sim.step()
             recorder.record_step()
     recording = read_recording(path)
-    session = ReplaySession(recording, RobotRebuilder(recording, build=ToyRobot))
+    return ReplaySession(recording, RobotRebuilder(recording, build=ToyRobot))
+
+
+@pytest.fixture(scope="module")
+def replay(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ReplayApp, object]]:
+    session = toy_replay_session(tmp_path_factory.mktemp("replay") / "toy.rrd", STEPS)
     app = ReplayApp(session, port=free_port()).start()
     try:
         with chromium_context() as context:
