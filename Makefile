@@ -55,8 +55,12 @@ run: setup
 lint: setup
 	$(VENV)/bin/ruff check bbzide tests benchmarks
 
+# The tests run on every core (pytest-xdist): tests sharing a module-scoped fixture stay on one
+# worker (tests/conftest.py groups them). `make test TEST_WORKERS=0` runs them in one process.
+TEST_WORKERS ?= auto
+
 test: setup browser lint
-	$(PY) -m pytest $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
 
 # Regenerate the lock after a change of pyproject.toml's dependencies, then `make setup`. uv keeps
 # the lock's present versions where pyproject.toml allows them (a new dependency brings only its

@@ -1,9 +1,18 @@
 """Shared pytest setup: the tests directory is importable (`import corpus`), the property tests'
-Hypothesis profile, and the run ends with the conformance corpus pass counts.
+Hypothesis profile, the grouping that lets `make test` run the tests on every core, and the run
+ends with the conformance corpus pass counts.
+
+Parallel runs (pytest-xdist, `make test` passes `-n auto --dist loadgroup`): each worker is a
+process of its own that takes whole groups of tests. A test that uses a module- or class-scoped
+fixture (a running IDE and its Chromium, a recorded replay, a swarm run shared by a module's
+asserts) joins its module's group, so the fixture is built once, as in a serial run; every other
+test goes to whichever worker is free. A test marked `xdist_group` keeps the group it names.
 
 Every test module that imports a corpus folder from `tests/corpus.py` is a corpus test; its
 parametrised tests (one case per corpus script or run) are tallied per test function and printed
-in the terminal summary, so `make test` shows e.g. "bo byte-identical: 81/81".
+in the terminal summary, so `make test` shows e.g. "bo byte-identical: 81/81". The tally travels
+with each test's report (its `user_properties`) and the loop-style counts of `corpus.report` with
+each worker's output, so a parallel run prints the same summary as a serial one.
 """
 
 from __future__ import annotations
@@ -28,8 +37,14 @@ settings.register_profile(
 settings.load_profile("bbzide")
 
 _CORPUS_PATHS = {corpus.CORPUS, corpus.COMPILER_DIR, corpus.COMPILER_ERRORS_DIR, corpus.BBZ_DIR}
+#: the user property naming a corpus case's tally line (it travels in the test's reports)
+_TALLY_PROPERTY = "corpus_tally"
+#: the key of a worker's `corpus.report` counts in its output to the controlling process
+_REPORTED_OUTPUT = "corpus_reported"
+#: fixture scopes that a module's group keeps to one worker, so they are built once per module
+#: (or class) as in a serial run; a session-scoped fixture is built once per worker instead
+_GROUPED_SCOPES = {"module", "class"}
 _tally: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # passed, run
-_corpus_items: dict[str, str] = {}
 
 
 def _is_corpus_module(module: object) -> bool:
@@ -39,23 +54,51 @@ def _is_corpus_module(module: object) -> bool:
     )
 
 
+def _shared_fixture_group(item: pytest.Item) -> str | None:
+    """The module's node id when `item` uses a fixture shared beyond one test, else None."""
+    fixture_info = getattr(item, "_fixtureinfo", None)
+    if fixture_info is None:
+        return None
+    for definitions in fixture_info.name2fixturedefs.values():
+        if any(definition.scope in _GROUPED_SCOPES for definition in definitions):
+            return item.nodeid.split("::", 1)[0]
+    return None
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
+        if item.get_closest_marker("xdist_group") is None:
+            group = _shared_fixture_group(item)
+            if group is not None:
+                item.add_marker(pytest.mark.xdist_group(group))
         module = getattr(item, "module", None)
         if module is None or not hasattr(item, "callspec") or not _is_corpus_module(module):
             continue
         name = f"{module.__name__.rsplit('.', 1)[-1]}::{item.originalname}"
-        _corpus_items[item.nodeid] = name
+        item.user_properties.append((_TALLY_PROPERTY, name))
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
-    name = _corpus_items.get(report.nodeid)
+    name = dict(report.user_properties).get(_TALLY_PROPERTY)
     if name is None:
         return
     if report.when == "call" or (report.when == "setup" and not report.passed):
         counts = _tally[name]
         counts[1] += 1
         counts[0] += int(report.passed)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    output = getattr(session.config, "workeroutput", None)  # set in an xdist worker only
+    if output is not None:
+        output[_REPORTED_OUTPUT] = dict(corpus.REPORTED)
+
+
+@pytest.hookimpl(optionalhook=True)  # a pytest-xdist hook: the controller hears a worker end
+def pytest_testnodedown(node: object, error: object) -> None:
+    reported = getattr(node, "workeroutput", {}).get(_REPORTED_OUTPUT, {})
+    corpus.REPORTED.update({label: tuple(counts) for label, counts in reported.items()})
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
