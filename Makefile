@@ -4,6 +4,10 @@
 # Also: make bench (benchmarks/*.py), make screenshots (docs/screenshots/*.png, the README's
 # pictures, taken in headless Chromium), make lint, make lock, make clean.
 
+# Two jobs: on a fresh machine the venv (its install, then the numba warm-up, which keeps one
+# core busy) and the editor bundle (npm, mostly waiting on the network) build side by side.
+MAKEFLAGS += --jobs=2
+
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python

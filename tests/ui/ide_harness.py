@@ -104,7 +104,9 @@ class IdeSession:
         page.bring_to_front()  # type: ignore[attr-defined]  # background tabs stop drawing
         inspector = self.app._inspectors[client.client_id]  # type: ignore[attr-defined]
         for _attempt in range(4):  # a loaded machine may not have drawn the new view yet
-            time.sleep(1.0)
+            # barrier: the client rendered a frame after the camera messages above, so it
+            # took the new view (messages reach it in order)
+            client.get_render(height=200, width=300)  # type: ignore[attr-defined]
             box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
             fov = float(client.camera.fov)  # type: ignore[attr-defined]
             pixels_per_metre = box["height"] / (2 * height * math.tan(fov / 2))
