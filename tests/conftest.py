@@ -7,6 +7,7 @@ process of its own that takes whole groups of tests. A test that uses a module- 
 fixture (a running IDE and its Chromium, a recorded replay, a swarm run shared by a module's
 asserts) joins its module's group, so the fixture is built once, as in a serial run; every other
 test goes to whichever worker is free. A test marked `xdist_group` keeps the group it names.
+Tests marked `slow` are handed out first.
 
 Every test module that imports a corpus folder from `tests/corpus.py` is a corpus test; its
 parametrised tests (one case per corpus script or run) are tallied per test function and printed
@@ -77,6 +78,9 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
             continue
         name = f"{module.__name__.rsplit('.', 1)[-1]}::{item.originalname}"
         item.user_properties.append((_TALLY_PROPERTY, name))
+    # tests marked `slow` first (a stable sort: the rest keep their order): on several workers
+    # a long test handed out last would keep one worker busy while the others sit idle
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:

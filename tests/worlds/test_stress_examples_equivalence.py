@@ -30,6 +30,9 @@ from bbzide.worlds.registry import WORLDS
 
 REPO = Path(__file__).resolve().parents[2]
 
+#: each case runs the reference mode for hundreds of steps: a parallel run starts them first
+pytestmark = pytest.mark.slow
+
 #: whole robot states are compared this often (every step would double the run's time)
 SNAPSHOT_EVERY = 25
 
