@@ -629,6 +629,7 @@ def scenario_defaults(path: Path) -> ScenarioDefaults:
     if other:
         raise UserError(f"{path}: the sar experiment does not vary {', '.join(other)}; its "
                         f"world options are {', '.join(SCENARIO_OPTIONS)}")
+    scenario.programs()   # a script that does not compile fails here, once, with its line
     extra: dict[str, Any] = {}
     for key in ("comm_range", "search_steps", "targets_where", "belief_map"):
         if key in options:

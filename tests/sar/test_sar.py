@@ -223,6 +223,7 @@ SAR_SCENARIO = sx.SCRIPT.parent / "sar.toml"
 
 def test_a_scenario_gives_the_sweep_its_script_drones_options_seed_and_steps(tmp_path):
     (tmp_path / "mine.bzz").write_text(sx.SCRIPT.read_text())
+    (tmp_path / "belief_keys.bzz").write_text((sx.SCRIPT.parent / "belief_keys.bzz").read_text())
     scenario = tmp_path / "mine.toml"
     scenario.write_text('version = 1\nworld = "m300"\nseed = 7\nsteps = 40\n'
                         '[world_options]\nsize = 24.0\nsearch = "random"\ncomm_range = 12.0\n'
@@ -255,13 +256,15 @@ def test_the_shipped_sar_scenario_is_accepted():
     ('world = "m300"\n[[robots]]\ncount = 1\nscript = "x.bzz"\npositions = [[1.0, 1.0]]\n',
      "leave out positions"),
     ('world = "m300"\n[[robots]]\ncount = 3\nscript = "x.bzz"\ncount = 2\n', "TOML syntax"),
+    ('world = "m300"\n[[robots]]\ncount = 3\nscript = "broken.bzz"\n', "broken.bzz:1"),
 ])
-def test_a_scenario_the_sweep_cannot_follow_is_refused_in_one_line(tmp_path, text, words,
+def test_a_scenario_the_sweep_cannot_follow_is_refused_with_a_clear_error(tmp_path, text, words,
                                                                     capsys):
     (tmp_path / "x.bzz").write_text("function init() {\n}\nfunction step() {\n}\n")
+    (tmp_path / "broken.bzz").write_text("function init( {\n")
     scenario = tmp_path / "s.toml"
     scenario.write_text("version = 1\n" + text)
     assert main(["experiment", "sar", "--scenario", str(scenario), "--out",
                  str(tmp_path / "out")]) == 1
     err = capsys.readouterr().err
-    assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert words in err.splitlines()[0] and "Traceback" not in err
