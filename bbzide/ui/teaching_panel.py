@@ -50,7 +50,7 @@ class TeachingPanel:
         self._busy = threading.Lock()  # one open, check or save at a time
         self._lessons = {lesson_label(each): each for each in catalog.lessons()}
         gui = server.gui
-        with gui.add_folder("Lessons", order=3):
+        with gui.add_folder("Lessons", order=2.5):  # after View, before Inspector (3)
             self.choice = gui.add_dropdown("Lesson", (NO_LESSON, *self._lessons),
                                            initial_value=NO_LESSON)
             self.open_button = gui.add_button(
@@ -65,7 +65,7 @@ class TeachingPanel:
             self.reset_button = gui.add_button(
                 "Reset lesson", icon=viser.Icon.RESTORE, disabled=True,
                 hint="Put the lesson's starter script back in place of your work")
-        with gui.add_folder("Scenario", order=4):
+        with gui.add_folder("Scenario", order=2.6):
             self.about = gui.add_markdown("")
             self.save_path = gui.add_text(
                 "Save as", initial_value="",
