@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import socket
 import time
 import webbrowser
@@ -33,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 from bbzide.diagnostics import UserError
 from bbzide.ui.access import TOKEN_ENV, TokenError, choose_token
+from bbzide.ui.scenario_links import scratch_copy
 from bbzide.worlds.registry import DEFAULT_SEED
 
 if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
@@ -273,9 +273,4 @@ def resolve_script(script: Path | None, example: Path | None) -> Path:
         return script.resolve()
     if example is None or not example.is_file():
         raise IdeError("this world has no example script: give one, e.g. `bbzide ide my.bzz`")
-    data_home = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
-    scratch = data_home / "bbzide" / "scratch" / example.name
-    if not scratch.exists():
-        scratch.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(example, scratch)
-    return scratch
+    return scratch_copy(example)

@@ -20,7 +20,9 @@ link gets here.
 
 from __future__ import annotations
 
+import os
 import re
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -79,6 +81,18 @@ def resolve_link(name: str, folder: Path | None = None) -> LinkTarget:
                         "(bbzide ide --scenarios DIR)")
     root = folder.resolve()
     return LinkTarget(_scripts_inside(load_scenario(_inside(root, name, str(root))), root))
+
+
+def scratch_copy(shipped: Path) -> Path:
+    """The file the IDE edits in place of a shipped script (an example): a copy in the user's
+    data directory (`~/.local/share/bbzide/scratch/`), made the first time and kept after, so
+    the shipped file stays as it is and the user's edits stay too."""
+    data_home = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
+    scratch = data_home / "bbzide" / "scratch" / shipped.name
+    if not scratch.exists():
+        scratch.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(shipped, scratch)
+    return scratch
 
 
 def _lesson(key: str) -> Lesson:

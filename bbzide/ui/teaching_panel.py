@@ -26,7 +26,7 @@ from urllib.parse import parse_qs
 import viser
 
 from bbzide.diagnostics import UserError
-from bbzide.ui.scenario_links import LinkError, resolve_link
+from bbzide.ui.scenario_links import LinkError, resolve_link, scratch_copy
 
 if TYPE_CHECKING:
     from bbzide.lessons.catalog import Lesson
@@ -173,8 +173,6 @@ class TeachingPanel:
         return self._in_background(lambda: self._open_link_name(names[-1]))
 
     def _open_link_name(self, name: str) -> None:
-        from bbzide.ui.commands import resolve_script
-
         try:
             target = resolve_link(name, self.scenario_folder)
             if target.lesson is not None:
@@ -186,7 +184,7 @@ class TeachingPanel:
                                     f"scenario runs {len(scenario.scripts())}")
                 script = scenario.scripts()[0]
                 # a shipped script is edited through a scratch copy (as bbzide ide does)
-                edited = resolve_script(None, script) if target.shipped else script
+                edited = scratch_copy(script) if target.shipped else script
                 self.lesson = None
                 self.check_button.disabled = self.reset_button.disabled = True
                 self.text.content = "*Choose a lesson, then Open lesson.*"
