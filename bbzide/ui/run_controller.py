@@ -63,7 +63,9 @@ class RunStatus:
     error: str | None = None  # a world/engine failure (not a robot's VM error)
     program_generation: int = 0  # bumps when a new program is loaded
     recording: str | None = None  # the .rrd being written (None = not recording)
-    notice: str | None = None  # why the run paused by itself (the scenario's steps reached)
+    #: A one-line note for the status line until the next Play or Reset: why the run paused by
+    #: itself (the scenario's steps reached), or why a link opened nothing.
+    notice: str | None = None
 
 
 class RunController:
@@ -312,7 +314,7 @@ class RunController:
         if self._running and stop_at is not None and self._sim.step_count == stop_at:
             self._running = False  # the scenario's run ends here; Play runs on past it
             self.status.running = False
-            self.status.notice = (f"paused at step {stop_at}: the scenario's `steps` "
+            self.status.notice = (f"⏸ paused at step {stop_at}: the scenario's `steps` "
                                   "(Play runs on)")
             forced = True
         self._publish(force=forced or not self._running)

@@ -190,8 +190,9 @@ class TeachingPanel:
                 self.text.content = "*Choose a lesson, then Open lesson.*"
                 self.apply_scenario(scenario.with_script(edited), edited)
         except UserError as error:
-            self.message.content = failure_line(f"link {name[:60]!r} not opened: "
-                                                f"{error.render()}")
+            refusal = f"link {name[:60]!r} not opened: {error.render()}"
+            self.message.content = failure_line(refusal)
+            self.app.controller.status.notice = f"⚠ {html.escape(refusal)}"  # seen first
             return
         self.message.content = f"Opened `{html.escape(name)}` from the link."
 

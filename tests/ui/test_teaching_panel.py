@@ -4,6 +4,7 @@ the same panel in Chromium)."""
 
 from __future__ import annotations
 
+import http.client
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -157,3 +158,44 @@ def test_a_malformed_linked_scenario_shows_its_line_and_key(ide: IdeApp) -> None
     run_in_panel(ide, lambda: ide.teaching._open_link_name("fine"))  # noqa: SLF001
     assert ide.session.path == (folder / "a.bzz").resolve()   # a class folder: edited in place
     assert ide.controller.settings.robots == 2
+
+
+def get_page(app: IdeApp, query: str, **headers: str) -> int:
+    """GET the IDE's page with `query`, as a browser following a link does; the status."""
+    connection = http.client.HTTPConnection("127.0.0.1", app.server.get_port(), timeout=UI_WAIT_S)
+    try:
+        connection.request("GET", "/?" + query, headers=headers)
+        return connection.getresponse().status
+    finally:
+        connection.close()
+
+
+def test_a_link_with_the_token_opens_its_lesson(ide: IdeApp, lessons_home: Path) -> None:
+    assert get_page(ide, f"token={ide.token}&scenario=lesson/3") == 200
+    work = (lessons_home / "03-neighbours.bzz").resolve()
+    wait_until(lambda: ide.session.path == work and ide.teaching.lesson is not None,
+               UI_WAIT_S, message="lesson 3 open")
+    assert ide.teaching.lesson == catalog.lesson(3)
+
+
+@pytest.mark.parametrize("query, headers", [
+    ("token=wrong-token-123&scenario=lesson/3", {}),
+    ("scenario=lesson/3", {"Sec-Fetch-Site": "cross-site", "Sec-Fetch-Mode": "navigate",
+                           "Sec-Fetch-Dest": "document"}),
+])
+def test_a_link_without_the_token_opens_nothing(ide: IdeApp, query: str,
+                                                headers: dict[str, str],
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    seen: list[str] = []   # the hook runs before the answer is sent: no waiting needed
+    monkeypatch.setattr(ide.teaching, "open_link", seen.append)
+    assert get_page(ide, query, **headers) == 403
+    assert seen == []
+    assert get_page(ide, f"token={ide.token}&scenario=lesson/3", **headers) == 200
+    assert seen == [f"token={ide.token}&scenario=lesson/3"]   # the same request with it does
+
+
+def test_a_refused_link_is_said_on_the_status_line(ide: IdeApp) -> None:
+    ide.teaching._open_link_name("../../etc/passwd")  # noqa: SLF001
+    assert "not opened" in (ide.controller.status.notice or "")
+    ide.controls.refresh_status()
+    assert "not opened" in ide.controls.status_line.content
