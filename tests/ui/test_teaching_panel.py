@@ -199,3 +199,23 @@ def test_a_refused_link_is_said_on_the_status_line(ide: IdeApp) -> None:
     assert "not opened" in (ide.controller.status.notice or "")
     ide.controls.refresh_status()
     assert "not opened" in ide.controls.status_line.content
+
+
+def test_a_lesson_in_another_world_switches_the_world_and_keeps_its_scenario(
+        ide: IdeApp) -> None:
+    lesson = catalog.lesson(7)
+    scenario = lesson.scenario()
+    assert scenario.world == "crazyflie"   # the IDE started on the Kilobot table
+    run_in_panel(ide, lambda: ide.teaching.open_lesson(lesson))
+    settings = ide.controller.settings
+    assert (settings.world, settings.robots) == ("crazyflie", scenario.robots)
+    assert settings.scenario.world_options == scenario.world_options
+    assert ide.session.outcome is not None and ide.session.outcome.ok
+
+    def running_world() -> str | None:
+        with ide.controller.locked() as handle:
+            return None if handle is None else handle.sim.world.name
+
+    wait_until(lambda: running_world() == "crazyflie", UI_WAIT_S,
+               message="the crazyflie swarm built")
+    assert ide.controls.world.value == "crazyflie"
