@@ -5,6 +5,7 @@
     FileWatcher (external saves) ──────────▶ ProgramSession.reload_from_disk
     RunController thread ──frames (≤30 Hz)──▶ SwarmScene.draw
     ticker thread (4 Hz) ──▶ status line, build view, each tab's inspector (under the run lock)
+    TeachingPanel: Lessons and Scenario folders; a page request `/?scenario=` ──▶ open_link
 
 `IdeApp` only connects the parts; each part lives in its own module. Everything is served on one
 port, behind one check of every request (`bbzide.ui.viser_server`, `bbzide.ui.access`).
