@@ -219,3 +219,28 @@ def test_a_lesson_in_another_world_switches_the_world_and_keeps_its_scenario(
     wait_until(lambda: running_world() == "crazyflie", UI_WAIT_S,
                message="the crazyflie swarm built")
     assert ide.controls.world.value == "crazyflie"
+
+
+def test_ide_takes_a_scenario_folder_for_links(tmp_path: Path, lessons_home: Path,
+                                               monkeypatch: pytest.MonkeyPatch,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    from bbzide.cli import main
+    from bbzide.ui import commands
+
+    script = tmp_path / "mine.bzz"
+    script.write_text(SCRIPT)
+    seen: dict[str, object] = {}
+
+    def serve(app: IdeApp, open_browser: bool) -> int:  # stands for the Ctrl-C loop
+        seen["folder"] = app.teaching.scenario_folder
+        app.stop()
+        return 0
+
+    monkeypatch.setattr(commands, "serve_until_interrupted", serve)
+    assert main(["ide", str(script), "--scenarios", str(tmp_path), "--no-browser", "--paused",
+                 "--port", str(free_port())]) == 0
+    assert seen["folder"] == tmp_path
+    assert main(["ide", str(script), "--scenarios", str(tmp_path / "none"), "--no-browser",
+                 "--port", str(free_port())]) == 1
+    err = capsys.readouterr().err
+    assert "--scenarios" in err and "no such folder" in err and "Traceback" not in err
