@@ -6,12 +6,13 @@ switches the editor to the student's work copy of it (created from the starter t
 time; `bbzide.lessons.catalog`), runs the lesson's scenario, and shows its text; **Check** runs
 the lesson's automatic check headless on the saved work (`bbzide.lessons.checks.run_check`,
 the same as `bbzide lesson N --check`) and shows PASS, or FAIL and what to look at; **Reset
-lesson** puts the starter back. **Scenario** says what the running scenario pins (its title,
-the step it pauses at, the globals it watches) and saves the current set-up as a scenario
-file (`RunController.save_setup`). A link `/?scenario=NAME` goes through `open_link`, which
-opens only what `bbzide.ui.scenario_links` allows and shows a refusal or a schema error as one
-line here. Every action that compiles or runs the swarm runs on a worker thread, one at a
-time, so viser's callbacks and its event loop never wait for a compile or a check.
+lesson** puts the starter back once the tab that clicked it confirms. **Scenario** says what
+the running scenario pins (its title, the step it pauses at, the globals it watches) and saves
+the current set-up as a scenario file (`RunController.save_setup`). A link `/?scenario=NAME`
+goes through `open_link`, which opens only what `bbzide.ui.scenario_links` allows and shows a
+refusal or a schema error as one line here. Every action that compiles or runs the swarm runs
+on a worker thread, one at a time, so viser's callbacks and its event loop never wait for a
+compile or a check.
 """
 
 from __future__ import annotations
@@ -80,7 +81,7 @@ class TeachingPanel:
             self.message = gui.add_markdown("")
         self.open_button.on_click(lambda _: self._in_background(self._open_chosen))
         self.check_button.on_click(lambda _: self._in_background(self.check))
-        self.reset_button.on_click(lambda _: self._in_background(self.reset))
+        self.reset_button.on_click(lambda event: self._confirm_reset(event.client))
         self.save_button.on_click(lambda _: self._in_background(self._save_from_field))
         self._adopt_started_lesson()
         self.refresh()
@@ -135,6 +136,23 @@ class TeachingPanel:
             return None
         self.verdict.content = verdict_markdown(verdict)
         return verdict
+
+    def _confirm_reset(self, client: viser.ClientHandle | None) -> None:
+        """Ask in the tab that clicked before the starter replaces the student's work."""
+        if client is None or self.lesson is None:
+            return
+        with client.gui.add_modal("Reset lesson?") as modal:
+            client.gui.add_markdown(f"Your script for lesson {self.lesson.number} is replaced "
+                                    "by the starter script. This cannot be undone.")
+            confirm = client.gui.add_button("Reset to the starter", color="red")
+            cancel = client.gui.add_button("Keep my work")
+
+            def reset_and_close(_: object) -> None:
+                modal.close()
+                self._in_background(self.reset)
+
+            confirm.on_click(reset_and_close)
+            cancel.on_click(lambda _: modal.close())
 
     def reset(self) -> None:
         """Put the open lesson's starter back (the editor shows it at once)."""

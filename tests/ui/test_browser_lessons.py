@@ -1,7 +1,7 @@
 """The Lessons menu and Save setup in headless Chromium on the real worlds: a lesson opens from
 the menu on the student's copy of its starter, Check says FAIL and what to look at, the pasted
-reference solution passes, and Save setup writes a scenario that loads. Screenshots (1400x900)
-land in $BBZIDE_SCREENSHOTS."""
+reference solution passes, Reset lesson (once confirmed) brings the starter back, and Save
+setup writes a scenario that loads. Screenshots (1400x900) land in $BBZIDE_SCREENSHOTS."""
 
 from __future__ import annotations
 
@@ -74,6 +74,11 @@ def test_a_lesson_opens_from_the_menu_and_passes_once_the_solution_is_pasted(
     click_button(ide, "Check")
     page.get_by_text("PASS").first.wait_for(timeout=UI_WAIT_MS)  # type: ignore[attr-defined]
     ide.screenshot("lesson_check_passed")
+
+    click_button(ide, "Reset lesson")  # asks first, in this tab
+    click_button(ide, "Reset to the starter")
+    wait_until(lambda: work.read_text() == starter and editor_text(source) == starter,
+               UI_WAIT_S, message="the starter back in the file and the editor")
 
 
 def test_save_setup_writes_a_scenario_of_the_running_lesson(ide: IdeSession) -> None:
