@@ -7,11 +7,17 @@ and draws the top view: the room's walls, the obstacles, each drone's path from 
 (circle) to its end (cross). Same seed, same picture.
 
     PYTHONPATH=. python experiments/crazyflie_exploration_plot.py [out.png] [steps] [seed]
+    PYTHONPATH=. python experiments/crazyflie_exploration_plot.py --scenario S.toml [out.png]
+
+With a scenario file (docs/scenarios.md) of the crazyflie world, the plot draws that run
+instead: its room and obstacles, drones, positions, script, seed and `steps` (e.g.
+examples/crazyflie/exploration.toml, or a set-up saved from the IDE).
 """
 
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import matplotlib
 
@@ -20,7 +26,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from common import compile_example  # noqa: E402
 
+from bbzide.diagnostics import UserError  # noqa: E402
 from bbzide.worlds.engine import Simulation  # noqa: E402
+from bbzide.worlds.scenario import load_scenario  # noqa: E402
 
 #: 1200 steps of 50 ms: one minute of flight, about as long as a Crazyflie 2.1 battery allows
 #: with a multi-ranger and a flow deck on board (~5-7 min) split over several runs.
@@ -33,6 +41,21 @@ def trajectories(steps: int, seed: int) -> tuple[np.ndarray, Simulation]:
     program = compile_example("crazyflie", "examples/crazyflie/exploration.bzz")
     sim = Simulation("crazyflie", program, robots=DRONES, seed=seed, watch=(),
                      asynchronous=True)
+    return fly(sim, steps), sim
+
+
+def scenario_trajectories(scenario_path: Path) -> tuple[np.ndarray, Simulation, str]:
+    """Positions of the run a crazyflie scenario file pins (its `steps`), and its title."""
+    scenario = load_scenario(scenario_path)
+    if scenario.world != "crazyflie":
+        raise UserError(f"{scenario_path}: the exploration plot draws a crazyflie room, not "
+                        f"the {scenario.world} world")
+    sim = scenario.simulation()
+    return fly(sim, scenario.steps), sim, scenario.title
+
+
+def fly(sim: Simulation, steps: int) -> np.ndarray:
+    """Step `sim` `steps` times: positions (steps + 1, drones, 3), the start included."""
     path = [sim.positions.copy()]
     for _ in range(steps):
         sim.step()
@@ -40,10 +63,11 @@ def trajectories(steps: int, seed: int) -> tuple[np.ndarray, Simulation]:
     if sim.failures:
         first = sim.failures[0]
         raise RuntimeError(f"robot {first.robot_id} failed: {first.failure}")
-    return np.array(path), sim
+    return np.array(path)
 
 
-def plot(path: np.ndarray, sim: Simulation, out: str) -> None:
+def plot(path: np.ndarray, sim: Simulation, out: str,
+         title: str = "Random-walk exploration") -> None:
     world = sim.world
     x0, y0, x1, y1 = world.bounds
     fig, ax = plt.subplots(figsize=(6, 6))
@@ -56,8 +80,7 @@ def plot(path: np.ndarray, sim: Simulation, out: str) -> None:
         ax.plot(*xy[0], "o", color=line.get_color(), ms=8)
         ax.plot(*xy[-1], "x", color=line.get_color(), ms=9, mew=2)
     seconds = (path.shape[0] - 1) * world.step_seconds
-    ax.set_title(f"Random-walk exploration, {path.shape[1]} Crazyflies, {seconds:.0f} s "
-                 "(o start, x end)")
+    ax.set_title(f"{title}, {path.shape[1]} Crazyflies, {seconds:.0f} s (o start, x end)")
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_aspect("equal")
@@ -69,15 +92,28 @@ def plot(path: np.ndarray, sim: Simulation, out: str) -> None:
     plt.close(fig)
 
 
-def main() -> None:
-    out = sys.argv[1] if len(sys.argv) > 1 else "exploration_trajectories.png"
-    steps = int(sys.argv[2]) if len(sys.argv) > 2 else DEFAULT_STEPS
-    seed = int(sys.argv[3]) if len(sys.argv) > 3 else 0
-    path, sim = trajectories(steps, seed)
-    plot(path, sim, out)
+def main(argv: list[str]) -> int:
+    if argv[:1] == ["--scenario"]:
+        if len(argv) < 2:
+            print("--scenario needs a scenario file (S.toml)", file=sys.stderr)
+            return 2
+        out = argv[2] if len(argv) > 2 else "exploration_trajectories.png"
+        try:
+            path, sim, title = scenario_trajectories(Path(argv[1]))
+        except UserError as error:
+            print(error.render(), file=sys.stderr)
+            return 1
+        plot(path, sim, out, title or "Random-walk exploration")
+    else:
+        out = argv[0] if argv else "exploration_trajectories.png"
+        steps = int(argv[1]) if len(argv) > 1 else DEFAULT_STEPS
+        seed = int(argv[2]) if len(argv) > 2 else 0
+        path, sim = trajectories(steps, seed)
+        plot(path, sim, out)
     bumps = sim.world.bumps.tolist()
-    print(f"{out}: {path.shape[1]} drones, {steps} steps; bumps per drone {bumps}")
+    print(f"{out}: {path.shape[1]} drones, {path.shape[0] - 1} steps; bumps per drone {bumps}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main(sys.argv[1:]))

@@ -12,6 +12,7 @@ needs a moment to draw the last frame (`SETTLE_SECONDS`).
 
 from __future__ import annotations
 
+import os
 import shutil
 import sys
 import tempfile
@@ -24,8 +25,10 @@ sys.path.insert(0, str(REPO / "tests" / "ui"))
 
 from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until  # noqa: E402
 
+from bbzide.lessons import catalog  # noqa: E402
 from bbzide.ui.app import IdeApp  # noqa: E402
 from bbzide.ui.run_controller import RunSettings  # noqa: E402
+from bbzide.ui.teaching_panel import lesson_label  # noqa: E402
 from bbzide.ui.world_adapter import WorldsBackend  # noqa: E402
 
 #: The page size the README's pictures show: a 14-inch laptop's browser window.
@@ -86,6 +89,50 @@ def _wait_for_runtime_marker(app: IdeApp, page: object, client: object) -> None:
     editor.locator(".bbz-markers .runtime-line").wait_for(timeout=UI_WAIT_S * 1000)
 
 
+def _lesson_shots(out_dir: Path, work: Path) -> None:
+    """The Lessons menu open, lesson 2 checked before and after its solution, Save setup."""
+    os.environ[catalog.HOME_VARIABLE] = str(work)
+    script = work / "start.bzz"
+    script.parent.mkdir(parents=True)
+    script.write_text("function init() {\n}\nfunction step() {\n}\n")
+    lesson = catalog.lesson(2)
+    app = IdeApp(script, WorldsBackend(), RunSettings("kilobot", 4, 0, 30.0),
+                 port=free_port()).start(run=True)
+    teaching = app.teaching
+
+    def shoot(page: object, name: str, show: str) -> None:
+        page.get_by_text(show).first.scroll_into_view_if_needed()  # type: ignore[attr-defined]
+        time.sleep(SETTLE_SECONDS)
+        page.screenshot(path=str(out_dir / name))  # type: ignore[attr-defined]
+        print(out_dir / name)
+
+    try:
+        with chromium_context(*PAGE) as context:
+            page = open_app_page(context, app)
+            page.locator("input[value='(choose a lesson)']").first.click()  # type: ignore[attr-defined]
+            option = page.get_by_role("option", name=lesson_label(lesson))  # type: ignore[attr-defined]
+            option.wait_for()
+            shoot(page, "lessons-menu.png", "Open lesson")
+            option.click()
+            page.get_by_role("button", name="Open lesson").click()  # type: ignore[attr-defined]
+            wait_until(lambda: app.session.path == catalog.work_path(lesson).resolve(),
+                       UI_WAIT_S, message="the lesson open")
+            page.get_by_role("button", name="Check").click()  # type: ignore[attr-defined]
+            page.get_by_text("FAIL").first.wait_for()  # type: ignore[attr-defined]
+            shoot(page, "lesson-check-failed.png", "Reset lesson")
+            app.session.edit_from_browser(lesson.solution.read_text())  # as a paste does
+            page.get_by_role("button", name="Check").click()  # type: ignore[attr-defined]
+            page.get_by_text("PASS").first.wait_for()  # type: ignore[attr-defined]
+            shoot(page, "lesson-check-passed.png", "Reset lesson")
+            teaching.save_path.value = "my-lesson-2.toml"
+            teaching.pin.value = True
+            page.get_by_role("button", name="Save setup").click()  # type: ignore[attr-defined]
+            page.get_by_text("Saved").first.wait_for()  # type: ignore[attr-defined]
+            shoot(page, "save-setup.png", "Saved")
+    finally:
+        app.stop()
+
+
 def main(out_dir: Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as folder:
@@ -102,6 +149,7 @@ def main(out_dir: Path) -> None:
         student.write_text(STUDENT_SCRIPT)
         _shoot("kilobot", student, out_dir / "student-runtime-error.png", robots=9,
                stage=_wait_for_runtime_marker)
+        _lesson_shots(out_dir, scratch / "lessons")
 
 
 if __name__ == "__main__":

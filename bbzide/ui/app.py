@@ -5,6 +5,7 @@
     FileWatcher (external saves) ──────────▶ ProgramSession.reload_from_disk
     RunController thread ──frames (≤30 Hz)──▶ SwarmScene.draw
     ticker thread (4 Hz) ──▶ status line, build view, each tab's inspector (under the run lock)
+    TeachingPanel: Lessons and Scenario folders; a page request `/?scenario=` ──▶ open_link
 
 `IdeApp` only connects the parts; each part lives in its own module. Everything is served on one
 port, behind one check of every request (`bbzide.ui.viser_server`, `bbzide.ui.access`).
@@ -15,6 +16,7 @@ from __future__ import annotations
 import html
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import viser
@@ -31,6 +33,7 @@ from bbzide.ui.pitfalls import find_pitfalls
 from bbzide.ui.program_session import CompileOutcome, Diagnostic, ProgramSession
 from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
 from bbzide.ui.scene import SwarmScene
+from bbzide.ui.teaching_panel import TeachingPanel
 from bbzide.ui.viser_server import open_server, page_url
 from bbzide.ui.world_backend import SwarmFrame, WorldBackend
 
@@ -54,6 +57,7 @@ class IdeApp:
         host: str = "127.0.0.1",
         port: int = 8080,
         token: str | None = None,
+        scenario_folder: Path | None = None,
     ) -> None:
         self.backend = backend
         self.token = token or new_token()
@@ -63,7 +67,8 @@ class IdeApp:
         )
         self.server = open_server(
             host, port, self.token,
-            editor_routes(self.session, lambda: self.controller.settings.world),
+            replace(editor_routes(self.session, lambda: self.controller.settings.world),
+                    on_visit=self._on_visit),
         )
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
         self.overlays = OverlayView(self.server)
@@ -75,6 +80,7 @@ class IdeApp:
         self.controls.overlays.on_update(
             lambda _: self.overlays.set_visible(bool(self.controls.overlays.value))
         )
+        self.teaching = TeachingPanel(self.server, self, scenario_folder)
         self._inspectors: dict[int, InspectorPanel] = {}
         self._world_generation = -1
         self._build_dirty = True
@@ -166,6 +172,17 @@ class IdeApp:
 
     def _reload_from_disk(self) -> None:
         self.session.reload_from_disk()
+
+    def edit_file(self, path: Path) -> None:
+        """Edit `path` from now on (a lesson's work copy, a linked scenario's script)."""
+        self.watcher.stop()
+        self.session.switch_file(path)
+        self.watcher = FileWatcher(self.session.path, self._reload_from_disk).start()
+
+    def _on_visit(self, query: str) -> threading.Thread | None:
+        """The page was opened with a query: a `?scenario=` link (`TeachingPanel.open_link`)."""
+        teaching = getattr(self, "teaching", None)  # a request may beat the panel's creation
+        return None if teaching is None else teaching.open_link(query)
 
     def _on_compiled(self, outcome: CompileOutcome) -> None:
         self._build_dirty = True
@@ -310,6 +327,7 @@ class IdeApp:
         if outcome is not None and not outcome.ok and self.controller.has_program:
             note = "⚠ editor text has errors: robots keep running the last good program"
         self.controls.refresh_status(note)
+        self.teaching.refresh()
         if self._build_dirty:
             self._refresh_build_view()
         self._overlay_ticks += 1

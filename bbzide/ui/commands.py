@@ -3,6 +3,8 @@
     bbzide ide [X.bzz] [--world W] [--robots N] [--seed K] [--host H] [--port P] [--token T]
                [--no-browser]
     bbzide ide S.toml [--seed K] ...   a scenario file: its world, options, robots and script
+    bbzide ide ... --scenarios DIR     links /?scenario=NAME may open DIR/NAME.toml as well as
+                                       the lessons and examples (bbzide.ui.scenario_links)
     bbzide replay X.rrd [--host H] [--port P] [--token T] [--no-browser]
 
 Without a script the IDE opens the world's example. The example is copied once to a scratch
@@ -22,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import socket
 import time
 import webbrowser
@@ -31,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 
 from bbzide.diagnostics import UserError
 from bbzide.ui.access import TOKEN_ENV, TokenError, choose_token
+from bbzide.ui.scenario_links import scratch_copy
 from bbzide.worlds.registry import DEFAULT_SEED
 
 if TYPE_CHECKING:  # imported lazily at run time: the CLI starts without viser
@@ -67,6 +69,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     add_token_argument(ide)
     ide.add_argument("--no-browser", action="store_true", help="do not open a browser tab")
     ide.add_argument("--paused", action="store_true", help="start paused")
+    ide.add_argument("--scenarios", type=Path, metavar="DIR",
+                     help="a folder of scenarios that links (/?scenario=NAME) may open, "
+                          "besides the lessons and examples")
     ide.set_defaults(
         handler=run_ide,
         script=None,
@@ -79,6 +84,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         token=None,
         no_browser=False,
         paused=False,
+        scenarios=None,
     )
     register_replay(subparsers)
 
@@ -205,11 +211,15 @@ def open_ide(args: argparse.Namespace, scenario: Any = None, banner: str = "") -
         raise IdeError(f"--robots must be 1..{MAX_ROBOTS} in the IDE, got {robots} "
                        "(larger swarms: bbzide run --world)")
     script = resolve_script(args.script, backend.example_path(world))
+    folder = getattr(args, "scenarios", None)
+    if folder is not None and not folder.is_dir():
+        raise IdeError(f"--scenarios {folder}: no such folder")
     settings = RunSettings(
         world=world, robots=robots, seed=seed, steps_per_second=max(0.0, args.speed),
         scenario=scenario,
     )
-    app = IdeApp(script, backend, settings, host=args.host, port=args.port, token=token)
+    app = IdeApp(script, backend, settings, host=args.host, port=args.port, token=token,
+                 scenario_folder=folder)
     app.start(run=not args.paused)
     if banner:
         print(banner, flush=True)
@@ -263,9 +273,4 @@ def resolve_script(script: Path | None, example: Path | None) -> Path:
         return script.resolve()
     if example is None or not example.is_file():
         raise IdeError("this world has no example script: give one, e.g. `bbzide ide my.bzz`")
-    data_home = Path(os.environ.get("XDG_DATA_HOME") or Path.home() / ".local" / "share")
-    scratch = data_home / "bbzide" / "scratch" / example.name
-    if not scratch.exists():
-        scratch.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(example, scratch)
-    return scratch
+    return scratch_copy(example)

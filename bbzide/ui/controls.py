@@ -136,6 +136,8 @@ def status_text(status: RunStatus, has_program: bool) -> str:
         text += (
             f"  \n⚠ one step has run for {time.monotonic() - started:.1f} s (a loop in the script?)"
         )
+    if status.notice:
+        text += f"  \n{status.notice}"
     if status.recording:
         text += f"  \n⏺ recording to `{status.recording}`"
     if status.error:

@@ -195,6 +195,18 @@ class ProgramSession:
             revision = self._accept_text(text)
         return self._compile(revision)
 
+    def switch_file(self, path: Path) -> CompileOutcome:
+        """Edit another file from now on (a lesson's work copy, a linked scenario's script):
+        its text becomes a new revision, so every editor tab fetches it, and is compiled."""
+        path = path.resolve()
+        text = path.read_text(encoding="utf-8")
+        with self._lock:
+            self.path = path
+            self._disk_text = text
+            self._runtime = (-1, [])
+            revision = self._accept_text(text)
+        return self._compile(revision)
+
     def _read_disk(self) -> str | None:
         try:
             return self.path.read_text(encoding="utf-8")

@@ -63,6 +63,9 @@ class RunStatus:
     error: str | None = None  # a world/engine failure (not a robot's VM error)
     program_generation: int = 0  # bumps when a new program is loaded
     recording: str | None = None  # the .rrd being written (None = not recording)
+    #: A one-line note for the status line until the next Play or Reset: why the run paused by
+    #: itself (the scenario's steps reached), or why a link opened nothing.
+    notice: str | None = None
 
 
 class RunController:
@@ -163,6 +166,17 @@ class RunController:
             self._sim_lock.release()
 
     @property
+    def scenario_steps(self) -> int | None:
+        """Where a run pauses by itself: the scenario's `steps` (None: no scenario, or 0)."""
+        steps = getattr(self.settings.scenario, "steps", None)
+        return steps or None
+
+    @property
+    def watches(self) -> tuple[str, ...]:
+        """The script globals the scenario watches (its `watch` list; empty without one)."""
+        return tuple(getattr(self.settings.scenario, "watch", ()) or ())
+
+    @property
     def has_program(self) -> bool:
         return self._program is not None
 
@@ -201,6 +215,7 @@ class RunController:
     def _apply(self, command: str, argument: Any) -> None:
         if command == "play":
             self._running = True
+            self.status.notice = None
         elif command == "pause":
             self._running = False
             self._pending_steps = 0
@@ -211,6 +226,7 @@ class RunController:
             self._running = False
             self._pending_steps += 1
         elif command == "reset":
+            self.status.notice = None
             self._rebuild()
         elif command == "flush":
             argument.set()
@@ -242,7 +258,8 @@ class RunController:
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
-            if old.world != self.settings.world or old.robots != self.settings.robots:
+            changed_swarm = old.world != self.settings.world or old.robots != self.settings.robots
+            if changed_swarm and "scenario" not in argument:
                 self.settings = replace(self.settings, scenario=None)
             if old.world != self.settings.world:
                 # The program was compiled for the old world's host-function ids: the new world
@@ -251,7 +268,8 @@ class RunController:
                 self._program = None
                 with self._sim_lock:
                     self._sim = None
-            elif old.robots != self.settings.robots or old.seed != self.settings.seed:
+            elif (old.robots != self.settings.robots or old.seed != self.settings.seed
+                  or old.scenario is not self.settings.scenario):
                 self._rebuild()
         self.status.running = self._running
 
@@ -292,6 +310,13 @@ class RunController:
             self.status.step_started_at = None
         forced = self._pending_steps > 0
         self._pending_steps = max(0, self._pending_steps - 1)
+        stop_at = self.scenario_steps
+        if self._running and stop_at is not None and self._sim.step_count == stop_at:
+            self._running = False  # the scenario's run ends here; Play runs on past it
+            self.status.running = False
+            self.status.notice = (f"⏸ paused at step {stop_at}: the scenario's `steps` "
+                                  "(Play runs on)")
+            forced = True
         self._publish(force=forced or not self._running)
 
     def _pace(self) -> None:

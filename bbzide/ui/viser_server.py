@@ -74,6 +74,9 @@ class Routes:
 
     pages: Mapping[str, Page] = field(default_factory=dict)
     sockets: Mapping[str, SocketHandler] = field(default_factory=dict)
+    #: Called with the query string of every admitted request for the page itself ("/"), on
+    #: the server's event loop: it must return at once (the IDE opens `?scenario=` links).
+    on_visit: Callable[[str], None] | None = None
 
 
 class UnguardedServer(RuntimeError):
@@ -165,6 +168,9 @@ class Gate:
                 "Cache-Control": "no-store",
             }), page.body)
         elif process_request is not None:
+            path, _, query = request.path.partition("?")
+            if path == "/" and query and self.routes.on_visit is not None:
+                self.routes.on_visit(query)
             response = process_request(connection, request)
             if response is not None and response.status_code >= 400 and not response.body:
                 status = HTTPStatus(response.status_code)  # viser's 404 has no text: give one

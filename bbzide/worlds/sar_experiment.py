@@ -88,6 +88,7 @@ class RunSpec:
     belief_map: str | None = None
     search_steps: int = SEARCH_STEPS
     targets_where: str = "uniform"
+    script: str = str(SCRIPT)   # a scenario may name another SAR script
 
     @property
     def run_id(self) -> str:
@@ -218,7 +219,7 @@ def reproduce_command(spec: RunSpec, steps: int) -> list[str]:
     if spec.belief_map is not None:
         options["belief_map"] = spec.belief_map
     options["targets_where"] = spec.targets_where
-    command = ["run", str(SCRIPT), "--world", "m300", "--robots", str(spec.drones),
+    command = ["run", spec.script, "--world", "m300", "--robots", str(spec.drones),
                "--seed", str(spec.seed), "--steps", str(steps)]
     for key, value in options.items():
         command += ["--set", f"{key}={value}"]
@@ -226,18 +227,18 @@ def reproduce_command(spec: RunSpec, steps: int) -> list[str]:
 
 
 # ---- one run (in a worker process) -------------------------------------------------------------
-_PROGRAM: Any = None
+_PROGRAMS: dict[str, Any] = {}
 
 
-def _program() -> Any:
-    global _PROGRAM
-    if _PROGRAM is None:
+def _program(script: str = str(SCRIPT)) -> Any:
+    """`script` compiled for the M300 (once per worker process)."""
+    if script not in _PROGRAMS:
         from bbzide.compiler import bittybuzz_string_table, compile_file
         from bbzide.worlds.registry import M300_HOST_NAMES
 
         strings = bittybuzz_string_table(list(M300_HOST_NAMES))
-        _PROGRAM = compile_file(SCRIPT, string_table=strings).to_bbo()
-    return _PROGRAM
+        _PROGRAMS[script] = compile_file(Path(script), string_table=strings).to_bbo()
+    return _PROGRAMS[script]
 
 
 def run_one(spec: RunSpec) -> dict[str, Any]:
@@ -246,7 +247,7 @@ def run_one(spec: RunSpec) -> dict[str, Any]:
     from bbzide.worlds.m300 import ROLE_NAMES
 
     started = time.perf_counter()
-    sim = Simulation("m300", _program(), robots=spec.drones, seed=spec.seed,
+    sim = Simulation("m300", _program(spec.script), robots=spec.drones, seed=spec.seed,
                      world_options=spec.world_options())
     world = sim.world
     sent = np.zeros(spec.drones, dtype=np.int64)
@@ -269,7 +270,9 @@ def run_one(spec: RunSpec) -> dict[str, Any]:
     found = world.found_step
     auctioneer = ROLE_NAMES.index("auctioneer")
     return {
-        **{k: v for k, v in asdict(spec).items() if k not in ("targets", "belief_map")},
+        **{k: v for k, v in asdict(spec).items()
+           if k not in ("targets", "belief_map", "script")},
+        **({} if spec.script == str(SCRIPT) else {"script": spec.script}),
         "run_id": spec.run_id,
         "targets": len(world.targets),
         "found_all_step": int(found.max()) if len(found) and (found >= 0).all() else -1,
@@ -325,6 +328,8 @@ def _check_same_sweep(previous: dict[str, Any], spec: RunSpec, out: Path) -> Non
     not match."""
     differ = [f"{key} {previous.get(key, 'not recorded')!r} there, {getattr(spec, key)!r} now"
               for key in SWEEP_KEYS if previous.get(key) != getattr(spec, key)]
+    if previous.get("script", str(SCRIPT)) != spec.script:  # recorded when not the example
+        differ.append(f"script {previous.get('script', str(SCRIPT))} there, {spec.script} now")
     if differ:
         raise UserError(f"{out} holds runs of another sweep ({spec.run_id}: "
                         f"{'; '.join(differ)}); give another --out to keep both")
@@ -544,17 +549,27 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help=f"drone counts (comma-separated; default {DEFAULT_DRONES})")
     parser.add_argument("--arena", default=None,
                         help=f"arena sides in metres (default {DEFAULT_ARENAS})")
-    parser.add_argument("--search", default="random,belief", help="random and/or belief")
+    parser.add_argument("--search", default=None,
+                        help=f"random and/or belief (default: the scenario's, else "
+                             f"{DEFAULT_SEARCHES})")
     parser.add_argument("--trials", type=int, default=None,
                         help=f"trials per configuration (default {DEFAULT_TRIALS}; "
                              f"{FIELD_TRIALS} with --preset field)")
-    parser.add_argument("--seed", type=int, default=0, help="sweep seed")
+    parser.add_argument("--seed", type=int, default=None,
+                        help="sweep seed (default: the scenario's, else 0)")
+    parser.add_argument("--scenario", type=Path, default=None, metavar="S.toml",
+                        help="an m300 scenario (e.g. examples/sar/sar.toml): its script, "
+                             "drones, world options (size, search, comm_range, targets, ...), "
+                             "seed and steps (as --max-steps) are the sweep's defaults; "
+                             "--drones, --arena, --search, --seed and --max-steps still "
+                             "override them")
     add_executor_arguments(parser, default_jobs=None)
     parser.add_argument("--out", default="sar-results", help="output folder (resumable)")
-    parser.add_argument("--max-steps", type=int, default=DEFAULT_MAX_STEPS,
-                        help="steps before a run counts as a timeout")
+    parser.add_argument("--max-steps", type=int, default=None,
+                        help=f"steps before a run counts as a timeout (default: the "
+                             f"scenario's steps, else {DEFAULT_MAX_STEPS})")
     parser.add_argument("--targets-where", choices=["uniform", "likely", "anywhere"],
-                        default="uniform",
+                        default=None,
                         help="generated targets: uniform (default): anywhere in the field "
                              "whatever the prior (thesis §5.4.1: randomly spawned); or in "
                              "proportion to the prior belief: likely: only where it reaches "
@@ -567,25 +582,98 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 #: The §5.4 sweep's grid (thesis Figs. 5.6-5.11) and the runs per configuration we use.
 DEFAULT_DRONES, DEFAULT_ARENAS, DEFAULT_TRIALS = "15,20,25", "20,30,40", 30
+DEFAULT_SEARCHES = "random,belief"
 #: The field test's trials when --trials is not given: the paper's Table 5.1 has 3 runs.
 FIELD_TRIALS = 3
 
 
+#: The M300 world options a scenario may set for the sweep: the RunSpec's own fields (the
+#: sweep's axes, size and search, come from --arena and --search when those are given).
+SCENARIO_OPTIONS = ("size", "search", "comm_range", "search_steps", "targets", "belief_map",
+                    "targets_where")
+
+
+@dataclass(frozen=True)
+class ScenarioDefaults:
+    """What an m300 scenario file gives the sweep (`scenario_defaults`)."""
+
+    script: str
+    drones: str
+    seed: int
+    max_steps: int
+    arena: str | None = None
+    search: str | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def scenario_defaults(path: Path) -> ScenarioDefaults:
+    """Read `path` (a scenario, bbzide.worlds.scenario) as the sweep's defaults; a scenario
+    the sweep cannot follow exactly (another world, pinned positions, several scripts, a world
+    option a run does not carry) is refused, naming what to change."""
+    from bbzide.worlds.scenario import load_scenario
+
+    scenario = load_scenario(path)
+    if scenario.world != "m300":
+        raise UserError(f"{path}: the sar experiment runs the m300 world, not {scenario.world}")
+    scripts = scenario.scripts()
+    if len(scripts) != 1 or len(scenario.groups) != 1:
+        raise UserError(f"{path}: the sar experiment runs one group of drones with one script")
+    if scenario.groups[0].positions is not None:
+        raise UserError(f"{path}: the sar experiment places the drones from each run's seed: "
+                        "leave out positions")
+    if scenario.radio or scenario.asynchronous:
+        raise UserError(f"{path}: the sar experiment takes comm_range as a world option; "
+                        "leave out [radio] and asynchronous")
+    options = dict(scenario.world_options)
+    other = sorted(set(options) - set(SCENARIO_OPTIONS))
+    if other:
+        raise UserError(f"{path}: the sar experiment does not vary {', '.join(other)}; its "
+                        f"world options are {', '.join(SCENARIO_OPTIONS)}")
+    scenario.programs()   # a script that does not compile fails here, once, with its line
+    extra: dict[str, Any] = {}
+    for key in ("comm_range", "search_steps", "targets_where", "belief_map"):
+        if key in options:
+            extra[key] = options[key]
+    if "belief_map" in extra:   # relative to the scenario, as its script is
+        extra["belief_map"] = str((path.resolve().parent / extra["belief_map"]).resolve())
+    if "targets" in options:
+        targets = options["targets"]
+        extra["targets"] = targets if isinstance(targets, int) else tuple(
+            (float(x), float(y)) for x, y in targets)
+    return ScenarioDefaults(
+        script=str(scripts[0]), drones=str(scenario.robots), seed=scenario.seed,
+        max_steps=scenario.steps or DEFAULT_MAX_STEPS,
+        arena=None if "size" not in options else f"{float(options['size']):g}",
+        search=options.get("search"), extra=extra)
+
+
 def settings_from_args(args: argparse.Namespace) -> SweepSettings:
-    searches = [s.strip() for s in args.search.split(",") if s.strip()]
+    pinned = None if getattr(args, "scenario", None) is None else scenario_defaults(args.scenario)
+    if pinned is not None and args.preset is not None:
+        raise UserError("--preset and --scenario both set the sweep: give one")
+    search_text = args.search if args.search is not None else (
+        (pinned.search if pinned is not None else None) or DEFAULT_SEARCHES)
+    searches = [s.strip() for s in search_text.split(",") if s.strip()]
     if args.preset == "field" and (args.drones is not None or args.arena is not None):
         raise UserError("--preset field has 3 drones on a 36 m field: "
                         "leave out --drones and --arena")
     trials = args.trials
     if trials is None:
         trials = FIELD_TRIALS if args.preset == "field" else DEFAULT_TRIALS
+    drones = args.drones or (pinned.drones if pinned else DEFAULT_DRONES)
+    arenas = args.arena or (pinned.arena if pinned and pinned.arena else DEFAULT_ARENAS)
+    seed = args.seed if args.seed is not None else (pinned.seed if pinned else 0)
+    max_steps = args.max_steps if args.max_steps is not None else (
+        pinned.max_steps if pinned else DEFAULT_MAX_STEPS)
     settings = SweepSettings(
-        drones=_int_list(args.drones or DEFAULT_DRONES, "drones"),
-        arenas=_float_list(args.arena or DEFAULT_ARENAS, "arena"),
-        searches=searches, trials=trials, seed=args.seed, jobs=args.jobs,
-        out=Path(args.out), max_steps=args.max_steps, preset=args.preset,
+        drones=_int_list(drones, "drones"), arenas=_float_list(arenas, "arena"),
+        searches=searches, trials=trials, seed=seed, jobs=args.jobs,
+        out=Path(args.out), max_steps=max_steps, preset=args.preset,
         cluster=args.cluster)
-    settings.extra["targets_where"] = args.targets_where
+    if pinned is not None:
+        settings.extra.update(pinned.extra, script=pinned.script)
+    if args.targets_where is not None or "targets_where" not in settings.extra:
+        settings.extra["targets_where"] = args.targets_where or "uniform"
     if args.preset == "field":
         settings.drones, settings.arenas = [3], [36.0]
         settings.extra = {"targets": (FIELD_TARGET,), "belief_map": str(FIELD_BELIEF),

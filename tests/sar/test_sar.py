@@ -216,3 +216,55 @@ def test_bad_mission_parameters_of_a_run_are_clear_errors(extra, words, capsys):
     assert main(["run", str(sx.SCRIPT), "--world", "m300", "--steps", "1", *extra]) == 1
     err = capsys.readouterr().err
     assert words in err and "Traceback" not in err
+
+
+SAR_SCENARIO = sx.SCRIPT.parent / "sar.toml"
+
+
+def test_a_scenario_gives_the_sweep_its_script_drones_options_seed_and_steps(tmp_path):
+    (tmp_path / "mine.bzz").write_text(sx.SCRIPT.read_text())
+    (tmp_path / "belief_keys.bzz").write_text((sx.SCRIPT.parent / "belief_keys.bzz").read_text())
+    scenario = tmp_path / "mine.toml"
+    scenario.write_text('version = 1\nworld = "m300"\nseed = 7\nsteps = 40\n'
+                        '[world_options]\nsize = 24.0\nsearch = "random"\ncomm_range = 12.0\n'
+                        'targets = [[5.0, 6.0]]\n'
+                        '[[robots]]\ncount = 4\nscript = "mine.bzz"\n')
+    settings = _settings("--scenario", str(scenario), "--trials", "1", "--out", str(tmp_path))
+    assert (settings.drones, settings.arenas, settings.searches) == ([4], [24.0], ["random"])
+    assert (settings.seed, settings.max_steps) == (7, 40)
+    [spec] = sx.plan_runs(settings)
+    assert spec.script == str((tmp_path / "mine.bzz").resolve())
+    assert (spec.comm_range, spec.targets) == (12.0, ((5.0, 6.0),))
+    result = sx.run_one(spec)
+    assert result["steps"] == 40 and result["script"] == spec.script and result["targets"] == 1
+    assert sx.reproduce_command(spec, 40)[1] == spec.script
+    # the command line still sweeps over what the scenario pins
+    widened = _settings("--scenario", str(scenario), "--drones", "3,5", "--seed", "2")
+    assert (widened.drones, widened.seed, widened.arenas) == ([3, 5], 2, [24.0])
+
+
+def test_the_shipped_sar_scenario_is_accepted():
+    settings = _settings("--scenario", str(SAR_SCENARIO))
+    assert (settings.drones, settings.arenas, settings.searches) == ([6], [36.0], ["belief"])
+    assert (settings.seed, settings.max_steps) == (1, 3000)
+
+
+@pytest.mark.parametrize("text, words", [
+    ('world = "kilobot"\n[[robots]]\ncount = 3\nscript = "x.bzz"\n', "runs the m300 world"),
+    ('world = "m300"\n[world_options]\nspeed = 2.0\n[[robots]]\ncount = 3\nscript = "x.bzz"\n',
+     "does not vary speed"),
+    ('world = "m300"\n[[robots]]\ncount = 1\nscript = "x.bzz"\npositions = [[1.0, 1.0]]\n',
+     "leave out positions"),
+    ('world = "m300"\n[[robots]]\ncount = 3\nscript = "x.bzz"\ncount = 2\n', "TOML syntax"),
+    ('world = "m300"\n[[robots]]\ncount = 3\nscript = "broken.bzz"\n', "broken.bzz:1"),
+])
+def test_a_scenario_the_sweep_cannot_follow_is_refused_with_a_clear_error(tmp_path, text, words,
+                                                                    capsys):
+    (tmp_path / "x.bzz").write_text("function init() {\n}\nfunction step() {\n}\n")
+    (tmp_path / "broken.bzz").write_text("function init( {\n")
+    scenario = tmp_path / "s.toml"
+    scenario.write_text("version = 1\n" + text)
+    assert main(["experiment", "sar", "--scenario", str(scenario), "--out",
+                 str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert words in err.splitlines()[0] and "Traceback" not in err

@@ -33,6 +33,28 @@ def test_exploration_plot_draws_two_flights(experiments, tmp_path) -> None:  # n
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_exploration_plot_draws_the_run_a_scenario_pins(experiments, tmp_path,  # noqa: ANN001
+                                                       capsys) -> None:  # noqa: ANN001
+    plot = experiments("crazyflie_exploration_plot")
+    scenario = tmp_path / "room.toml"
+    (tmp_path / "exploration.bzz").write_text((EXPERIMENTS.parent / "examples" / "crazyflie"
+                                               / "exploration.bzz").read_text())
+    scenario.write_text('version = 1\ntitle = "Two in a small room"\nworld = "crazyflie"\n'
+                        'seed = 5\nsteps = 30\n[world_options]\nwidth = 3.0\ndepth = 2.0\n'
+                        'obstacles = []\n[[robots]]\ncount = 2\nscript = "exploration.bzz"\n'
+                        'positions = [[-1.0, -0.5], [1.0, 0.5]]\n')
+    path, sim, title = plot.scenario_trajectories(scenario)
+    assert path.shape == (31, 2, 3) and title == "Two in a small room"
+    assert path[0, :, :2].tolist() == [[-1.0, -0.5], [1.0, 0.5]]   # the pinned start
+    assert tuple(sim.world.bounds) == (-1.5, -1.0, 1.5, 1.0) and len(sim.world.obstacles) == 0
+    out = tmp_path / "room.png"
+    assert plot.main(["--scenario", str(scenario), str(out)]) == 0
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    kilobot = EXPERIMENTS.parent / "examples" / "kilobot" / "gradient.toml"
+    assert plot.main(["--scenario", str(kilobot), str(out)]) == 1
+    assert "draws a crazyflie room, not the kilobot world" in capsys.readouterr().err
+
+
 def test_consensus_reader_delays_are_within_one_step(experiments) -> None:  # noqa: ANN001
     consensus = experiments("crazyflie_consensus")
     from common import compile_example
