@@ -762,10 +762,9 @@ class SwarmDebugger:
             name = names.get(slot)
             if name is None:
                 continue
-            decoded = decode(vm, value, strings)
-            if name == "self" and decoded is None:
+            if name == "self":  # the closure's table or nil: not a variable of the script
                 continue
-            values[name] = decoded
+            values[name] = decode(vm, value, strings)
         return values
 
     def _lookup(self, index: int) -> Callable[[str], Any]:
