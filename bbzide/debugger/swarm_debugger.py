@@ -216,6 +216,9 @@ class SwarmDebugger:
         self._thread: _StepThread | None = None
         self._request = _Request("continue")
         self._maps: dict[int, SourceMap] = {}
+        self._maps_by_content: dict[tuple[Any, ...], SourceMap] = {}
+        self._programs: list[Any] = []
+        self._applies_cache: dict[tuple[str | None, int], bool] = {}
         self._checkpoints: dict[int, tuple[checkpoints.Checkpoint, dict[Breakpoint, int]]] = {}
         #: per robot index: (pc, line, blockptr) of its previous traced instruction this turn
         self._last: list[tuple[int, int | None, int] | None] = [None] * simulation.count
@@ -244,12 +247,8 @@ class SwarmDebugger:
         """A `DebuggerError` (one line) when `breakpoint` cannot stop anything: a line
         outside the file or without code, a condition that does not parse, an unknown
         robot, a hit count below 1."""
-        source_map = self._main_map()
+        source_map = self._map_for(breakpoint)
         where = source_map.main_file or "the program"
-        if breakpoint.path is not None and source_map.main_file is not None \
-                and not _same_file(breakpoint.path, source_map.main_file):
-            raise DebuggerError(f"breakpoint in {breakpoint.path}: the program's main file "
-                                f"is {source_map.main_file}")
         text = source_map.program.source_text
         lines = len(text.splitlines()) if text is not None else None
         if breakpoint.line < 1 or (lines is not None and breakpoint.line > lines):
@@ -274,6 +273,34 @@ class SwarmDebugger:
                                     ) from None
         if breakpoint.hit_count is not None and breakpoint.hit_count < 1:
             raise DebuggerError(f"hit count {breakpoint.hit_count}: must be at least 1")
+
+    def _map_for(self, breakpoint: Breakpoint) -> SourceMap:
+        """The program a breakpoint is in: its `path`'s (a program some robot runs), or
+        the first programmed robot's."""
+        if breakpoint.path is None:
+            return self._main_map()
+        files = []
+        for state in self.simulation.robots:
+            if state.program is None:
+                continue
+            source_map = self._map_of(state.program)
+            if source_map.main_file is not None:
+                if _same_file(breakpoint.path, source_map.main_file):
+                    return source_map
+                files.append(source_map.main_file)
+        known = ", ".join(sorted(set(files))) or "none with a source file"
+        raise DebuggerError(f"breakpoint in {breakpoint.path}: no robot runs that file "
+                            f"(the swarm's programs: {known})")
+
+    def _applies(self, breakpoint: Breakpoint, index: int) -> bool:
+        """Whether `breakpoint` is in the program robot `index` runs."""
+        key = (breakpoint.path, index)
+        found = self._applies_cache.get(key)
+        if found is None:
+            program = self.simulation.robots[index].program
+            found = self._applies_cache[key] = \
+                self._map_for(breakpoint) is self._map_of(program)
+        return found
 
     def hits(self, breakpoint: Breakpoint) -> int:
         """How many times `breakpoint` was hit so far (condition true)."""
@@ -545,6 +572,8 @@ class SwarmDebugger:
         for breakpoint in candidates:
             if breakpoint.robot is not None and breakpoint.robot != robot_id:
                 continue
+            if not self._applies(breakpoint, index):
+                continue
             if breakpoint.condition is not None:
                 try:
                     value = self._conditions[breakpoint.condition].evaluate(
@@ -716,10 +745,16 @@ class SwarmDebugger:
         raise DebuggerError("no robot of this swarm runs a program")
 
     def _map_of(self, program: Any) -> SourceMap:
-        key = id(program)
-        found = self._maps.get(key)
+        """The program's source map, one per distinct code (robots built from one compiled
+        program may each hold a converted copy of it)."""
+        found = self._maps.get(id(program))
         if found is None:
-            found = self._maps[key] = SourceMap(program)
+            content = (program.source_file, program.source_text, bytes(program.bbo))
+            found = self._maps_by_content.get(content)
+            if found is None:
+                found = self._maps_by_content[content] = SourceMap(program)
+            self._maps[id(program)] = found
+            self._programs.append(program)  # keeps the id() keys valid
         return found
 
     def _depth(self, index: int) -> int:
