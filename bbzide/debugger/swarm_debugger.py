@@ -53,13 +53,16 @@ from bbzide.diagnostics import UserError
 from bbzide.vm.inspector import globals_by_name, stack_frames, table_contents
 
 #: A checkpoint at every this many control steps on the fast path: a Kilobot swarm's
-#: checkpoint costs a few control steps of CPU (the pymunk space is copied), so one every 50
-#: steps keeps the fast path within a few percent (benchmarks/debugger_bench.py prints it),
-#: and a rewind re-executes at most 49 fast steps.
-CHECKPOINT_EVERY = 50
-#: Checkpoints kept at every step (the recent ones, e.g. of traced steps); older ones are
-#: thinned to one every CHECKPOINT_EVERY steps. 64 recent swarm states of 25 Kilobots are a
-#: few MB, and stepping back through 64 control steps needs no fast-forward at all.
+#: checkpoint costs about five of its control steps of CPU (the pymunk space is copied), so
+#: one every 100 steps keeps the fast path within a few percent
+#: (benchmarks/debugger_bench.py prints it); a rewind re-executes at most 99 fast steps.
+CHECKPOINT_EVERY = 100
+#: A checkpoint at every this many control steps while steps are traced: a traced step costs
+#: ten times a fast one, so a checkpoint every 10 adds a few percent to it, and a rewind
+#: re-executes at most 9 traced steps (traced, so breakpoint hit counts stay exact).
+TRACED_CHECKPOINT_EVERY = 10
+#: Checkpoints kept however they fall (the recent ones); older ones are thinned to one every
+#: CHECKPOINT_EVERY steps. 64 swarm states of 25 Kilobots are a few MB.
 RECENT_CHECKPOINTS = 64
 #: Control steps a stepping command runs at most before giving up (returns None): a robot
 #: that never runs again (failed, asleep) must not hang the caller.
@@ -134,7 +137,8 @@ class _Position:
 class _Request:
     """What a traced run waits for. kind: "continue" (breakpoints, errors), "into", "over",
     "out", "instruction" (stepping `index`), "until" (`index` at `instructions`), "collect"
-    (note `index`'s line events or the breakpoint hits, never stop), "pause"."""
+    (never stop; note robot `index`'s line events, or with index -2 the breakpoint stops,
+    or with -3 nothing: hits are counted all the same), "pause"."""
 
     kind: str
     index: int = -1
@@ -258,6 +262,10 @@ class SwarmDebugger:
             after = source_map.nearest_code_line(breakpoint.line)
             hint = f" (the next line with code is {after})" if after is not None else ""
             raise DebuggerError(f"{where}:{breakpoint.line}: no code on this line{hint}")
+        boot_only = source_map.boot_only(breakpoint.line)
+        if boot_only:
+            raise DebuggerError(f"{where}:{breakpoint.line}: this line runs only when the "
+                                f"robots boot ({boot_only}), before the debugger runs them")
         if breakpoint.condition is not None:
             try:
                 self._conditions[breakpoint.condition] = parse_expression(breakpoint.condition)
@@ -328,6 +336,14 @@ class SwarmDebugger:
     def display(self, value: Any) -> str:
         """A value as the debugger prints it (`evaluate`'s result, for instance)."""
         return display(value)
+
+    def close(self) -> None:
+        """Finish a stopped control step (nothing stops it any more) and leave the swarm
+        to plain `Simulation.step` calls."""
+        if self._thread is not None:
+            self._request = _Request("collect", -3)
+            self._resume()
+        self._request = _Request("continue")
 
     def request_pause(self) -> None:
         """From any thread: make a running `run` stop at the next instruction of any robot."""
@@ -438,7 +454,8 @@ class SwarmDebugger:
 
     def _traced_step(self) -> Stop | None:
         sim = self.simulation
-        self._checkpoint_now()
+        if sim.step_count % TRACED_CHECKPOINT_EVERY == 0:
+            self._checkpoint_now()
         self._last = [None] * sim.count
         self._failed_before = [s.failure is not None or
                                (s.robot is not None and s.robot.failure is not None)
@@ -705,8 +722,14 @@ class SwarmDebugger:
         checkpoints.restore(self.simulation, checkpoint)
         self._hits = dict(hits)
         self._last = [None] * self.simulation.count
+        wanted = self._request
         while self.simulation.step_count < step:
-            self.simulation.step()
+            if self._breakpoints:        # traced, so that the hit counts are the run's
+                self._request = _Request("collect", -3)
+                self._traced_step()
+            else:
+                self.simulation.step()
+        self._request = wanted
 
     def _checkpoint_now(self) -> None:
         sim = self.simulation

@@ -161,6 +161,8 @@ def test_bad_breakpoints_are_one_line_errors(tmp_path: Path) -> None:
     with pytest.raises(DebuggerError, match="no code on this line .the next line with code "
                                             "is 13"):
         debugger.breakpoints = [Breakpoint(12)]
+    with pytest.raises(DebuggerError, match="runs only when the robots boot .the top level"):
+        debugger.breakpoints = [Breakpoint(1)]
     with pytest.raises(DebuggerError, match="does not compile"):
         debugger.breakpoints = [Breakpoint(13, condition="total >")]
     with pytest.raises(DebuggerError, match="no such robot"):
@@ -176,7 +178,9 @@ def test_no_breakpoint_runs_the_fast_path_to_the_same_state(tmp_path: Path) -> N
     debugger.breakpoints = [Breakpoint(15)]
     debugger.run(3)                     # stops inside step 1 ...
     debugger.breakpoints = []
-    assert debugger.run(5) is None      # ... which ends, then 4 fast steps
+    debugger.close()                    # ... which ends ...
+    assert debugger.paused_at is None and debugged_sim.step_count == 2
+    assert debugger.run(4) is None      # ... then 4 fast steps
     assert debugged_sim.step_count == 6
     for a, b in zip(plain.robots, debugged_sim.robots, strict=True):
         assert a.robot.snapshot() == b.robot.snapshot()
