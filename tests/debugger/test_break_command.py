@@ -66,3 +66,16 @@ def test_a_bad_spec_is_one_line(script: Path, capsys, spec: str, message: str) -
 def test_stop_without_break_is_refused(script: Path, capsys) -> None:
     assert main(run(script, "--stop")) == 1
     assert "give --break FILE:LINE" in capsys.readouterr().err
+
+
+def test_break_in_a_scenario_file(script: Path, capsys) -> None:
+    scenario = script.with_name("swarm.toml")
+    scenario.write_text('version = 1\nworld = "kilobot"\nseed = 1\nsteps = 2\n'
+                        '[world_options]\nwidth = 0.2\nheight = 0.2\n'
+                        '[[robots]]\ncount = 2\nscript = "swarm.bzz"\n')
+    status = main(["run", str(scenario), "--break", f"{script.name}:17:id == 1"])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert [line for line in out.splitlines() if line.startswith("hit ")] == [
+        "hit 1: robot 1, control step 0, line 17 in step (id == 1)",
+        "hit 2: robot 1, control step 1, line 17 in step (id == 1)"]
