@@ -26,11 +26,27 @@ TYPE_COLORS = {
     "darray": "#da77f2",
     "closure": "#69db7c",
     "userdata": "#f783ac",
-    "segment": "#845ef7",
+    "segment": "#fcc419",
     "actrec": "#ced4da",
     "free": "#ffffff",
-    "invalid": "#f1f3f5",
+    "invalid": "#ffe3e3",
 }
+#: Freed slots (and freed segments) inside the used areas are outlined in red and dashed, so
+#: they never read as the free gap (white, no outline).
+INVALID_STROKE = "#fa5252"
+#: What a click on a block does (viser runs inline handlers of its HTML, not scripts): copy the
+#: block's text into the inspector's "picked" box and outline every piece of the block. The box
+#: is a separate element that the server rewrites only for another robot, so the pick stays
+#: while the map redraws.
+PICK_HANDLER = (
+    "var box=document.querySelector('.bbz-heap-pick');if(!box)return;"
+    "box.textContent=this.querySelector('title').textContent;"
+    "box.dataset.start=this.dataset.start;box.dataset.kind=this.dataset.kind;"
+    "document.querySelectorAll('.heap-map rect.picked').forEach("
+    "function(r){r.classList.remove('picked')});"
+    "this.ownerSVGElement.querySelectorAll('rect[data-start=\'' + this.dataset.start + '\']')"
+    ".forEach(function(r){r.classList.add('picked')})"
+)
 #: Pixels per byte and row height: a 64-byte row is 448 px, which fits the 520 px panel.
 BYTE_PX = 7
 ROW_PX = 14
@@ -161,7 +177,13 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
     title = html.escape(
         block.label or f"{block.kind} {block.type_name} @{block.start} ({block.size} B)"
     )
-    stroke = "#495057" if block.kind in ("object", "segment") and block.valid else "#dee2e6"
+    if block.kind == "free":
+        stroke = "none"
+    elif not block.valid:
+        stroke = f'{INVALID_STROKE}" stroke-dasharray="2 1.5'
+    else:
+        stroke = "#495057" if block.kind in ("object", "segment") else "#dee2e6"
+    click = "" if block.kind == "free" else f' onclick="{html.escape(PICK_HANDLER)}"'
     rects = []
     for row, column, length in layout.pieces(block.start, block.size):
         x = 34 + column * byte_px
@@ -169,7 +191,8 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
         rects.append(
             f'<rect x="{x:.1f}" y="{y}" width="{length * byte_px:.1f}" height="{ROW_PX}" '
             f'fill="{color}" stroke="{stroke}" stroke-width="0.5" class="heap-{block.kind}" '
-            f'data-start="{block.start}"><title>{title}</title></rect>'
+            f'data-start="{block.start}" data-kind="{block.kind}" data-index="{block.index}"'
+            f'{click}><title>{title}</title></rect>'
         )
     return rects
 
@@ -201,10 +224,24 @@ def legend_html() -> str:
         "invalid",
         "free",
     ]
+    words = {
+        "actrec": "reserved activation record",
+        "segment": "table segment",
+        "invalid": "freed slot",
+        "free": "free gap",
+    }
     swatches = "".join(
         f'<span style="display:inline-block;margin-right:6px"><span style="display:inline-block;'
-        f'width:10px;height:10px;border:1px solid #868e96;background:{TYPE_COLORS[name]}"></span> '
-        f"{'reserved actrec' if name == 'actrec' else name}</span>"
+        f'width:10px;height:10px;border:1px {_legend_border(name)};'
+        f'background:{TYPE_COLORS[name]}"></span> {words.get(name, name)}</span>'
         for name in items
     )
-    return f'<div style="font-size:11px;line-height:1.6">{swatches}</div>'
+    return (
+        "<style>.heap-map rect{cursor:pointer}.heap-map rect.heap-free{cursor:default}"
+        ".heap-map rect.picked{stroke:#e03131;stroke-width:2}</style>"
+        f'<div style="font-size:11px;line-height:1.6">{swatches}</div>'
+    )
+
+
+def _legend_border(name: str) -> str:
+    return f"dashed {INVALID_STROKE}" if name == "invalid" else "solid #868e96"

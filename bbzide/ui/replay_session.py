@@ -71,6 +71,8 @@ class ReplaySession:
             recording.failed[row].copy(),
             recording.links[row],
             [int(i) for i in recording.meta["robot_ids"]],
+            [str(role) for role in recording.labels["role"][row]]
+            if "role" in recording.labels else [],
         )
 
     def labels(self, step: int) -> dict[str, list[str]]:

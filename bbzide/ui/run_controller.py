@@ -21,7 +21,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,12 @@ class RunSettings:
     #: A scenario (bbzide.worlds.scenario.Scenario) pinning the world's options and the robots;
     #: dropped when the world or the robot count changes (the seed is taken from `seed`).
     scenario: Any = None
+    #: The world's options (`bbzide run --set KEY=VALUE`: layout, light, width, …) when no
+    #: scenario pins them; a change rebuilds the world.
+    world_options: dict[str, Any] = field(default_factory=dict)
+    #: The firmware loop (`bbzide run --loop`): "pop" drops each step's return value, "robot"
+    #: keeps it on the stack as the Kilobot firmware does; a change rebuilds the world.
+    loop: str = "pop"
 
 
 @dataclass
@@ -242,7 +248,8 @@ class RunController:
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
-            if old.world != self.settings.world or old.robots != self.settings.robots:
+            if (old.world, old.robots, old.world_options) != (
+                    self.settings.world, self.settings.robots, self.settings.world_options):
                 self.settings = replace(self.settings, scenario=None)
             if old.world != self.settings.world:
                 # The program was compiled for the old world's host-function ids: the new world
@@ -251,7 +258,9 @@ class RunController:
                 self._program = None
                 with self._sim_lock:
                     self._sim = None
-            elif old.robots != self.settings.robots or old.seed != self.settings.seed:
+            elif (old.robots, old.seed, old.world_options, old.loop) != (
+                    self.settings.robots, self.settings.seed, self.settings.world_options,
+                    self.settings.loop):
                 self._rebuild()
         self.status.running = self._running
 
@@ -261,7 +270,12 @@ class RunController:
             return
         settings = self.settings
         self._stop_recording()  # a rebuilt world starts a new timeline at step 0
-        pinned = {} if settings.scenario is None else {"scenario": settings.scenario}
+        pinned: dict[str, Any] = {} if settings.scenario is None else {
+            "scenario": settings.scenario}
+        if settings.world_options:
+            pinned["world_options"] = settings.world_options
+        if settings.loop != "pop":
+            pinned["loop"] = settings.loop
         sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed,
                                   **pinned)
         with self._sim_lock:
