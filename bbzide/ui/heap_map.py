@@ -44,8 +44,8 @@ PICK_HANDLER = (
     "box.dataset.start=this.dataset.start;box.dataset.kind=this.dataset.kind;"
     "document.querySelectorAll('.heap-map rect.picked').forEach("
     "function(r){r.classList.remove('picked')});"
-    "this.ownerSVGElement.querySelectorAll('rect[data-start=\'' + this.dataset.start + '\']')"
-    ".forEach(function(r){r.classList.add('picked')})"
+    "var start=this.dataset.start;this.ownerSVGElement.querySelectorAll('rect').forEach("
+    "function(r){if(r.dataset.start===start)r.classList.add('picked')})"
 )
 #: Pixels per byte and row height: a 64-byte row is 448 px, which fits the 520 px panel.
 BYTE_PX = 7
@@ -179,6 +179,8 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
     )
     if block.kind == "free":
         stroke = "none"
+    elif block.kind == "actrec":
+        stroke = "#495057" if block.valid else "#dee2e6"
     elif not block.valid:
         stroke = f'{INVALID_STROKE}" stroke-dasharray="2 1.5'
     else:
@@ -200,10 +202,10 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
 def _color_of(block: HeapBlock) -> str:
     if block.kind == "free":
         return TYPE_COLORS["free"]
+    if block.kind == "actrec":  # reserved whether in use or not: never taken for a freed slot
+        return TYPE_COLORS["actrec"]
     if not block.valid:
         return TYPE_COLORS["invalid"]
-    if block.kind == "actrec":
-        return TYPE_COLORS["actrec"]
     if block.kind == "segment":
         return TYPE_COLORS["segment"]
     return TYPE_COLORS.get(block.type_name, "#868e96")

@@ -23,8 +23,8 @@ class InspectorPanel:
         gui = client.gui
         with gui.add_folder("Inspector", order=3):
             self.header = gui.add_markdown("*Click a robot to inspect its memory.*")
+            self.pick = gui.add_html("")  # above the map: a tall map scrolls it away
             self.heap = gui.add_html("")
-            self.pick = gui.add_html("")
             self.memory = gui.add_markdown("")
             tabs = gui.add_tab_group()
             with tabs.add_tab("Objects"):

@@ -80,9 +80,12 @@ class RobotLabels:
 
 
 def label_texts(frame: SwarmFrame) -> list[str]:
-    """Each robot's Buzz `id`, with its role when the world gives robots roles."""
+    """Each robot's Buzz `id`, with its role when the world gives robots roles and they tell
+    robots apart (a script that never sets roles leaves every drone "landed": no news)."""
     ids = frame.robot_ids or list(range(frame.count))
     roles = frame.roles if len(frame.roles) == frame.count else [""] * frame.count
+    if len(set(roles)) < 2:
+        roles = [""] * frame.count
     return [f"{robot_id} · {role}" if role else str(robot_id)
             for robot_id, role in zip(ids, roles, strict=False)]
 
