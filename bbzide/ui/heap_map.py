@@ -47,6 +47,8 @@ PICK_HANDLER = (
     "var start=this.dataset.start;this.ownerSVGElement.querySelectorAll('rect').forEach("
     "function(r){if(r.dataset.start===start)r.classList.add('picked')})"
 )
+#: Room a "ROP 59340" label needs right of its mark (9 characters of 13 px bold monospace).
+POINTER_LABEL_PX = 75
 #: Pixels per byte and row height: a 64-byte row is 448 px, which fits the 520 px panel.
 BYTE_PX = 7
 ROW_PX = 14
@@ -163,8 +165,11 @@ def render_heap_svg(inspection: RobotInspection) -> str:
             f'stroke="{color}" stroke-width="2"/>'
         )
         text_y = y - 3 if name == "ROP" else y + ROW_PX + ROW_GAP_PX + 1
+        # right of the mark, or left of it near the row's end (the label would be cut off)
+        anchor = (f'x="{x - 2:.1f}" text-anchor="end"' if x > width - POINTER_LABEL_PX
+                  else f'x="{x + 2:.1f}"')
         parts.append(
-            f'<text x="{x + 2:.1f}" y="{text_y}" fill="{color}" font-weight="bold" font-size="13">'
+            f'<text {anchor} y="{text_y}" fill="{color}" font-weight="bold" font-size="13">'
             f"{name} {offset}</text>"
         )
     parts.append("</svg>")
