@@ -247,7 +247,20 @@ def legend_html() -> str:
         "<style>.heap-map rect{cursor:pointer}.heap-map rect.heap-free{cursor:default}"
         ".heap-map rect.picked{stroke:#e03131;stroke-width:2}</style>"
         f'<div style="font-size:11px;line-height:1.6">{swatches}</div>'
+        f'<div class="heap-terms" style="font-size:11px;line-height:1.45;color:#495057;'
+        f'margin-top:3px">{TERMS_HTML}</div>'
     )
+
+
+#: The map's terms, where the map shows them (BittyBuzz's C names in brackets).
+TERMS_HTML = (
+    "<b>ROP</b> (<code>rtobj</code>): one past the last object slot in use; objects grow right "
+    "from the <b>reserved activation records</b> (the first slots, kept for the activation "
+    "records of lambdas: the locals a closure keeps). <b>LSP</b> (<code>ltseg</code>): the "
+    "first byte of the lowest "
+    "<b>table segment</b> in use; segments (a table's keys and values, a few per segment, "
+    "chained) grow left from the heap's end. The heap is full when they meet."
+)
 
 
 def _legend_border(name: str) -> str:
