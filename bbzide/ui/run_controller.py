@@ -69,6 +69,7 @@ class RunStatus:
     error: str | None = None  # a world/engine failure (not a robot's VM error)
     program_generation: int = 0  # bumps when a new program is loaded
     recording: str | None = None  # the .rrd being written (None = not recording)
+    last_recording: str | None = None  # the last .rrd written to its end (shown after a stop)
 
 
 class RunController:
@@ -290,6 +291,8 @@ class RunController:
         if stop is not None:
             with self._sim_lock:
                 stop()
+        if self.status.recording is not None:
+            self.status.last_recording = self.status.recording
         self.status.recording = None
 
     def _step_once(self) -> None:
