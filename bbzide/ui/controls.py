@@ -139,12 +139,14 @@ def recording_note(status: RunStatus) -> str:
     """The note under Record: the file being written, else the last one written (its path
     stays after the stop, to replay it), else where a recording would go."""
     if status.recording:
-        head, path = "⏺ recording to", _short_path(status.recording)
+        head, path = "recording to", _short_path(status.recording)
     elif status.last_recording:
         head, path = "last recording:", _short_path(status.last_recording)
     else:
         head, path = "not recording;", "a new .rrd goes to recordings/ beside the script"
-    return (f'<div class="bbz-recording-note" style="{RECORDING_NOTE_STYLE}">{html.escape(head)}'
+    dot = '<span style="color:#e03131">●</span> ' if status.recording else ""
+    return (f'<div class="bbz-recording-note" style="{RECORDING_NOTE_STYLE}">{dot}'
+            f"{html.escape(head)}"
             '<div style="white-space:nowrap;overflow:hidden;text-overflow:ellipsis;'
             f'font-family:ui-monospace,monospace">{html.escape(path)}</div></div>')
 

@@ -43,7 +43,7 @@ def test_record_moves_nothing_and_its_path_stays(ide: IdeSession) -> None:
     name = Path(app.controller.status.recording).name
     note = page.locator(".bbz-recording-note")  # type: ignore[attr-defined]
     wait_until(lambda: " ".join(note.inner_text().split()) ==
-               f"⏺ recording to recordings/{name}", UI_WAIT_S, message="the note")
+               f"● recording to recordings/{name}", UI_WAIT_S, message="the note")
     assert (record.bounding_box()["y"], below.bounding_box()["y"]) == before
     ide.screenshot("record-on")
     record.uncheck()
