@@ -68,3 +68,4 @@ def test_a_heap_block_carries_its_object_for_the_click(tmp_path: Path) -> None:
     assert block is not None
     assert block.group(1).startswith(f"#{row.index} @{row.offset}, 3 B: table table(2)")
     assert "name: pos" in block.group(1) and "global `pos`" in block.group(1)
+
