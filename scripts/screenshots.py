@@ -109,6 +109,7 @@ def _show_robot_ids(app: IdeApp, page: object, client: object) -> None:
     _select_robot(0)(app, page, client)
     page.get_by_text("World setup").click()  # type: ignore[attr-defined]
     page.get_by_label("Robot ids").check()  # type: ignore[attr-defined]
+    page.mouse.move(5, PAGE[1] - 5)  # type: ignore[attr-defined]  # the checkbox's hint off
     labels = app.world_setup.labels
     wait_until(lambda: len(labels._labels) > 0, UI_WAIT_S,  # noqa: SLF001
                message="the robot ids")

@@ -131,7 +131,7 @@ class RunControls:
 #: ellipsis), so ticking Record moves nothing under the mouse.
 RECORDING_NOTE_STYLE = (
     "font-size:12px;line-height:1.4;height:2.8em;overflow:hidden;color:#495057;"
-    "margin:-4px 0 2px"
+    "margin:-4px 0 2px;padding-left:10px"
 )
 
 
