@@ -23,7 +23,14 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "tests" / "ui"))
 
-from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until  # noqa: E402
+from browser import (  # noqa: E402
+    UI_WAIT_S,
+    chromium_context,
+    dismiss_software_gl_notice,
+    free_port,
+    open_app_page,
+    wait_until,
+)
 
 from bbzide.lessons import catalog  # noqa: E402
 from bbzide.ui.app import IdeApp  # noqa: E402
@@ -63,6 +70,7 @@ def _shoot(world: str, script: Path, out: Path, robots: int | None = None,
     try:
         with chromium_context(*PAGE) as context:
             page = open_app_page(context, app)
+            dismiss_software_gl_notice(page)  # it would cover the top of the 3D view
             wait_until(lambda: app.controller.status.step >= WARM_STEPS, UI_WAIT_S,
                        message=f"{WARM_STEPS} steps")
             client = next(iter(app.server.get_clients().values()))
@@ -82,6 +90,33 @@ def _select_robot(index: int) -> Callable[[IdeApp, object, object], None]:
         inspector = app._inspectors[client.client_id]  # noqa: SLF001  # type: ignore[attr-defined]
         wait_until(lambda: inspector.selected == index, UI_WAIT_S, message="the inspector")
     return stage
+
+
+def _pick_heap_object(name: str) -> Callable[[IdeApp, object, object], None]:
+    """Robot 0 selected, then a click on the heap block of the global `name`'s object."""
+    def stage(app: IdeApp, page: object, client: object) -> None:
+        _select_robot(0)(app, page, client)
+        with app.controller.locked() as sim:
+            row = next(r for r in sim.inspect(0).objects if r.name == name)  # type: ignore[union-attr]
+        block = page.locator(f'.heap-map rect[data-start="{row.offset}"]').first  # type: ignore[attr-defined]
+        block.wait_for(timeout=UI_WAIT_S * 1000)
+        block.click()
+        picked = page.locator(".bbz-heap-pick")  # type: ignore[attr-defined]
+        wait_until(lambda: picked.inner_text().startswith(f"#{row.index} "), UI_WAIT_S,
+                   message="the picked object")
+        picked.scroll_into_view_if_needed()
+    return stage
+
+
+def _show_robot_ids(app: IdeApp, page: object, client: object) -> None:
+    _select_robot(0)(app, page, client)
+    page.get_by_text("World setup").click()  # type: ignore[attr-defined]
+    page.get_by_label("Robot ids").check()  # type: ignore[attr-defined]
+    page.mouse.move(5, PAGE[1] - 5)  # type: ignore[attr-defined]  # the checkbox's hint off
+    labels = app.world_setup.labels
+    wait_until(lambda: len(labels._labels) > 0, UI_WAIT_S,  # noqa: SLF001
+               message="the robot ids")
+    page.get_by_text("Inspector").first.scroll_into_view_if_needed()  # type: ignore[attr-defined]
 
 
 def _wait_for_runtime_marker(app: IdeApp, page: object, client: object) -> None:
@@ -137,13 +172,14 @@ def main(out_dir: Path) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as folder:
         scratch = Path(folder)
-        for world, example in (("kilobot", "examples/kilobot/gradient.bzz"),
-                               ("crazyflie", "examples/crazyflie/consensus.bzz"),
-                               ("m300", "examples/m300/flocking.bzz")):
+        for world, example, stage in (
+                ("kilobot", "examples/kilobot/gradient.bzz", _show_robot_ids),
+                ("crazyflie", "examples/crazyflie/consensus.bzz", _select_robot(0)),
+                ("m300", "examples/m300/flocking.bzz", _pick_heap_object("nbx"))):
             script = scratch / world / Path(example).name
             script.parent.mkdir()
             shutil.copy(REPO / example, script)
-            _shoot(world, script, out_dir / f"ide-{world}.png", stage=_select_robot(0))
+            _shoot(world, script, out_dir / f"ide-{world}.png", stage=stage)
         student = scratch / "student" / "first.bzz"
         student.parent.mkdir()
         student.write_text(STUDENT_SCRIPT)

@@ -75,3 +75,18 @@ def disassemble(
                 previous_line = (location.file, location.line)
         out.append(text.rstrip())
     return "\n".join(out) + "\n"
+
+
+def function_names(code: Bytecode, strings: Sequence[str] = ()) -> dict[int, str]:
+    """The program's named functions by the pc of their code: the prologue registers each one
+    as `pushs NAME / pushcn PC / gstore`, which is what a closure's payload then holds."""
+    strings = strings or code.strings
+    names: dict[int, str] = {}
+    steps = code.instructions
+    for first, second, third in zip(steps, steps[1:], steps[2:], strict=False):
+        if (first.opcode, second.opcode, third.opcode) != (Op.PUSHS, Op.PUSHCN, Op.GSTORE):
+            continue
+        string_id, pc = code.operand_value(first), code.operand_value(second)
+        if isinstance(string_id, int) and isinstance(pc, int) and 0 <= string_id < len(strings):
+            names.setdefault(pc, strings[string_id])
+    return names

@@ -435,8 +435,9 @@ class ReplayHostFunctions:
         return replay
 
 
-def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> None:
-    """Apply one recorded control step to `robot` (restored to the state before that step)."""
+def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> list[bytes]:
+    """Apply one recorded control step to `robot` (restored to the state before that step);
+    the payloads it sent in that step (what the live inspector saw leave its out-queue)."""
     s = inputs.situation
     receive_all = getattr(robot, "receive_all", None)
     if receive_all is not None and inputs.payloads:  # the engine's way, when the robot has it
@@ -445,16 +446,18 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> No
     else:
         for k, message in enumerate(inputs.payloads):
             robot.receive(message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
+    sent: list[bytes] = []
     if inputs.stepped:
         host.load(inputs.host_calls)
         try:
-            robot.control_step()
+            sent = list(robot.control_step() or [])
         finally:
             left = host.leftover()
             host._pending = None
         if left:
             raise ReplayDivergence(f"the replayed step made {left} host call(s) fewer than "
                                    "the recorded one")
+    return sent
 
 
 # ---- bytes -------------------------------------------------------------------------------------

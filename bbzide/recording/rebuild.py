@@ -162,6 +162,8 @@ class RobotRebuilder:
         self._cache: dict[int, tuple[int, Any, ReplayHostFunctions, int]] = {}
         self._decoded: dict[tuple[int, int], dict[int, Any]] = {}
         self._booted: dict[tuple[int, int], tuple[Any, ReplayHostFunctions]] = {}
+        #: robot index -> (step, the payloads it sent in that step), from the last rebuild
+        self._sent: dict[int, tuple[int, list[bytes]]] = {}
 
     def program(self, program_id: int) -> Any:
         if program_id not in self._programs:
@@ -200,13 +202,19 @@ class RobotRebuilder:
             for t in range(at + 1, step + 1):
                 inputs = self._inputs(t, index).get(index)
                 if inputs is not None:
-                    replay_step(robot, inputs, host)
+                    self._sent[index] = (t, replay_step(robot, inputs, host))
         except ReplayDivergence as error:
             self._cache.pop(index, None)
             raise RecordingError(f"robot #{index} cannot be rebuilt at step {step}: {error}"
                                  ) from None
         self._cache[index] = (step, robot, host, id(keyframe))
         return robot
+
+    def sent_at(self, index: int, step: int) -> list[bytes]:
+        """The payloads robot `index` sent in recorded `step`, as its last rebuild re-executed
+        them (empty when that step was not re-executed: a keyframe's own step)."""
+        at, sent = self._sent.get(index, (-1, []))
+        return sent if at == step else []
 
     def prepare(self, index: int, step: int) -> None:
         """Boot the robot that rebuilds robot `index` near `step` now (booting runs the

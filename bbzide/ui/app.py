@@ -36,6 +36,7 @@ from bbzide.ui.scene import SwarmScene
 from bbzide.ui.teaching_panel import TeachingPanel
 from bbzide.ui.viser_server import open_server, page_url
 from bbzide.ui.world_backend import SwarmFrame, WorldBackend
+from bbzide.ui.world_setup_panel import WorldSetupPanel
 
 #: How often the status line and inspectors refresh: 4 Hz reads as "live" and costs little.
 TICK_SECONDS = 0.25
@@ -75,6 +76,8 @@ class IdeApp:
         self._overlay_ticks = 0
         self.controls = RunControls(self.server, self.controller, self.scene, backend.world_names())
         self.controls.world.on_update(lambda _: self._change_world(str(self.controls.world.value)))
+        self.world_setup = WorldSetupPanel(self.server, self.controller, self.scene,
+                                           self.controls.world)
         self.controls.record.on_update(lambda _: self._toggle_recording(self.controls.record.value))
         self.controls.load_example.on_click(lambda _: self.load_world_example())
         self.controls.overlays.on_update(
@@ -190,7 +193,8 @@ class IdeApp:
     def _change_world(self, world: str) -> None:
         if world == self.controller.settings.world:
             return
-        self.controller.update_settings(world=world, robots=self.backend.default_robots(world))
+        self.controller.update_settings(world=world, robots=self.backend.default_robots(world),
+                                        world_options={})
         self.controls.robots.value = self.backend.default_robots(world)
         self.session.compile_now()  # host functions differ per platform
 
@@ -245,6 +249,7 @@ class IdeApp:
                 self.scene.set_world(geometry, frame.positions)
                 self.overlays.set_scale(geometry.robot_radius)
         self.scene.draw(frame)
+        self.world_setup.draw(frame)
 
     def _on_robot_click(self, client: viser.ClientHandle, index: int) -> None:
         self._select(client, index)

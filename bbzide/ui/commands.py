@@ -7,9 +7,12 @@
                                        the lessons and examples (bbzide.ui.scenario_links)
     bbzide replay X.rrd [--host H] [--port P] [--token T] [--no-browser]
 
-Without a script the IDE opens the world's example. The example is copied once to a scratch
-file in the user's data directory (`~/.local/share/bbzide/scratch/`), because the editor saves
-every change and the shipped example must stay as it is. The server listens on 127.0.0.1 unless
+Without a script the IDE opens the world's example. A script with a scenario file of its
+own beside it (`examples/kilobot/aggregation.bzz` and `aggregation.toml`) opens in that
+scenario's world, options and robots, unless `--world` or `--robots` is given. The example
+is copied once to a scratch file in the user's data directory
+(`~/.local/share/bbzide/scratch/`), because the editor saves every change and the shipped
+example must stay as it is. The server listens on 127.0.0.1 unless
 `--host` says otherwise, prints its URL and, unless `--no-browser`, opens it. Everything that
 can be wrong with the arguments (address, seed, a script that is a folder or not UTF-8) is an
 `IdeError` raised before a server starts.
@@ -173,12 +176,36 @@ def ide_scenario(path: Path, args: argparse.Namespace, script: Path | None = Non
     return scenario
 
 
+def example_set_up(script: Path, args: argparse.Namespace) -> Path | None:
+    """`X.toml` beside `X.bzz` when it runs `X.bzz` alone: the example's own world, options and
+    robots (aggregation needs its scattered layout to show anything). Not when the command
+    line chose the world or the robot count."""
+    if args.world is not None or args.robots is not None or script.suffix != ".bzz":
+        return None
+    beside = script.with_suffix(".toml")
+    if not beside.is_file():
+        return None
+    from bbzide.worlds.scenario import load_scenario
+
+    try:
+        scripts = load_scenario(beside).scripts()
+    except UserError:
+        return None  # a broken set-up file: the script opens in the world's defaults
+    return beside if [p.resolve() for p in scripts] == [script.resolve()] else None
+
+
 def run_ide(args: argparse.Namespace) -> int:
     scenario = None
+    banner = ""
+    if args.script is not None and args.script.suffix == ".bzz" and args.script.is_file():
+        set_up = example_set_up(args.script, args)
+        if set_up is not None:
+            banner = f"bbzide IDE: the set-up of {set_up} (world, options, robots)"
+            args.script = set_up
     if args.script is not None and args.script.suffix == ".toml":
         check_listen_address(args.host, args.port)
         scenario = ide_scenario(args.script, args)
-    return open_ide(args, scenario)
+    return open_ide(args, scenario, banner)
 
 
 def open_ide(args: argparse.Namespace, scenario: Any = None, banner: str = "") -> int:

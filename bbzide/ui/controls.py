@@ -8,7 +8,9 @@ robot is stuck in a long step.
 
 from __future__ import annotations
 
+import html
 import time
+from pathlib import Path
 
 import viser
 
@@ -76,6 +78,8 @@ class RunControls:
                 initial_value=False,
                 hint="Write the run to a new .rrd (replay it with `bbzide replay FILE.rrd`)",
             )
+            # always one line, so ticking Record moves nothing under the mouse
+            self.recording_note = gui.add_html(recording_note(controller.status))
             self.keep_state = gui.add_checkbox(
                 "Keep world on reload",
                 initial_value=settings.keep_state_on_reload,
@@ -118,6 +122,38 @@ class RunControls:
             text += f"  \n{compile_note}"
         if self.status_line.content != text:
             self.status_line.content = text
+        note = recording_note(self.controller.status)
+        if self.recording_note.content != note:
+            self.recording_note.content = note
+
+
+#: The note under Record always takes two lines of the panel (a long file name is cut with an
+#: ellipsis), so ticking Record moves nothing under the mouse.
+RECORDING_NOTE_STYLE = (
+    "font-size:12px;line-height:1.4;height:2.8em;overflow:hidden;color:#495057;"
+    "margin:-4px 0 2px;padding-left:10px"
+)
+
+
+def recording_note(status: RunStatus) -> str:
+    """The note under Record: the file being written, else the last one written (its path
+    stays after the stop, to replay it), else where a recording would go."""
+    if status.recording:
+        head, path = "recording to", _short_path(status.recording)
+    elif status.last_recording:
+        head, path = "last recording:", _short_path(status.last_recording)
+    else:
+        head, path = "not recording;", "a new .rrd goes to recordings/ beside the script"
+    dot = '<span style="color:#e03131">●</span> ' if status.recording else ""
+    return (f'<div class="bbz-recording-note" style="{RECORDING_NOTE_STYLE}">{dot}'
+            f"{html.escape(head)}"
+            '<div style="white-space:nowrap;overflow:hidden;text-overflow:ellipsis;'
+            f'font-family:ui-monospace,monospace">{html.escape(path)}</div></div>')
+
+
+def _short_path(path: str) -> str:
+    """`recordings/<file>.rrd`: the folder beside the script and the file, on one line."""
+    return f"{Path(path).parent.name}/{Path(path).name}"
 
 
 def status_text(status: RunStatus, has_program: bool) -> str:
@@ -138,8 +174,6 @@ def status_text(status: RunStatus, has_program: bool) -> str:
         )
     if status.notice:
         text += f"  \n{status.notice}"
-    if status.recording:
-        text += f"  \n⏺ recording to `{status.recording}`"
     if status.error:
         text += f"  \n**world error:** `{status.error}`"
     return text

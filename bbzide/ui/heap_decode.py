@@ -14,8 +14,8 @@ Segment metadata: bit 15 valid, bit 14 GC mark, bits 0-13 next segment (0x3FFF =
 from __future__ import annotations
 
 import struct
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 
 from bbzide.compiler.bbzfloat import to_float
 from bbzide.ui.inspection import TYPE_NAMES, HeapBlock, HeapObjectRow
@@ -32,6 +32,12 @@ NO_NEXT_SEGMENT = 0x3FFF
 MAX_EXPAND_DEPTH = 2
 #: Entries shown per table in the object list (a long darray is summarised after this many).
 MAX_ENTRIES_SHOWN = 40
+#: Referrers listed per object: an interned string used as a key in every neighbour's table
+#: has dozens; the first few say what it is, the count says the rest.
+MAX_REFERRERS_SHOWN = 6
+#: How deep object names follow tables from the globals (`pos.x`, `robots[2].pos`): deeper
+#: paths are longer than the inspector's column and the GC's own marking stops at 7 levels.
+MAX_PATH_DEPTH = 4
 
 
 @dataclass(frozen=True)
@@ -44,6 +50,24 @@ class HeapGeometry:
     @property
     def segment_size(self) -> int:
         return 4 * self.elems_per_segment + 2
+
+
+def _no_function_name(pc: int) -> str | None:
+    return None
+
+
+@dataclass(frozen=True)
+class HeapRoots:
+    """What the VM holds outside the heap's tables, to say who refers to each object: the
+    globals table (`gsyms`), the function list of lambdas (`flist`), the running function's
+    activation record (`lsyms`, between steps none), the stack, and the program's name for the
+    function at a pc (a closure's code)."""
+
+    globals_table: int = -1
+    function_list: int = -1
+    locals_table: int = -1
+    stack: Sequence[int] = ()
+    function_name: Callable[[int], str | None] = field(default=_no_function_name)
 
 
 @dataclass
@@ -69,6 +93,7 @@ class HeapReader:
         #: for it for the heap map label, the object row and every parent's row: an M300 heap
         #: has ~500 objects, and this halved the inspector's decode).
         self._entries: dict[int, list[tuple[int | None, int]]] = {}
+        self._segment_owner: dict[int, int] = {}  # segment -> the table whose chain holds it
 
     # ---- raw access -----------------------------------------------------------------------
     def object_count(self) -> int:
@@ -145,6 +170,7 @@ class HeapReader:
         seen: set[int] = set()
         while 0 <= segment < self.segment_count() and segment not in seen:
             seen.add(segment)
+            self._segment_owner.setdefault(segment, index)
             words = self.segment_words(segment)
             if darray:
                 for word in words[: 2 * elems]:
@@ -180,8 +206,107 @@ class HeapReader:
             rows.append((key_text, self.value_text(value)))
         return rows
 
-    def decode(self) -> DecodedHeap:
+    def key_text(self, key: int | None, position: int) -> str:
+        """A table key as code would write it: a string key bare (`x`), others in brackets."""
+        if key is None:
+            return f"[{position}]"
+        if self.is_valid(key) and self.meta(key) & 0x07 == 3:
+            return self.value_text(key).strip("'")
+        return f"[{self.value_text(key)}]"
+
+    def closure_pc(self, index: int, roots: HeapRoots) -> int | None:
+        """Where a closure's code starts: a native closure holds its pc, a lambda the position
+        of its native closure in the function list; a C closure (host function) has no pc."""
+        meta = self.meta(index)
+        if meta & 0x07 != TYPE_CLOSURE:
+            return None
+        offset = index * self.g.object_size + 1
+        pointer_bytes = self.heap[offset : offset + self.g.object_size - 1]
+        if meta & LAMBDA_BIT:
+            functions = self.table_entries(roots.function_list) if self._is_table(
+                roots.function_list) else []
+            position = pointer_bytes[0]
+            if position >= len(functions):
+                return None
+            native = functions[position][1]
+            if not 0 <= native < self.object_count():
+                return None
+            offset = native * self.g.object_size + 1
+            return int.from_bytes(self.heap[offset : offset + self.g.object_size - 1], "little")
+        if meta & DARRAY_OR_NATIVE_BIT:
+            return int.from_bytes(pointer_bytes, "little")
+        return None
+
+    def _is_table(self, index: int) -> bool:
+        return (0 <= index < self.object_count() and self.is_valid(index)
+                and self.meta(index) & 0x07 == TYPE_TABLE)
+
+    def references(self, roots: HeapRoots) -> tuple[dict[int, list[str]], dict[int, str]]:
+        """Who refers to each object (globals, locals, the stack, table entries and keys), and
+        each object's shortest name from the globals (`pos`, `pos.x`, `list[2]`)."""
+        referrers: dict[int, list[str]] = {}
+        names: dict[int, str] = {}
+
+        def add(target: int, text: str) -> None:
+            referrers.setdefault(target, []).append(text)
+
+        frontier: list[int] = []
+        if self._is_table(roots.globals_table):
+            for position, (key, value) in enumerate(self.table_entries(roots.globals_table)):
+                name = self.key_text(key, position)
+                add(value, f"global `{name}`")
+                if value not in names:
+                    names[value] = name
+                    frontier.append(value)
+        for _ in range(1, MAX_PATH_DEPTH):
+            following = []
+            for table in frontier:
+                if not self._is_table(table):
+                    continue
+                for position, (key, value) in enumerate(self.table_entries(table)):
+                    if value in names or not 0 <= value < self.object_count():
+                        continue
+                    key_name = self.key_text(key, position)
+                    joiner = "" if key_name.startswith("[") else "."
+                    names[value] = f"{names[table]}{joiner}{key_name}"
+                    following.append(value)
+            frontier = following
+        if self._is_table(roots.locals_table):
+            for position, (_, value) in enumerate(self.table_entries(roots.locals_table)):
+                add(value, "`self` of the running function" if position == 0
+                    else f"local {position} of the running function")
+        for position, value in enumerate(roots.stack):
+            add(int(value), f"stack[{position}]")
+        for table in range(self.object_count()):
+            if table in (roots.globals_table, roots.locals_table) or not self._is_table(table):
+                continue
+            owner = names.get(table)
+            darray = bool(self.meta(table) & DARRAY_OR_NATIVE_BIT)
+            kind = "darray" if darray else "table"
+            for position, (key, value) in enumerate(self.table_entries(table)):
+                key_name = self.key_text(key, position)
+                if owner is not None:
+                    joiner = "" if key_name.startswith("[") else "."
+                    add(value, f"`{owner}{joiner}{key_name}` ({kind} #{table})")
+                elif table == roots.function_list:
+                    add(value, f"the function list (lambda {position})")
+                else:
+                    add(value, f"{kind} #{table}, key `{key_name}`")
+                if key is not None:
+                    add(key, f"a key of {kind} #{table}" + (f" (`{owner}`)" if owner else ""))
+        return referrers, names
+
+    def closure_name(self, index: int, roots: HeapRoots, names: dict[int, str]) -> str:
+        """A closure named after its function: the program's name for its code, else the
+        global or table entry that holds it (a host function: `led`)."""
+        pc = self.closure_pc(index, roots)
+        named = roots.function_name(pc) if pc is not None else None
+        return named or names.get(index, "")
+
+    def decode(self, roots: HeapRoots | None = None) -> DecodedHeap:
         g = self.g
+        roots = roots or HeapRoots()
+        referrers, names = self.references(roots)
         blocks: list[HeapBlock] = []
         objects: list[HeapObjectRow] = []
         valid_objects = 0
@@ -190,7 +315,8 @@ class HeapReader:
             valid = self.is_valid(index)
             type_name = self.type_name(index) if valid else ""
             reserved = index < g.reserved
-            label = f"#{index} @{start}: " + (self.value_text(index) if valid else "free slot")
+            row = self._object_row(index, roots, referrers, names) if valid else None
+            label = _block_label(index, start, g.object_size, row, reserved)
             blocks.append(
                 HeapBlock(
                     start,
@@ -202,9 +328,9 @@ class HeapReader:
                     label,
                 )
             )
-            if valid:
+            if row is not None:
                 valid_objects += 1
-                objects.append(self._object_row(index))
+                objects.append(row)
         blocks.append(
             HeapBlock(
                 self.rop,
@@ -218,6 +344,10 @@ class HeapReader:
             offset = self.segment_offset(segment)
             valid = bool(self.segment_words(segment)[-1] & 0x8000)
             valid_segments += valid
+            owner = self._segment_owner.get(segment)
+            held = "" if owner is None or not valid else (
+                f": entries of {'darray' if self.meta(owner) & DARRAY_OR_NATIVE_BIT else 'table'}"
+                f" #{owner}" + (f" `{names[owner]}`" if owner in names else ""))
             blocks.append(
                 HeapBlock(
                     offset,
@@ -226,7 +356,8 @@ class HeapReader:
                     "segment",
                     segment,
                     valid,
-                    f"segment {segment} @{offset}" + ("" if valid else " (free)"),
+                    f"table segment {segment} @{offset}, {g.segment_size} B"
+                    + (held if valid else " (freed)"),
                 )
             )
         free = max(0, self.lsp - self.rop)
@@ -239,7 +370,8 @@ class HeapReader:
             valid_segments,
         )
 
-    def _object_row(self, index: int) -> HeapObjectRow:
+    def _object_row(self, index: int, roots: HeapRoots, referrers: dict[int, list[str]],
+                    names: dict[int, str]) -> HeapObjectRow:
         meta = self.meta(index)
         children: list[tuple[str, str]] = []
         if meta & 0x07 == TYPE_TABLE:
@@ -249,10 +381,44 @@ class HeapReader:
                     break
                 key_text = str(position) if key is None else self.value_text(key)
                 children.append((key_text, f"{self.value_text(value)} (#{value})"))
+        value = self.value_text(index)
+        name = names.get(index, "")
+        if meta & 0x07 == TYPE_CLOSURE:
+            name = self.closure_name(index, roots, names)
+            if name:
+                value = f"{value} `{name}`"
+        if index == roots.globals_table:
+            name = "the globals table"
+        elif index == roots.function_list:
+            name = "the function list (lambdas' code)"
+        found = referrers.get(index, [])
+        shown = found[:MAX_REFERRERS_SHOWN]
+        if len(found) > MAX_REFERRERS_SHOWN:
+            shown.append(f"and {len(found) - MAX_REFERRERS_SHOWN} more")
         return HeapObjectRow(
             index,
             self.type_name(index),
-            self.value_text(index),
+            value,
             children,
             permanent=bool(meta & PERMANENT_BIT),
+            offset=index * self.g.object_size,
+            size=self.g.object_size,
+            referrers=shown,
+            name=name,
         )
+
+
+def _block_label(index: int, start: int, size: int, row: HeapObjectRow | None,
+                 reserved: bool) -> str:
+    """The heap map's text for an object slot: the tooltip, and what a click shows."""
+    if row is None:
+        return f"#{index} @{start}, {size} B: free slot (a freed object; the next allocation " \
+               "reuses it)"
+    kind = "reserved activation record, " if reserved else ""
+    lines = [f"#{index} @{start}, {size} B: {kind}{row.type_name} {row.value}"]
+    if row.name:
+        lines.append(f"name: {row.name}")
+    lines.append("referred to by: " + ("; ".join(row.referrers) if row.referrers else
+                                       "nothing in the globals, tables or stack (garbage the "
+                                       "next collection frees, or held by the VM itself)"))
+    return "\n".join(lines)

@@ -26,11 +26,29 @@ TYPE_COLORS = {
     "darray": "#da77f2",
     "closure": "#69db7c",
     "userdata": "#f783ac",
-    "segment": "#845ef7",
+    "segment": "#fcc419",
     "actrec": "#ced4da",
     "free": "#ffffff",
-    "invalid": "#f1f3f5",
+    "invalid": "#ffe3e3",
 }
+#: Freed slots (and freed segments) inside the used areas are outlined in red and dashed, so
+#: they never read as the free gap (white, no outline).
+INVALID_STROKE = "#fa5252"
+#: What a click on a block does (viser runs inline handlers of its HTML, not scripts): copy the
+#: block's text into the inspector's "picked" box and outline every piece of the block. The box
+#: is a separate element that the server rewrites only for another robot, so the pick stays
+#: while the map redraws.
+PICK_HANDLER = (
+    "var box=document.querySelector('.bbz-heap-pick');if(!box)return;"
+    "box.textContent=this.querySelector('title').textContent;"
+    "box.dataset.start=this.dataset.start;box.dataset.kind=this.dataset.kind;"
+    "document.querySelectorAll('.heap-map rect.picked').forEach("
+    "function(r){r.classList.remove('picked')});"
+    "var start=this.dataset.start;this.ownerSVGElement.querySelectorAll('rect').forEach("
+    "function(r){if(r.dataset.start===start)r.classList.add('picked')})"
+)
+#: Room a "ROP 59340" label needs right of its mark (9 characters of 13 px bold monospace).
+POINTER_LABEL_PX = 75
 #: Pixels per byte and row height: a 64-byte row is 448 px, which fits the 520 px panel.
 BYTE_PX = 7
 ROW_PX = 14
@@ -147,8 +165,11 @@ def render_heap_svg(inspection: RobotInspection) -> str:
             f'stroke="{color}" stroke-width="2"/>'
         )
         text_y = y - 3 if name == "ROP" else y + ROW_PX + ROW_GAP_PX + 1
+        # right of the mark, or left of it near the row's end (the label would be cut off)
+        anchor = (f'x="{x - 2:.1f}" text-anchor="end"' if x > width - POINTER_LABEL_PX
+                  else f'x="{x + 2:.1f}"')
         parts.append(
-            f'<text x="{x + 2:.1f}" y="{text_y}" fill="{color}" font-weight="bold" font-size="13">'
+            f'<text {anchor} y="{text_y}" fill="{color}" font-weight="bold" font-size="13">'
             f"{name} {offset}</text>"
         )
     parts.append("</svg>")
@@ -161,7 +182,15 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
     title = html.escape(
         block.label or f"{block.kind} {block.type_name} @{block.start} ({block.size} B)"
     )
-    stroke = "#495057" if block.kind in ("object", "segment") and block.valid else "#dee2e6"
+    if block.kind == "free":
+        stroke = "none"
+    elif block.kind == "actrec":
+        stroke = "#495057" if block.valid else "#dee2e6"
+    elif not block.valid:
+        stroke = f'{INVALID_STROKE}" stroke-dasharray="2 1.5'
+    else:
+        stroke = "#495057" if block.kind in ("object", "segment") else "#dee2e6"
+    click = "" if block.kind == "free" else f' onclick="{html.escape(PICK_HANDLER)}"'
     rects = []
     for row, column, length in layout.pieces(block.start, block.size):
         x = 34 + column * byte_px
@@ -169,7 +198,8 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
         rects.append(
             f'<rect x="{x:.1f}" y="{y}" width="{length * byte_px:.1f}" height="{ROW_PX}" '
             f'fill="{color}" stroke="{stroke}" stroke-width="0.5" class="heap-{block.kind}" '
-            f'data-start="{block.start}"><title>{title}</title></rect>'
+            f'data-start="{block.start}" data-kind="{block.kind}" data-index="{block.index}"'
+            f'{click}><title>{title}</title></rect>'
         )
     return rects
 
@@ -177,10 +207,10 @@ def _block_rects(block: HeapBlock, layout: _Rows, byte_px: float) -> list[str]:
 def _color_of(block: HeapBlock) -> str:
     if block.kind == "free":
         return TYPE_COLORS["free"]
+    if block.kind == "actrec":  # reserved whether in use or not: never taken for a freed slot
+        return TYPE_COLORS["actrec"]
     if not block.valid:
         return TYPE_COLORS["invalid"]
-    if block.kind == "actrec":
-        return TYPE_COLORS["actrec"]
     if block.kind == "segment":
         return TYPE_COLORS["segment"]
     return TYPE_COLORS.get(block.type_name, "#868e96")
@@ -201,10 +231,37 @@ def legend_html() -> str:
         "invalid",
         "free",
     ]
+    words = {
+        "actrec": "reserved activation record",
+        "segment": "table segment",
+        "invalid": "freed slot",
+        "free": "free gap",
+    }
     swatches = "".join(
         f'<span style="display:inline-block;margin-right:6px"><span style="display:inline-block;'
-        f'width:10px;height:10px;border:1px solid #868e96;background:{TYPE_COLORS[name]}"></span> '
-        f"{'reserved actrec' if name == 'actrec' else name}</span>"
+        f'width:10px;height:10px;border:1px {_legend_border(name)};'
+        f'background:{TYPE_COLORS[name]}"></span> {words.get(name, name)}</span>'
         for name in items
     )
-    return f'<div style="font-size:11px;line-height:1.6">{swatches}</div>'
+    return (
+        "<style>.heap-map rect{cursor:pointer}.heap-map rect.heap-free{cursor:default}"
+        ".heap-map rect.picked{stroke:#e03131;stroke-width:2}</style>"
+        f'<div style="font-size:11px;line-height:1.6">{swatches}</div>'
+        f'<div class="heap-terms" style="font-size:11px;line-height:1.45;color:#495057;'
+        f'margin-top:3px">{TERMS_HTML}</div>'
+    )
+
+
+#: The map's terms, where the map shows them (BittyBuzz's C names in brackets).
+TERMS_HTML = (
+    "<b>ROP</b> (<code>rtobj</code>): one past the last object slot in use; objects grow right "
+    "from the <b>reserved activation records</b> (the first slots, kept for the activation "
+    "records of lambdas: the locals a closure keeps). <b>LSP</b> (<code>ltseg</code>): the "
+    "first byte of the lowest "
+    "<b>table segment</b> in use; segments (a table's keys and values, a few per segment, "
+    "chained) grow left from the heap's end. The heap is full when they meet."
+)
+
+
+def _legend_border(name: str) -> str:
+    return f"dashed {INVALID_STROKE}" if name == "invalid" else "solid #868e96"

@@ -39,6 +39,11 @@ class HeapObjectRow:
     value: str
     children: list[tuple[str, str]] = field(default_factory=list)  # table entries (key, value)
     permanent: bool = False
+    offset: int = -1  # byte offset of the object's slot in the heap
+    size: int = 0  # bytes of the slot (the profile's object size)
+    #: who refers to it: "global `x`", "`t.key` (table #12, key 'key')", "stack[3]", …
+    referrers: list[str] = field(default_factory=list)
+    name: str = ""  # a closure's function name, or the first path that reaches the object
 
 
 @dataclass

@@ -23,6 +23,7 @@ class InspectorPanel:
         gui = client.gui
         with gui.add_folder("Inspector", order=3):
             self.header = gui.add_markdown("*Click a robot to inspect its memory.*")
+            self.pick = gui.add_html("")  # above the map: a tall map scrolls it away
             self.heap = gui.add_html("")
             self.memory = gui.add_markdown("")
             tabs = gui.add_tab_group()
@@ -42,6 +43,7 @@ class InspectorPanel:
         _set(self.header, message)
         for handle in (
             self.heap,
+            self.pick,
             self.memory,
             self.objects,
             self.stack,
@@ -68,6 +70,8 @@ class InspectorPanel:
             f'<div class="heap-wrap" data-rop="{view.rop}" data-lsp="{view.lsp}">'
             f"{render_heap_svg(view)}{legend_html()}</div>",
         )
+        # rewritten only for another robot: a click on the map fills it in the browser
+        _set(self.pick, pick_box_html(view.robot_index))
         _set(self.memory, _memory_markdown(view))
         _set(self.objects, _objects_html(view))
         _set(self.stack, _list_markdown("Stack frames", view.frames))
@@ -107,12 +111,29 @@ def _memory_markdown(view: RobotInspection) -> str:
     return "  \n".join(lines)
 
 
+def pick_box_html(robot_index: int) -> str:
+    """The box a click on a heap block fills with that block's object (see `heap_map`)."""
+    return (
+        f'<div class="bbz-heap-pick" data-robot="{robot_index}" style="white-space:pre-wrap;'
+        "font:11px/1.45 ui-monospace,monospace;border:1px solid #dee2e6;border-radius:4px;"
+        'padding:4px 6px;margin:2px 0 4px">'
+        "Click a block of the heap map: its object, offset, size, value and who refers to it."
+        "</div>"
+    )
+
+
 def _objects_html(view: RobotInspection) -> str:
     if not view.objects:
         return "<i>no objects</i>"
     rows = []
     for row in view.objects:
-        name = f"#{row.index} {html.escape(row.type_name)}{' (permanent)' if row.permanent else ''}"
+        where = f" @{row.offset} {row.size} B" if row.offset >= 0 else ""
+        called = f" {html.escape(row.name)}" if row.name and row.type_name != "closure" else ""
+        name = (f"#{row.index}{where} {html.escape(row.type_name)}{called}"
+                f"{' (permanent)' if row.permanent else ''}")
+        if row.referrers:
+            name = (f'<span title="referred to by: {html.escape("; ".join(row.referrers))}">'
+                    f"{name}</span>")
         if row.children:
             entries = "".join(
                 f"<div style='padding-left:14px'>{html.escape(k)} = {html.escape(v)}</div>"

@@ -71,6 +71,8 @@ class ReplaySession:
             recording.failed[row].copy(),
             recording.links[row],
             [int(i) for i in recording.meta["robot_ids"]],
+            [str(role) for role in recording.labels["role"][row]]
+            if "role" in recording.labels else [],
         )
 
     def labels(self, step: int) -> dict[str, list[str]]:
@@ -92,6 +94,7 @@ class ReplaySession:
             program = self._with_call_sites(program_id, program, recorded.get("source"),
                                             host_names)
             view = inspect_robot(robot, profile, program, index, step,
+                                 self.rebuilder.sent_at(index, step),  # as live: last step's
                                  host_names=host_names, world_name=world_name,
                                  recorded_source=recorded.get("source"))
         row = self.recording.row(step)

@@ -21,7 +21,7 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +48,12 @@ class RunSettings:
     #: A scenario (bbzide.worlds.scenario.Scenario) pinning the world's options and the robots;
     #: dropped when the world or the robot count changes (the seed is taken from `seed`).
     scenario: Any = None
+    #: The world's options (`bbzide run --set KEY=VALUE`: layout, light, width, …) when no
+    #: scenario pins them; a change rebuilds the world.
+    world_options: dict[str, Any] = field(default_factory=dict)
+    #: The firmware loop (`bbzide run --loop`): "pop" drops each step's return value, "robot"
+    #: keeps it on the stack as the Kilobot firmware does; a change rebuilds the world.
+    loop: str = "pop"
 
 
 @dataclass
@@ -66,6 +72,7 @@ class RunStatus:
     #: A one-line note for the status line until the next Play or Reset: why the run paused by
     #: itself (the scenario's steps reached), or why a link opened nothing.
     notice: str | None = None
+    last_recording: str | None = None  # the last .rrd written to its end (shown after a stop)
 
 
 class RunController:
@@ -258,7 +265,8 @@ class RunController:
         elif command == "settings":
             old = self.settings
             self.settings = replace(old, **argument)
-            changed_swarm = old.world != self.settings.world or old.robots != self.settings.robots
+            changed_swarm = (old.world, old.robots, old.world_options) != (
+                self.settings.world, self.settings.robots, self.settings.world_options)
             if changed_swarm and "scenario" not in argument:
                 self.settings = replace(self.settings, scenario=None)
             if old.world != self.settings.world:
@@ -268,7 +276,9 @@ class RunController:
                 self._program = None
                 with self._sim_lock:
                     self._sim = None
-            elif (old.robots != self.settings.robots or old.seed != self.settings.seed
+            elif ((old.robots, old.seed, old.world_options, old.loop)
+                  != (self.settings.robots, self.settings.seed, self.settings.world_options,
+                      self.settings.loop)
                   or old.scenario is not self.settings.scenario):
                 self._rebuild()
         self.status.running = self._running
@@ -279,7 +289,12 @@ class RunController:
             return
         settings = self.settings
         self._stop_recording()  # a rebuilt world starts a new timeline at step 0
-        pinned = {} if settings.scenario is None else {"scenario": settings.scenario}
+        pinned: dict[str, Any] = {} if settings.scenario is None else {
+            "scenario": settings.scenario}
+        if settings.world_options:
+            pinned["world_options"] = settings.world_options
+        if settings.loop != "pop":
+            pinned["loop"] = settings.loop
         sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed,
                                   **pinned)
         with self._sim_lock:
@@ -294,6 +309,8 @@ class RunController:
         if stop is not None:
             with self._sim_lock:
                 stop()
+        if self.status.recording is not None:
+            self.status.last_recording = self.status.recording
         self.status.recording = None
 
     def _step_once(self) -> None:

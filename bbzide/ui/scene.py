@@ -43,6 +43,9 @@ RANGE_RING_WIDTH = 0.03
 #: The camera frames the world's area of interest: its bounds and every robot (drones may fly
 #: outside the bounds), grown by this many robot radii so a robot on the edge is whole.
 CAMERA_MARGIN_RADII = 6.0
+#: A swarm whose radio neighbourhood spans less than half the world's width and depth is
+#: framed alone (`view_box`): drones crossing a field fill more, and keep the whole field.
+SWARM_FRAME_SHARE = 0.5
 #: The box must fit the view with this much room to spare (10 %).
 CAMERA_SLACK = 1.1
 #: A tab whose canvas size is not known yet (the first camera message has not arrived) is
@@ -129,14 +132,23 @@ def camera_pose(
 def view_box(
     positions: np.ndarray | None, geometry: WorldGeometry
 ) -> tuple[float, float, float, float]:
-    """The box the camera frames: the world's bounds and every robot, with a margin."""
+    """The box the camera frames: the world's bounds and every robot, with a margin; or, when
+    the swarm and its radio neighbourhood fill less than `SWARM_FRAME_SHARE` of the world's
+    width and depth (25 Kilobots on a 5 cm lattice in the middle of a 1 m table), the swarm
+    and one radio range around it, so the robots are not specks in the middle of the view."""
     xmin, ymin, xmax, ymax = geometry.bounds
+    margin = CAMERA_MARGIN_RADII * geometry.robot_radius
     if positions is not None and len(positions):
         points = np.asarray(positions, dtype=np.float64)
         (pxmin, pymin), (pxmax, pymax) = points.min(axis=0), points.max(axis=0)
+        reach = max(margin, geometry.comm_range)
+        near = (float(pxmin) - reach, float(pymin) - reach,
+                float(pxmax) + reach, float(pymax) + reach)
+        if (near[2] - near[0] < SWARM_FRAME_SHARE * (xmax - xmin)
+                and near[3] - near[1] < SWARM_FRAME_SHARE * (ymax - ymin)):
+            return near
         xmin, ymin = min(xmin, float(pxmin)), min(ymin, float(pymin))
         xmax, ymax = max(xmax, float(pxmax)), max(ymax, float(pymax))
-    margin = CAMERA_MARGIN_RADII * geometry.robot_radius
     return xmin - margin, ymin - margin, xmax + margin, ymax + margin
 
 

@@ -20,6 +20,7 @@ Lower rooms are imported lazily, so `bbzide --help` never needs them, and a miss
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 from collections.abc import Sequence
@@ -30,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.diagnostics import UserError
-from bbzide.ui.heap_decode import HeapGeometry, HeapReader
+from bbzide.ui.heap_decode import HeapGeometry, HeapReader, HeapRoots
 from bbzide.ui.inspection import RobotInspection
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 
@@ -112,18 +113,21 @@ class WorldsBackend:
         return compiled, compiled.to_bbo()
 
     def create(self, world: str, program: Any, robots: int, seed: int,
-               scenario: Any = None) -> WorldsSimulation:
-        """A swarm of `robots` running `program`; with a `scenario` (same world and robot
-        count), its world options, positions, labels and watches too, every group with a
-        script running `program` (the IDE edits one script)."""
-        recordable = self._recording.Recordable(instruction_budget=IDE_INSTRUCTION_BUDGET)
+               scenario: Any = None, world_options: dict[str, Any] | None = None,
+               loop: str = "pop") -> WorldsSimulation:
+        """A swarm of `robots` running `program` in the world with `world_options`, each robot
+        in the firmware `loop`; with a `scenario` (same world and robot count), its world
+        options, positions, labels and watches instead, every group with a script running
+        `program` (the IDE edits one script)."""
+        recordable = self._recording.Recordable(loop=loop,
+                                                instruction_budget=IDE_INSTRUCTION_BUDGET)
         if scenario is not None and scenario.world == world and scenario.robots == robots:
             simulation = scenario.with_seed(seed).simulation(
                 dict.fromkeys(scenario.scripts(), program), robot_factory=recordable.factory)
-        else:
+        else:  # a bad world option is the registry's one-line WorldConfigError
             simulation = self._engine.Simulation(
-                world, program, robots=robots, seed=seed, robot_factory=recordable.factory
-            )
+                world, program, robots=robots, seed=seed, robot_factory=recordable.factory,
+                world_options=world_options or {})
         return WorldsSimulation(simulation, program, self.platform(world), recordable,
                                 self._recording)
 
@@ -216,6 +220,7 @@ class WorldsSimulation:
             failed,
             links,
             ids,
+            [str(role) for role in getattr(sim.world, "roles", None) or []],
         )
 
     def geometry(self) -> WorldGeometry:
@@ -298,7 +303,14 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
     rop, lsp = int(heap.rtobj), int(heap.ltseg)
     strings = list(getattr(program, "strings", []) or [])
     reader = HeapReader(bytes(heap.data), geometry, rop, lsp, strings)
-    decoded = reader.decode()
+    frames = _frame_rows(vm, program)
+    decoded = reader.decode(HeapRoots(
+        globals_table=int(vm.gsyms),
+        function_list=int(vm.flist),
+        locals_table=int(vm.lsyms) if frames else -1,  # between steps no function runs
+        stack=[int(vm.stack[p]) for p in range(int(vm.stackptr) + 1)],
+        function_name=_function_namer(program),
+    ))
     failure = robot.failure
     error_text = None
     error_line = None
@@ -313,7 +325,9 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
     at_pc = site.location if site is not None else (
         program.location_of(int(vm.pc)) if hasattr(program, "location_of") else None)
     gsyms = int(vm.gsyms)
-    globals_ = reader.named_entries(gsyms)
+    defined = getattr(getattr(program, "symbols", None), "defined", set())
+    # the script's own globals first, then the built-ins (`id`, `neighbors`, host functions)
+    globals_ = sorted(reader.named_entries(gsyms), key=lambda pair: pair[0] not in defined)
     return RobotInspection(
         robot_index=index,
         robot_id=int(getattr(robot, "robot_id", index)),
@@ -331,7 +345,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         gc_runs=int(heap.gc_runs),
         ram_bytes=_import("bbzide.compiler.footprint").RAM_BYTES.get(profile.name),
         objects=decoded.objects,
-        frames=_frame_rows(vm, program) + _stack_rows(vm, reader),
+        frames=frames + _stack_rows(vm, reader),
         globals=globals_,
         stigmergy=_stigmergy_rows(vm, reader, strings),
         neighbors=_neighbor_rows(vm),
@@ -343,6 +357,32 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         warnings=_runtime_warnings(vm, last_sent),
         pc_line=at_pc.line if at_pc is not None and at_pc.line else None,
     )
+
+
+@functools.lru_cache(maxsize=16)  # a few programs at a time (a reload, a replay's revisions)
+def _named_functions(bbo: bytes, strings: tuple[str, ...]) -> dict[int, str]:
+    bytecode = _import("bbzide.compiler.bytecode")
+    try:
+        return _import("bbzide.compiler.disassembler").function_names(
+            bytecode.read_bbo(bbo), strings)
+    except bytecode.BytecodeError:
+        return {}
+
+
+def _function_namer(program: Any) -> Any:
+    """pc -> the function whose code starts there: a named function's name, a lambda's
+    place (`function at line 12`)."""
+    bbo = getattr(program, "bbo", None)
+    named = {} if bbo is None else _named_functions(
+        bytes(bbo), tuple(getattr(program, "strings", []) or []))
+
+    def name(pc: int) -> str | None:
+        if pc in named:
+            return named[pc]
+        where = program.location_of(pc) if hasattr(program, "location_of") else None
+        return f"function at line {where.line}" if where is not None and where.line else None
+
+    return name
 
 
 #: The inspector lists at most this many stack entries (the top ones): a screenful.

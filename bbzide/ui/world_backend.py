@@ -28,6 +28,7 @@ class SwarmFrame:
     failed: np.ndarray  # (N,) bool: the robot's VM stopped with an error
     links: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int32))  # (M, 2)
     robot_ids: list[int] = field(default_factory=list)  # Buzz `id` of each robot
+    roles: list[str] = field(default_factory=list)  # each robot's role, where the world has some
 
     @property
     def count(self) -> int:

@@ -86,6 +86,27 @@ def chromium_context(
             context.close()
 
 
+#: How long a page may take to show viser's "Software WebGL rendering detected" notice after
+#: its first frame (it comes with the first frames; a machine with a GPU never shows it).
+GL_NOTICE_WAIT_MS = 5_000
+
+
+def dismiss_software_gl_notice(page: object) -> bool:
+    """Close viser's software-WebGL notice (top of the 3D view) the way a user would, with its
+    close button, so a screenshot shows the scene; False when no notice came."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    notice = page.locator(  # type: ignore[attr-defined]
+        ".mantine-Notification-root", has_text="Software WebGL").first
+    try:
+        notice.wait_for(state="visible", timeout=GL_NOTICE_WAIT_MS)
+    except PlaywrightTimeout:
+        return False
+    notice.locator("button").first.click()
+    notice.wait_for(state="detached", timeout=GL_NOTICE_WAIT_MS)
+    return True
+
+
 def open_app_page(context: object, app: object) -> object:
     """A new tab on `app` (IdeApp or ReplayApp), returned once the websocket is up and a
     first frame has been rendered: what a user sees when the page has loaded."""

@@ -193,3 +193,28 @@ def test_the_replay_program_tab_numbers_the_lines() -> None:
     rows = [re.sub(r"<[^>]+>", "", row) for row in text.split("\n")]
     assert rows == ["1 │ var a = 1", "2 │ ", "3 │ function step() { a = a &lt; 2 }"]
     assert numbered_source_html(None) == "(the recording has no source text)"
+
+
+def test_a_replayed_step_shows_the_live_warnings(tmp_path: Path) -> None:
+    """The "table being sent" warning reads the payloads a robot sent in its last step: a
+    replay re-executes that step, so the inspector at a recorded step warns as it did live."""
+    from bbzide.cli import main
+    from bbzide.recording.reader import read_recording
+    from bbzide.recording.rebuild import RobotRebuilder
+    from bbzide.ui.replay_session import ReplaySession
+
+    path = tmp_path / "probe.bzz"
+    path.write_text(SCRIPT.replace("TABLE", "{.a = 1}"))
+    recording_path = tmp_path / "probe.rrd"
+    assert main(["run", str(path), "--world", "kilobot", "--robots", "4", "--steps", "7",
+                 "--record", str(recording_path)]) == 0
+    _, program = BACKEND.compile(path.read_text(), path, "kilobot")
+    live = BACKEND.create("kilobot", program, 4, 0)
+    recording = read_recording(recording_path)
+    session = ReplaySession(recording, RobotRebuilder(recording))
+    for _ in range(recording.last_step):
+        live.step()
+    assert live.step_count == recording.last_step
+    shown = live.inspect(0).warnings
+    assert any("a table is being sent" in warning for warning in shown)
+    assert session.inspect(0, recording.last_step).warnings == shown

@@ -73,11 +73,22 @@ def test_robots_are_drawn_large_enough_to_see_and_click(server: viser.ViserServe
     assert scene.geometry is not None
     assert scene.geometry.robot_radius == pytest.approx(0.018 * (6.0 + 12 * 0.05))
     table = WorldGeometry(0.0165, 0.1, (0.0, 0.0, 1.0, 1.0), np.zeros((0, 2, 2)))
-    scene.set_world(table, np.array([[0.5, 0.5]]))
+    scene.set_world(table, np.array([[0.0, 0.0], [1.0, 1.0]]))  # the whole table framed
     assert 0.0165 < scene.geometry.robot_radius < 0.025  # Kilobots stay apart on a 5 cm grid
     field_drone = FIELD.robot_radius
     scene.set_world(FIELD, np.array([[18.0, 18.0]]))
     assert scene.geometry.robot_radius == pytest.approx(max(field_drone, 0.018 * 42.0))
+
+
+def test_a_small_swarm_in_a_large_world_is_framed_with_its_radio_neighbourhood() -> None:
+    """25 Kilobots on a 5 cm lattice in the middle of the 1 m table: the camera frames them and
+    one IR range around them (0.4 m), not the whole table, where they would be specks."""
+    table = WorldGeometry(0.0165, 0.1, (-0.5, -0.5, 0.5, 0.5), np.zeros((0, 2, 2)))
+    lattice = np.array([(x, y) for x in np.arange(-0.1, 0.11, 0.05)
+                        for y in np.arange(-0.1, 0.11, 0.05)])
+    assert view_box(lattice, table) == pytest.approx((-0.2, -0.2, 0.2, 0.2))
+    scattered = np.array([[-0.4, -0.4], [0.4, 0.4]])  # a swarm over the table: all of it
+    assert view_box(scattered, table) == pytest.approx((-0.599, -0.599, 0.599, 0.599))
 
 
 def test_the_view_reframes_when_the_robot_count_changes(server: viser.ViserServer) -> None:
