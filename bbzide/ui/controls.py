@@ -158,7 +158,8 @@ def _short_path(path: str) -> str:
 
 def status_text(status: RunStatus, has_program: bool) -> str:
     if not has_program:
-        return "**no program yet**: fix the errors in the editor"
+        waiting = "**no program yet**: fix the errors in the editor"
+        return f"{waiting}  \n{status.notice}" if status.notice else waiting
     state = "running" if status.running else "paused"
     rate = f"{status.steps_per_second:.0f} steps/s" if status.running else "0 steps/s"
     parts = [f"**step {status.step}**", state, rate, f"{status.robots} robots"]
