@@ -21,7 +21,8 @@ scratch record); ``ring`` has a row per neighbor slot (``fastreceive.NB_*`` colu
 ``ctl`` holds the ring indices (the first six in :mod:`fastreceive`'s ``rings`` order, so
 its routines work on ``ctl`` directly) and the scalars of ``NeighborsState`` the step reads.
 Only an XTREME profile's ring rows are packed (the compiled step touches no other ring:
-those profiles keep their neighbor data in the heap and receive through Python).
+those profiles keep their neighbor data in the heap, where the compiled receive writes it;
+``NeighborsState.count``, their u8 counter, stays Python's: the step adds its adds).
 """
 
 from __future__ import annotations
@@ -41,10 +42,12 @@ IN_START, IN_END, IN_SLOTS, NB_START, NB_END, NB_SLOTS = range(6)
 OUT_START, OUT_END, OUT_SLOTS = 6, 7, 8
 CLEAR_COUNTER, LISTENERS, ROBOT, RECORD = 9, 10, 11, 12
 #: the profile's constants the step reads (set once: msg_in_proc_max, neighbors_mark_time,
-#: neighbors_clr_period, xtreme)
-MSG_MAX, MARK_TIME, CLEAR_PERIOD, XTREME = 13, 14, 15, 16
+#: neighbors_clr_period, xtreme, neighbors_floats)
+MSG_MAX, MARK_TIME, CLEAR_PERIOD, XTREME, FLOATS = 13, 14, 15, 16, 17
+#: ``neighbors.hpos``, the ``neighbors`` table (read by a heap profile's compiled receive)
+HPOS = 18
 #: slots in ``ctl``
-CTL_SLOTS = 17
+CTL_SLOTS = 19
 
 #: columns of a ring row: NeighborEntry's fields (robot, distance, azimuth, elevation,
 #: mark) — fastreceive.RING_COLUMNS (not imported: fastreceive imports the VM's modules)
@@ -81,8 +84,9 @@ class PackedQueues:
         self.outq = np.zeros((profile.out_queue_cap + 2) * record, np.uint8)
         self.ring = np.zeros((profile.neighbors_cap + 1, RING_COLUMNS), np.int64)
         self.ctl = np.zeros(CTL_SLOTS, np.int64)
-        self.ctl[MSG_MAX:] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
-                              profile.neighbors_clr_period, profile.xtreme)
+        self.ctl[MSG_MAX:HPOS] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
+                                  profile.neighbors_clr_period, profile.xtreme,
+                                  profile.neighbors_floats)
         #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (HostRegistry's latched functions)
         self.latch = np.zeros((LATCH_SLOTS, 1 + LATCH_ARGS), np.int64)
 
@@ -103,6 +107,7 @@ class PackedQueues:
                               ring.capacity, outbox.start, outbox.end, outbox.capacity,
                               neighbors.clear_counter, neighbors.listeners, robot,
                               self.record)
+        self.ctl[HPOS] = neighbors.hpos
 
     def unpack(self, queues: MessageQueues, neighbors: NeighborsState) -> None:
         """The arrays back into the Python records (they become the truth again)."""
