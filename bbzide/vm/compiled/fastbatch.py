@@ -7,12 +7,15 @@ as the machine code (benchmarks/world_bench.py). :func:`robot_step` runs the who
 step of one robot in one call, on the robot's packed queues and ring (:mod:`packed_queues`,
 which stay packed between steps):
 
-1. receive the robot's rows of the step's deliveries (XTREME/u8 profiles only, as
-   :func:`fastreceive.receive_all`; the others receive through Python before the call);
+1. receive the robot's rows of the step's deliveries (as :func:`fastreceive.receive_all`;
+   a profile with the neighbor data in the heap through
+   :func:`fastreceive.neighbors_add_heap`, while it has room: else ``P_RECEIVE``);
 2. ``bbzvm_process_inmsgs`` (:func:`fastinbox.process_broadcasts`);
 3. ``step`` (:func:`fastinbox.call_global`, and the ``pop`` of the firmware loop "pop");
 4. ``bbzvm_process_outmsgs``: the neighbor-data GC countdown, the XTREME ring's data GC
-   (``neighbors.data_gc``, ``bringToTop`` quirk included);
+   (``neighbors.data_gc``, ``bringToTop`` quirk included) or the heap's
+   (:func:`fastreceive.data_gc_heap`, when it can tell every entry's fate: else
+   ``P_OUTMSGS``);
 5. the out-queue drained into the step's outbox rows (``messages.serialize``).
 
 Each phase keeps the kernel's rule: what it does not cover it hands back **before any side
@@ -50,13 +53,24 @@ from bbzide.vm.compiled.fastinbox import (
     call_global,
     process_broadcasts,
 )
-from bbzide.vm.compiled.fastloop import R_SP
-from bbzide.vm.compiled.fastreceive import NB_MARK, _inmsg_append, _neighbors_add, _to_u8
+from bbzide.vm.compiled.fastloop import R_NIL, R_SP
+from bbzide.vm.compiled.fastreceive import (
+    NB_MARK,
+    _inmsg_append,
+    _neighbors_add,
+    _to_u8,
+    data_gc_heap,
+    neighbors_add_heap,
+    room_for_heap_add,
+    situated_value,
+)
 from bbzide.vm.compiled.fastring import ring_size
 from bbzide.vm.compiled.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
 from bbzide.vm.compiled.packed_queues import (
     CLEAR_COUNTER,
     CLEAR_PERIOD,
+    FLOATS,
+    HPOS,
     IN_END,
     IN_SLOTS,
     IN_START,
@@ -88,7 +102,8 @@ from bbzide.vm.message_layout import (
     VSTIG_QUERY,
 )
 
-__all__ = ["COMPILED", "robot_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS", "LATCHED"]
+__all__ = ["COMPILED", "robot_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS", "P_RECEIVE",
+           "LATCHED"]
 
 # Phases a call stopped in (its return value, plus LATCHED when a latch slot was written).
 P_DONE = 0      # everything asked for is done
@@ -97,12 +112,18 @@ P_INMSGS = 1    # the in-queue: io[IO_STATUS] is process_broadcasts' status (PYT
 P_STEP = 2      # ``step``: io[IO_STATUS] is call_global's status (PYTHON_MESSAGE: nothing
 #                 done; CALLED with a stack it cannot pop; CALL_UNDER_WAY + run's status)
 P_OUTMSGS = 3   # process_outmsgs needs the heap (a non-XTREME data GC): Python from there
+P_RECEIVE = 4   # a heap profile's receive stopped at row io[IO_RECEIVED] (no room, see
+#                 fastreceive.room_for_heap_add): Python receives from there, then steps
 LATCHED = 8
 # Flags of a call.
 F_RECEIVE, F_STEP, F_POP = 1, 2, 4
 # ``io`` slots.
 IO_STATUS, IO_COUNT, IO_COLLECTED, IO_INNER, IO_ROWS = range(5)
-IO_SLOTS = 5
+#: the heap neighbor entries the receive added less those the data GC removed
+#: (``vm.neighbors.count`` is Python's: it adds them, mod 256), and the row a P_RECEIVE
+#: stopped at
+IO_ADDED, IO_RECEIVED = 5, 6
+IO_SLOTS = 7
 
 _STR_STEP = 5
 #: ``neighbors.MARK``: the refreshed-since-the-last-data-GC bit of a ring entry
@@ -110,20 +131,42 @@ _MARK = 0x01
 
 
 @_compile
-def _receive(inq: Any, ring: Any, ctl: Any, payloads: Any, lengths: Any, distances: Any,
-             azimuths: Any, elevations: Any, first: int, last: int) -> None:
-    """``Robot.receive`` of rows ``first:last`` (fastreceive.receive_all, row by row)."""
+def _receive(d: Any, stack: Any, regs: Any, s: int, elems: int, reserved: int, inq: Any,
+             ring: Any, ctl: Any, payloads: Any, lengths: Any, distances: Any,
+             azimuths: Any, elevations: Any, first: int, last: int, io: Any) -> int:
+    """``Robot.receive`` of rows ``first:last`` (fastreceive.receive_all, row by row; the
+    heap profiles' broadcasts through ``fastreceive.neighbors_add_heap``, counted in
+    ``io[IO_ADDED]``). Returns the row it stopped at: ``last``, or the first broadcast
+    whose heap add Python must make (``fastreceive.room_for_heap_add``)."""
     spare = np.empty(len(inq), np.uint8)
+    scratch = np.empty(1, np.float32)
     size = ctl[RECORD]
     mark = ctl[CLEAR_COUNTER] < ctl[MARK_TIME]
+    xtreme = ctl[XTREME] != 0
+    floats = ctl[FLOATS] != 0
+    hpos = ctl[HPOS]
+    added = 0
     for k in range(first, last):
         n = min(lengths[k], PAYLOAD_SIZE)
         row = payloads[k]
         if n >= 3 and row[0] == BROADCAST:
             rid = _i(row[1]) | (_i(row[2]) << 8)
-            _neighbors_add(ring, ctl, rid, _to_u8(distances[k]), _to_u8(azimuths[k]),
-                           _to_u8(elevations[k]), mark)
+            if xtreme:
+                _neighbors_add(ring, ctl, rid, _to_u8(distances[k]), _to_u8(azimuths[k]),
+                               _to_u8(elevations[k]), mark)
+            else:
+                if not room_for_heap_add(d, regs, s, elems, reserved, hpos):
+                    io[IO_ADDED] = added
+                    return k
+                neighbors_add_heap(d, stack, regs, s, elems, reserved, hpos, rid,
+                                   situated_value(distances[k], floats, scratch),
+                                   situated_value(azimuths[k], floats, scratch),
+                                   situated_value(elevations[k], floats, scratch),
+                                   floats, mark)
+                added += 1
         _inmsg_append(inq, ctl, size, row, 0, n, spare)
+    io[IO_ADDED] = added
+    return last
 
 
 @_compile
@@ -212,8 +255,11 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     written; ``regs`` then holds the VM's registers (see the module comment). What it
     sends goes to the outbox rows from ``io[IO_ROWS]`` on, as robot ``index``'s."""
     if flags & F_RECEIVE:
-        _receive(inq, ring, ctl, payloads, lengths, distances, azimuths, elevations, first,
-                 last)
+        stopped = _receive(d, stack, regs, s, elems, reserved, inq, ring, ctl, payloads,
+                           lengths, distances, azimuths, elevations, first, last, io)
+        if stopped < last:
+            io[IO_RECEIVED] = stopped
+            return P_RECEIVE
     if not flags & F_STEP:
         return P_DONE
     latched = latch[:, 0].any()
@@ -250,13 +296,19 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     if phase == P_DONE:
         # ---- process_outmsgs: the neighbor-data GC countdown (u8), then the data GC
         was = ctl[CLEAR_COUNTER]
+        removed = 0
         if was == 0 and not ctl[XTREME]:
+            removed = data_gc_heap(d, regs, s, elems, reserved, ctl[HPOS], regs[R_NIL])
+        if removed < 0:
             phase = P_OUTMSGS
         else:
             ctl[CLEAR_COUNTER] = (was - 1) & 0xFF
             if was == 0:
                 ctl[CLEAR_COUNTER] = ctl[CLEAR_PERIOD]
-                _data_gc(ring, ctl)
+                if ctl[XTREME]:
+                    _data_gc(ring, ctl)
+                else:
+                    io[IO_ADDED] -= removed
             _drain(outq, ctl, index, out_payloads, out_lengths, out_robots, io)
     if latched or latch[:, 0].any():
         return phase | LATCHED
@@ -264,7 +316,7 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
 
 
 __all__ += ["F_RECEIVE", "F_STEP", "F_POP", "IO_STATUS", "IO_COUNT", "IO_COLLECTED",
-            "IO_INNER", "IO_ROWS", "IO_SLOTS", "PYTHON_MESSAGE"]
+            "IO_INNER", "IO_ROWS", "IO_ADDED", "IO_RECEIVED", "IO_SLOTS", "PYTHON_MESSAGE"]
 
 
 # ---- a whole swarm's control step: robot_step for each robot, in one call ---------------------

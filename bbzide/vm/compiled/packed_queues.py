@@ -21,7 +21,8 @@ scratch record); ``ring`` has a row per neighbor slot (``fastreceive.NB_*`` colu
 ``ctl`` holds the ring indices (the first six in :mod:`fastreceive`'s ``rings`` order, so
 its routines work on ``ctl`` directly) and the scalars of ``NeighborsState`` the step reads.
 Only an XTREME profile's ring rows are packed (the compiled step touches no other ring:
-those profiles keep their neighbor data in the heap and receive through Python).
+those profiles keep their neighbor data in the heap, where the compiled receive writes it;
+``NeighborsState.count``, their u8 counter, stays Python's: the step adds its adds).
 """
 
 from __future__ import annotations
@@ -41,10 +42,12 @@ IN_START, IN_END, IN_SLOTS, NB_START, NB_END, NB_SLOTS = range(6)
 OUT_START, OUT_END, OUT_SLOTS = 6, 7, 8
 CLEAR_COUNTER, LISTENERS, ROBOT, RECORD = 9, 10, 11, 12
 #: the profile's constants the step reads (set once: msg_in_proc_max, neighbors_mark_time,
-#: neighbors_clr_period, xtreme)
-MSG_MAX, MARK_TIME, CLEAR_PERIOD, XTREME = 13, 14, 15, 16
+#: neighbors_clr_period, xtreme, neighbors_floats)
+MSG_MAX, MARK_TIME, CLEAR_PERIOD, XTREME, FLOATS = 13, 14, 15, 16, 17
+#: ``neighbors.hpos``, the ``neighbors`` table (read by a heap profile's compiled receive)
+HPOS = 18
 #: slots in ``ctl``
-CTL_SLOTS = 17
+CTL_SLOTS = 19
 
 #: columns of a ring row: NeighborEntry's fields (robot, distance, azimuth, elevation,
 #: mark) — fastreceive.RING_COLUMNS (not imported: fastreceive imports the VM's modules)
@@ -70,7 +73,8 @@ def arrays_changed() -> None:
 class PackedQueues:
     """One robot's queues and neighbor ring as arrays (see the module comment)."""
 
-    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "record", "xtreme")
+    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "record", "xtreme", "_packed_inq",
+                 "_packed_outq")
 
     def __init__(self, profile: Profile, record: int) -> None:
         self.record = record
@@ -79,10 +83,13 @@ class PackedQueues:
         self.xtreme = profile.xtreme
         self.inq = np.zeros((profile.in_queue_cap + 2) * record, np.uint8)
         self.outq = np.zeros((profile.out_queue_cap + 2) * record, np.uint8)
+        self._packed_inq = self.inq.copy()
+        self._packed_outq = self.outq.copy()
         self.ring = np.zeros((profile.neighbors_cap + 1, RING_COLUMNS), np.int64)
         self.ctl = np.zeros(CTL_SLOTS, np.int64)
-        self.ctl[MSG_MAX:] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
-                              profile.neighbors_clr_period, profile.xtreme)
+        self.ctl[MSG_MAX:HPOS] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
+                                  profile.neighbors_clr_period, profile.xtreme,
+                                  profile.neighbors_floats)
         #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (HostRegistry's latched functions)
         self.latch = np.zeros((LATCH_SLOTS, 1 + LATCH_ARGS), np.int64)
 
@@ -91,6 +98,10 @@ class PackedQueues:
         inbox, outbox, ring = queues.inbox, queues.outbox, neighbors.ring
         self.inq[:] = np.frombuffer(bytearray().join(inbox.records), np.uint8)
         self.outq[:] = np.frombuffer(bytearray().join(outbox.records), np.uint8)
+        #: the records as packed: `unpack` writes back only the records that differ (an
+        #: M300's 2 x 257 records one by one cost ~0.2 ms a hand-over; a step changes few)
+        self._packed_inq = self.inq.copy()
+        self._packed_outq = self.outq.copy()
         if self.xtreme:
             flat: list[int] = []
             for e in ring.records:
@@ -103,16 +114,17 @@ class PackedQueues:
                               ring.capacity, outbox.start, outbox.end, outbox.capacity,
                               neighbors.clear_counter, neighbors.listeners, robot,
                               self.record)
+        self.ctl[HPOS] = neighbors.hpos
 
     def unpack(self, queues: MessageQueues, neighbors: NeighborsState) -> None:
         """The arrays back into the Python records (they become the truth again)."""
         n = self.record
-        inq = self.inq.tobytes()
-        for k, record in enumerate(queues.inbox.records):
-            record[:] = inq[k * n:(k + 1) * n]
-        outq = self.outq.tobytes()
-        for k, record in enumerate(queues.outbox.records):
-            record[:] = outq[k * n:(k + 1) * n]
+        for now, packed, records in ((self.inq, self._packed_inq, queues.inbox.records),
+                                     (self.outq, self._packed_outq, queues.outbox.records)):
+            # the Python records still hold what was packed: only the changed ones move
+            changed = np.flatnonzero((now != packed).reshape(-1, n).any(axis=1))
+            for k in changed.tolist():
+                records[k][:] = now[k * n:(k + 1) * n].tobytes()
         if self.xtreme:
             for e, row in zip(neighbors.ring.records, self.ring.tolist(), strict=True):
                 e.robot, e.distance, e.azimuth, e.elevation, e.mark = row

@@ -5,9 +5,10 @@
 removed for the robots the compiled kernel covers — a plain `Robot` in the fast mode
 (not ``stress_gc``), booted, not failed, READY. One call of :func:`fastbatch.swarm_step`
 runs :func:`fastbatch.robot_step` for each of them in index order: it receives the robot's
-rows of the deliveries (XTREME/u8 profiles; the others receive through ``receive_all``
-first), runs its in-queue, ``step`` and out-queue on its packed queues
-(:mod:`packed_queues`: they stay packed between steps) and writes what it sent straight
+rows of the deliveries (an XTREME ring of floats receives through ``receive_all`` first;
+a heap profile's receive the kernel cannot finish is a ``P_RECEIVE`` hand-over), runs
+its in-queue, ``step`` and out-queue on its packed queues (:mod:`packed_queues`: they
+stay packed between steps) and writes what it sent straight
 into the outbox columns. The per-robot arrays reach the kernel by address and length
 (:mod:`fastviews`), recorded once per swarm (:class:`_SwarmTables`, rebuilt when
 ``packed_queues.GENERATION`` says a VM changed an array); the registers Python keeps as
@@ -48,7 +49,10 @@ from bbzide.vm.compiled.fastbatch import (
     F_POP,
     F_RECEIVE,
     F_STEP,
+    IO_ADDED,
+    IO_RECEIVED,
     IO_SLOTS,
+    P_RECEIVE,
 )
 from bbzide.vm.compiled.packed_queues import LATCH_ARGS, LATCH_SLOTS
 from bbzide.vm.message_layout import PAYLOAD_SIZE
@@ -69,8 +73,10 @@ def covered(robot: Any, robot_type: type) -> bool:
 
 
 def _receives_compiled(robot: Any) -> bool:
+    """The kernel receives for the XTREME ring with u8 data and for the heap's neighbor
+    data (``fastreceive.neighbors_add_heap``); not for an XTREME ring of floats."""
     p = robot.profile
-    return p.xtreme and not p.neighbors_floats
+    return not (p.xtreme and p.neighbors_floats)
 
 
 class _Outbox:
@@ -240,16 +246,22 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
         _run_compiled(robots, tables, todo, stepping, deferred, deliveries, bounds, outbox,
                       phases, ios)
     # ---- Python, in robot order: hand-overs and the robots the kernel does not take
-    python = np.flatnonzero(stepping & (~covered_mask | (phases != 0)))
+    python = np.flatnonzero((stepping | (phases == P_RECEIVE))
+                            & (~covered_mask | (phases != 0)))
     for index in python.tolist():
         robot = robots[index]
         if robot is None:
             continue
-        if is_covered[index]:
+        if not is_covered[index]:
+            outbox.add(index, robot.control_step())
+        elif phases[index] == P_RECEIVE:  # the rest of its receive, then its whole step
+            robot.receive_all(deliveries.tuples_of(int(ios[index, IO_RECEIVED]),
+                                                   starts[index + 1]))
+            if stepping[index]:
+                outbox.add(index, robot.control_step())
+        else:
             outbox.add(index, robot.finish_compiled_step(
                 int(phases[index]), tables.registers[index], ios[index]))
-        else:
-            outbox.add(index, robot.control_step())
     failed = np.array([r is not None and r.failure is not None and not was
                        for r, was in zip(robots, failed_before, strict=True)], dtype=bool)
     return StepResult(outbox.packed(sort=len(python) > 0), failed)
@@ -311,6 +323,10 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
     finished = todo[(phases[todo] == 0) & stepping[todo]]
     for index in finished.tolist():
         robots[index].steps_done += 1
+    # heap neighbor entries added (receive) less removed (data GC): the u8 count is Python's
+    for index in np.flatnonzero(ios[:, IO_ADDED]).tolist():
+        neighbors = tables.machines[index][0]._neighbors  # not `neighbors`: no unpacking
+        neighbors.count = (neighbors.count + int(ios[index, IO_ADDED])) & 0xFF
     if n_latched:
         for group, apply in enumerate(tables.applies):
             mine = rows_latched[rows_latched[:, fastbatch.L_GROUP] == group]
