@@ -24,11 +24,12 @@ ROOM_RANK = {
     "harness": 3,
     "worlds": 3,
     "recording": 4,
-    "lessons": 5,
-    "ui": 6,
-    "cli": 7,
-    "__main__": 8,
-    "__init__": 7,
+    "debugger": 5,
+    "lessons": 6,
+    "ui": 7,
+    "cli": 8,
+    "__main__": 9,
+    "__init__": 8,
 }
 
 

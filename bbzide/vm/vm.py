@@ -118,6 +118,11 @@ class VM:
         self.error_events: list[tuple[str, int]] = []
         self.error_receiver: Callable[[VM, Error], None] | None = None
         self.instructions_executed = 0
+        #: The debugger's hook (bbzide/debugger): called with the VM before each instruction
+        #: `step` runs — the reference mode's loop, before the instruction's collection — so
+        #: it sees the VM as the previous instruction left it. None: no call. The fast mode's
+        #: compiled loop never calls it (a debugger puts a traced robot in the reference mode).
+        self.tracer: Callable[[VM], None] | None = None
         #: heap geometry passed to the compiled collector (fastgc.collect)
         self._geometry = (self.heap.size, self.heap.obj_size, self.heap.seg_size,
                           self.heap.elems, self.heap.reserved, profile.gcmark_depth)
@@ -572,6 +577,8 @@ class VM:
         they can prove changeless (see ``_SKIP_RULES``).
         """
         if self.state == State.READY:
+            if self.tracer is not None:
+                self.tracer(self)
             if self.stress_gc:
                 gcmod.collect(self.heap, self.stack, self.stackptr)
             else:

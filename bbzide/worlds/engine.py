@@ -244,6 +244,12 @@ class Simulation:
         self._initial_headings = None if headings is None else np.asarray(headings, float)
         self._factory = robot_factory or _default_robot_factory(instruction_budget, loop)
         self.timings: dict[str, float] = {"sense": 0.0, "vm": 0.0, "radio": 0.0, "physics": 0.0}
+        #: None: the control phase is one `swarm_batch.control_steps` call (the fast path).
+        #: Set (by bbzide/debugger): the robots take their turns one by one through their
+        #: own methods (`swarm_batch`'s reference path, the same results), and the observer
+        #: is called with the robot's index right after each robot's control step, on the
+        #: thread running `step` (in lockstep and asynchronous runs alike).
+        self.turn_observer: Callable[[int], None] | None = None
         self._reset_world()
         self._boot_all()
 
@@ -364,7 +370,13 @@ class Simulation:
         self.step_deliveries = deliveries
         stepping = alive & ~world.asleep(step, count)
         t2 = clock()
-        result = swarm_batch.control_steps(self._steppers, deliveries, stepping)
+        observer = self.turn_observer
+        if observer is None:
+            result = swarm_batch.control_steps(self._steppers, deliveries, stepping)
+        else:
+            result = swarm_batch.control_steps_reference(
+                [None if s is None else _ObservedTurn(s, i, observer)
+                 for i, s in enumerate(self._steppers)], deliveries, stepping)
         t3 = clock()
         outbox = result.outbox
         failed = result.failed
@@ -431,6 +443,8 @@ class Simulation:
                     counters.dropped[index] += len(deliveries)
             if state.alive and not world.is_asleep(index, step):
                 outgoing = state.robot.control_step()
+                if self.turn_observer is not None:
+                    self.turn_observer(index)
                 if state.robot.failure is not None:
                     self._check_failure(state)
                 elif outgoing:
@@ -522,6 +536,31 @@ class _ReceiveOneByOne:
 
     def control_step(self) -> list[bytes]:
         return self.robot.control_step()
+
+
+class _ObservedTurn:
+    """A stepper whose control step is followed by the engine's `turn_observer` (the
+    debugger's view of "this robot's turn is over"); receiving is passed through."""
+
+    __slots__ = ("stepper", "index", "observer")
+
+    def __init__(self, stepper: Any, index: int, observer: Callable[[int], None]) -> None:
+        self.stepper = stepper
+        self.index = index
+        self.observer = observer
+
+    @property
+    def failure(self) -> Any:
+        return self.stepper.failure
+
+    def receive_all(self, deliveries: Sequence[tuple[Any, bytes, float, float, float]]
+                    ) -> None:
+        self.stepper.receive_all(deliveries)
+
+    def control_step(self) -> list[bytes]:
+        sent = self.stepper.control_step()
+        self.observer(self.index)
+        return sent
 
 
 def read_global(vm: Any, strings: list[str], name: str) -> Any:
