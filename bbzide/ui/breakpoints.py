@@ -15,6 +15,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
+from bbzide.debugger.source_map import SourceMap
+
 #: More breakpoints than a person sets by hand; bounds what one message can make the run check.
 MAX_BREAKPOINTS = 200
 #: A condition is one Buzz expression; a longer text is a paste gone wrong, not a condition.
@@ -87,10 +89,10 @@ def parse_breakpoints(items: object) -> list[LineBreakpoint]:
 
 
 def code_lines(program: Any) -> set[int]:
-    """The lines of the program's main file that hold code (some instruction maps to them)."""
-    source = getattr(program, "source_file", None)
-    return {location.line for location in getattr(program, "debug_map", {}).values()
-            if location.file == source and location.line >= 1}
+    """The lines of the program's main file where the debugger can stop: the lines a
+    statement starts on (the debugger room's `SourceMap`; the raw debug map puts a
+    statement's last instructions on the next statement's line)."""
+    return set(SourceMap(program).code_lines)
 
 
 class BreakpointBook:

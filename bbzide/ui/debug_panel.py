@@ -63,7 +63,12 @@ class DebugControls:
             self.controller.debug(command, self.selected_robot(client))
 
     def refresh(self, breakpoints: list[LineBreakpoint]) -> None:
-        text = where_markdown(self.controller.status.paused_at)
+        status = self.controller.status
+        text = where_markdown(status.paused_at)
+        if status.debug_note:
+            text += f"  \n*{status.debug_note}*"
+        for refused in status.breakpoint_errors:
+            text += f"  \n⚠ {refused}"
         if self.where.content != text:
             self.where.content = text
         listed = breakpoints_markdown(breakpoints)

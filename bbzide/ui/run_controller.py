@@ -74,8 +74,19 @@ class RunStatus:
     program_generation: int = 0  # bumps when a new program is loaded
     recording: str | None = None  # the .rrd being written (None = not recording)
     paused_at: PausedAt | None = None  # where the debugger stopped the swarm (None = it did not)
+    breakpoint_errors: tuple[str, ...] = ()  # breakpoints the debugger refused, and why
+    debug_note: str | None = None  # what the last debugger command could not do
     stops: int = 0  # bumps at every debugger stop, so a listener sees a new one
 
+
+#: What the Debug folder says when a command ended without a stop.
+NOTHING_THERE = {
+    "step_back_line": "nothing to step back to: the debugger keeps the swarm's past from its "
+                      "first breakpoint or pause on",
+    "step_back_control_step": "nothing to step back to: the debugger keeps the swarm's past "
+                              "from its first breakpoint or pause on",
+    "run_back_to_previous_hit": "no earlier breakpoint hit",
+}
 
 #: The debugger commands `RunController.debug` takes, each the debugger room's method of that
 #: name but the two back-steps, which are `step_back(robot, unit)`.
@@ -107,7 +118,7 @@ class RunController:
         self._last_frame_time = 0.0
         self.last_frame: SwarmFrame | None = None
         self._breakpoints: list[Any] = []
-        self.pause_on_error = True
+        self._pause_on_error = True
         self._failed_before = 0  # failed robots after the last step (pause on a new one)
         self._thread = threading.Thread(target=self._loop, name="bbzide-simulation", daemon=True)
 
@@ -148,6 +159,16 @@ class RunController:
     def set_breakpoints(self, breakpoints: list[Any]) -> None:
         """The editor's breakpoints (`bbzide.ui.breakpoints.LineBreakpoint`), for every robot."""
         self._send("breakpoints", list(breakpoints))
+
+    @property
+    def pause_on_error(self) -> bool:
+        return self._pause_on_error
+
+    @pause_on_error.setter
+    def pause_on_error(self, on: bool) -> None:
+        """A robot entering an error pauses the run (on by default)."""
+        self._pause_on_error = on
+        self._send("pause_on_error", on)
 
     def debug(self, command: str, robot: int | None = None) -> None:
         """Pause and apply a debugger command (`STEP_COMMANDS`) to robot index `robot` (None:
@@ -245,24 +266,30 @@ class RunController:
         if command == "play":
             self._running = True
             self.status.paused_at = None
+            self.status.debug_note = None
         elif command == "pause":
             self._running = False
             self._pending_steps = 0
+            if hasattr(self._sim, "debugger"):  # its past starts here: step back reaches it
+                with self._sim_lock:
+                    self._sim.debugger()
             # The last step's frame may have been skipped by the frame-rate limit; a paused view
             # must show the state the inspector reads, not the one a step before.
             self._publish(force=True)
         elif command == "step":
             self._running = False
             self._pending_steps += 1
+        elif command == "pause_on_error":
+            if hasattr(self._sim, "set_pause_on_error"):
+                with self._sim_lock:
+                    self._sim.set_pause_on_error(argument)
         elif command == "reset":
             self._rebuild()
         elif command == "flush":
             argument.set()
         elif command == "breakpoints":
             self._breakpoints = argument
-            if self._sim is not None and hasattr(self._sim, "set_breakpoints"):
-                with self._sim_lock:
-                    self._sim.set_breakpoints(argument)
+            self._give_breakpoints()
         elif command == "debug":
             self._debug_command(*argument)
         elif command == "program":
@@ -275,8 +302,7 @@ class RunController:
                 else:
                     with self._sim_lock:
                         self._sim.load_program(argument, keep_state=True)
-                        if self._breakpoints and hasattr(self._sim, "set_breakpoints"):
-                            self._sim.set_breakpoints(self._breakpoints)
+                    self._give_breakpoints()
                     self.status.paused_at = None
                     self._publish(force=True)
             finally:
@@ -320,8 +346,9 @@ class RunController:
                                   **pinned)
         with self._sim_lock:
             self._sim = sim
-            if self._breakpoints and hasattr(sim, "set_breakpoints"):
-                sim.set_breakpoints(self._breakpoints)
+            if hasattr(sim, "set_pause_on_error"):
+                sim.set_pause_on_error(self._pause_on_error)
+        self._give_breakpoints()
         self.status.paused_at = None
         self._failed_before = 0
         self.status.error = None
@@ -347,7 +374,7 @@ class RunController:
                         self._stopped(self._sim.paused_view(stop))  # type: ignore[attr-defined]
                 else:
                     self._sim.step()
-                    if self.pause_on_error:
+                    if self._pause_on_error:
                         self._pause_on_new_failure()
         except Exception as error:  # noqa: BLE001 - shown in the status line; the UI lives on
             self.status.error = f"{type(error).__name__}: {error}"
@@ -361,6 +388,17 @@ class RunController:
         self._publish(force=forced or not self._running)
 
     # ---- debugger (simulation thread, under the run lock where the swarm is touched) ---------
+    def _give_breakpoints(self) -> None:
+        """The breakpoints to the swarm's debugger (made only once there are some)."""
+        sim = self._sim
+        if sim is None or not hasattr(sim, "set_breakpoints"):
+            return
+        if not self._breakpoints and not getattr(sim, "has_debugger", False):
+            self.status.breakpoint_errors = ()
+            return
+        with self._sim_lock:
+            self.status.breakpoint_errors = tuple(sim.set_breakpoints(self._breakpoints))
+
     def _debugging(self) -> bool:
         """The debugger must drive this step: breakpoints are set, or it paused mid-step."""
         sim = self._sim
@@ -404,13 +442,16 @@ class RunController:
                     stop = sim.debug(command)  # type: ignore[attr-defined]
                 else:
                     stop = sim.debug(command, key)  # type: ignore[attr-defined]
+                still = stop is None and sim.debugger().paused_at  # type: ignore[attr-defined]
                 self._failed_before = sum(s.failure is not None for s in _robot_states(sim))
         finally:
             self.status.step_started_at = None
         if stop is not None:
             self._stopped(sim.paused_view(stop))  # type: ignore[attr-defined]
-        else:
-            self.status.paused_at = None
+            self.status.debug_note = None
+        else:  # nothing found: where the swarm is stays shown (mid-step, or between steps)
+            self.status.paused_at = sim.paused_view(still) if still else None  # type: ignore
+            self.status.debug_note = NOTHING_THERE.get(command, "the robot did not stop")
         self._after_step()
         self._publish(force=True)
 

@@ -164,6 +164,7 @@ class WorldsSimulation:
         self.source_text: str | None = None
         self._overlays: tuple[str, dict[str, Any]] | None = None
         self._debugger: Any = None
+        self.pause_on_error = True  # what a debugger made later starts with
 
     # ---- debugger ------------------------------------------------------------------------------
     def debugger(self) -> Any:
@@ -171,15 +172,32 @@ class WorldsSimulation:
         breakpoints never builds one)."""
         if self._debugger is None:
             self._debugger = _import("bbzide.debugger").SwarmDebugger(self.sim)
+            self._debugger.pause_on_error = self.pause_on_error
         return self._debugger
 
-    def set_breakpoints(self, lines: Sequence[Any]) -> None:
-        """The IDE's breakpoints (`bbzide.ui.breakpoints.LineBreakpoint`) in the main script."""
+    def set_breakpoints(self, lines: Sequence[Any]) -> list[str]:
+        """The IDE's breakpoints (`bbzide.ui.breakpoints.LineBreakpoint`) in the main script;
+        the ones the debugger refuses (a robot id not in the swarm, a condition that does not
+        parse) are left out, each with its one-line reason in the list returned."""
         room = _import("bbzide.debugger")
-        path = getattr(self.program, "source_file", None)
-        self.debugger().breakpoints = [
-            room.Breakpoint(b.line, path=path, robot=b.robot, condition=b.condition,
-                            hit_count=b.hit_count) for b in lines]
+        debugger = self.debugger()
+        kept, refused = [], []
+        for line in lines:
+            breakpoint = room.Breakpoint(line.line, robot=line.robot, condition=line.condition,
+                                         hit_count=line.hit_count)
+            try:
+                debugger.check_breakpoint(breakpoint)
+            except room.DebuggerError as error:
+                refused.append(error.message)
+                continue
+            kept.append(breakpoint)
+        debugger.breakpoints = kept
+        return refused
+
+    def set_pause_on_error(self, on: bool) -> None:
+        self.pause_on_error = on
+        if self._debugger is not None:
+            self._debugger.pause_on_error = on
 
     def debug(self, command: str, *arguments: Any) -> Any:
         """One debugger command (`run`, `step_over`, `step_back`, ...): its `Stop` or None.
@@ -203,7 +221,17 @@ class WorldsSimulation:
                         tuple(FrameView(str(f.function), _optional_int(f.line),
                                         {str(k): str(v) for k, v in dict(f.locals).items()})
                               for f in getattr(stop, "frames", ()) or ()),
-                        getattr(stop, "message", None) or None, self.mid_step)
+                        self._stop_message(index, stop), self.mid_step)
+
+    def _stop_message(self, index: int, stop: Any) -> str | None:
+        """An error stop's text, in the student's terms when the failing call is known."""
+        failure = getattr(self.sim.robots[index].robot, "failure", None)
+        if stop.reason != "error" or failure is None:
+            return getattr(stop, "error", None) or None
+        _where, message = explain_robot_failure(
+            failure, self.sim.robots[index].program or self.program,
+            self.sim.world.host_names, self.sim.world.name)
+        return f"{getattr(failure, 'reason', 'error')}: {message}"
 
     def error_view(self, index: int) -> PausedAt:
         """Robot `index`, which has just failed, as a stop "error" at its failing call."""
@@ -287,6 +315,10 @@ class WorldsSimulation:
         return sorted(rows, key=lambda row: (row[0], -row[1], row[2]))
 
     @property
+    def has_debugger(self) -> bool:
+        return self._debugger is not None
+
+    @property
     def mid_step(self) -> bool:
         """The debugger stopped inside a control step (some robots have not run it yet)."""
         return self._debugger is not None and self._debugger.paused_at is not None
@@ -305,7 +337,11 @@ class WorldsSimulation:
 
     def load_program(self, program: Any, keep_state: bool) -> None:
         self.program = program
-        self._debugger = None  # its snapshots and pcs belong to the old program
+        if self.mid_step:  # finish the step the debugger holds, as the old program would
+            self._debugger.breakpoints = ()
+            self._debugger.pause_on_error = False
+            self._debugger.run(1)
+        self._debugger = None  # its checkpoints and source maps belong to the old program
         if self.recorder is not None and not keep_state:
             self.stop_recording()  # the world restarts at step 0: a new timeline
         self.sim.load_program(program, keep_state=keep_state)
@@ -386,7 +422,7 @@ def _heap_value(vm: Any, strings: Sequence[str], index: int) -> Any:
     """The heap object `index` as a Python value (int, float, string; None otherwise)."""
     heap_room = _import("bbzide.vm.heap")
     heap = vm.heap
-    if not 0 <= index < heap.object_count():
+    if not 0 <= index < heap.object_count:
         return None
     kind = heap.obj_type(index)
     if kind == heap_room.INT:
@@ -402,7 +438,7 @@ def _heap_value(vm: Any, strings: Sequence[str], index: int) -> Any:
 def _heap_text(vm: Any, strings: Sequence[str], index: int) -> str:
     value = _heap_value(vm, strings, index)
     if value is None:
-        kind = vm.heap.obj_type(index) if 0 <= index < vm.heap.object_count() else -1
+        kind = vm.heap.obj_type(index) if 0 <= index < vm.heap.object_count else -1
         names = ("nil", "int", "float", "string", "table", "closure", "userdata")
         return names[kind] if 0 <= kind < len(names) else "?"
     return f"{value:.4g}" if isinstance(value, float) else repr(value) \
