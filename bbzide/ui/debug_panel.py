@@ -80,14 +80,18 @@ NOT_PAUSED = "*not stopped by the debugger* · click the editor's left margin to
 NO_BREAKPOINTS = "**Breakpoints**: none (click a line's left margin; right-click for options)"
 
 
+#: Why the debugger stopped, as the Debug folder says it.
+WHY = {"breakpoint": "breakpoint", "step": "stepped", "error": "error", "pause": "paused"}
+
+
 def where_markdown(paused: PausedAt | None) -> str:
     """The Debug folder's first line: which robot stopped where, and why."""
     if paused is None:
         return NOT_PAUSED
     line = f"line **{paused.line}**" if paused.line else "no source line"
     function = f" in `{paused.frames[0].function}`" if paused.frames else ""
-    text = (f"⏸ **robot {paused.robot_id}** (#{paused.robot_index}) stopped at {line}{function}"
-            f" · {paused.reason} · step {paused.step}")
+    text = (f"**Paused:** robot **{paused.robot_id}** (#{paused.robot_index}) at {line}"
+            f"{function} ({WHY[paused.reason]}, control step {paused.step})")
     if paused.mid_step:
         text += "  \n*mid-step: the robots before it ran this step, the others have not yet*"
     if paused.message:

@@ -56,6 +56,14 @@ class PausedMarker extends GutterMarker {
   }
 }
 
+class SpacerMarker extends GutterMarker {
+  toDOM() {
+    const spacer = document.createElement("div");
+    spacer.className = "breakpoint-spacer";  // a dot's width, never shown
+    return spacer;
+  }
+}
+
 const NO_OPTIONS = { condition: null, robot: null, hit_count: null };
 const setBreakpointsEffect = StateEffect.define();
 const setPausedEffect = StateEffect.define();
@@ -191,7 +199,7 @@ export function breakpointsExtension(onChange) {
         const dots = view.state.field(breakpointField);
         return paused ? RangeSet.join([dots, paused.markers]) : dots;
       },
-      initialSpacer: () => new BreakpointMarker(NO_OPTIONS),
+      initialSpacer: () => new SpacerMarker(),
       renderEmptyElements: true,  // every line is a target for a click
       domEventHandlers: {
         mousedown(view, block, event) {

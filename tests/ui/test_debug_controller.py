@@ -133,3 +133,66 @@ def test_watches_read_every_robot_after_every_step(tmp_path: Path) -> None:
         assert book.series(count)[0].tolist() == [1, 2, 3, 4, 5]  # no listener, no sample
     finally:
         controller.stop()
+
+
+#: A listener lambda (line 4) and a `step` with a host call (line 8) and a local (line 9).
+LISTENING = """\
+var heard = 255
+function init() {
+  neighbors.listen("g", function(vid, value, rid) {
+    heard = value
+  })
+}
+function step() {
+  neighbors.broadcast("g", id)
+  var x = id + 1
+  led(x % 7 + 1)
+}
+"""
+
+
+def robot_bytes(controller: RunController, robot_id: int) -> bytes:
+    """Robot `robot_id`'s whole state (heap, stack, pc) as comparable bytes."""
+    with controller.locked() as sim:
+        state = sim.sim.state_of(robot_id)  # type: ignore[union-attr]
+        return state.robot.comparable(state.robot.snapshot())  # type: ignore[no-any-return]
+
+
+def test_breakpoint_steps_and_back_through_the_controller(tmp_path: Path) -> None:
+    from bbzide.ui.breakpoints import LineBreakpoint
+
+    controller = controller_for(LISTENING, tmp_path)
+
+    def command(name: str) -> tuple[int, int | None, str]:
+        stops = controller.status.stops
+        controller.debug(name)
+        wait_until(lambda: controller.status.stops > stops or controller.status.debug_note,
+                   WAIT_S, message=name)
+        paused = controller.status.paused_at
+        assert paused is not None, controller.status.debug_note
+        return paused.robot_id, paused.line, paused.reason
+
+    try:
+        controller.set_breakpoints([LineBreakpoint(9, robot=1)])
+        controller.play()
+        wait_until(lambda: controller.status.paused_at is not None, WAIT_S, message="the hit")
+        paused = controller.status.paused_at
+        assert paused is not None and not controller.status.running
+        assert (paused.robot_id, paused.line, paused.reason, paused.step) == (1, 9,
+                                                                            "breakpoint", 0)
+        assert paused.mid_step and paused.frames[0].function == "step"
+        at_nine = robot_bytes(controller, 1)
+        assert command("step_over") == (1, 10, "step")
+        assert controller.status.paused_at.frames[0].locals == {"x": "2"}  # type: ignore
+        # over the end of `step`: the robot's next line is the listener's, next control step
+        assert command("step_over") == (1, 4, "step")
+        assert controller.status.paused_at.frames[0].function == "lambda at line 3"  # type: ignore
+        assert command("step_out") == (1, 9, "breakpoint")  # out of the lambda: to the hit
+        assert command("step_back_control_step")[1] == 8
+        assert command("step_over")[:2] == (1, 9)  # (a breakpoint's line: reason "breakpoint")
+        assert robot_bytes(controller, 1) == at_nine  # the same state, byte for byte
+        controller.set_breakpoints([])
+        controller.play()  # finishes the held step through the debugger, then runs plain
+        wait_until(lambda: controller.status.step >= 4, WAIT_S, message="running on")
+    finally:
+        controller.stop()
