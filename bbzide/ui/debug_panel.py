@@ -91,7 +91,7 @@ def where_markdown(paused: PausedAt | None) -> str:
     line = f"line **{paused.line}**" if paused.line else "no source line"
     function = f" in `{paused.frames[0].function}`" if paused.frames else ""
     text = (f"**Paused:** robot **{paused.robot_id}** (#{paused.robot_index}) at {line}"
-            f"{function} ({WHY[paused.reason]}, control step {paused.step})")
+            f"{function} ({WHY.get(paused.reason, paused.reason)}, control step {paused.step})")
     if paused.mid_step:
         text += "  \n*mid-step: the robots before it ran this step, the others have not yet*"
     if paused.message:
