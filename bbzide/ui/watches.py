@@ -217,8 +217,11 @@ class WatchPanel:
                 if chart is not None:
                     chart.remove()
                 with self.folder:
-                    chart = self._gui.add_uplot(data, series, title=watch.label, aspect=1.6,
-                                                legend={"show": len(series) <= 8})
+                    chart = self._gui.add_uplot(
+                        data, series, title=watch.label, aspect=1.6,
+                        scales={"x": {"time": False}},  # control steps, not a date
+                        axes=({"label": "control step"}, {}),
+                        legend={"show": len(series) <= 8})
                 self._charts[watch] = chart
             else:
                 chart.data = data
