@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
+from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.debugger.source_map import SourceMap
 
 #: More breakpoints than a person sets by hand; bounds what one message can make the run check.
@@ -88,10 +89,13 @@ def parse_breakpoints(items: object) -> list[LineBreakpoint]:
     return [by_line[line] for line in sorted(by_line)]
 
 
-def code_lines(program: Any) -> set[int]:
+def code_lines(program: Any) -> set[int] | None:
     """The lines of the program's main file where the debugger can stop: the lines a
     statement starts on (the debugger room's `SourceMap`; the raw debug map puts a
-    statement's last instructions on the next statement's line)."""
+    statement's last instructions on the next statement's line). None for a program that
+    is not BittyBuzz bytecode with its source (nothing to check the lines against)."""
+    if not isinstance(program, BittyBuzzProgram):
+        return None
     return set(SourceMap(program).code_lines)
 
 
@@ -133,6 +137,8 @@ class BreakpointBook:
     def program_compiled(self, revision: int, program: Any) -> None:
         """A program compiled from text `revision`: the book's lines on no code go."""
         lines = code_lines(program)
+        if lines is None:
+            return
         with self._lock:
             self._programs = {r: v for r, v in self._programs.items() if r > revision - 4}
             self._programs[revision] = lines

@@ -142,7 +142,8 @@ class RunController:
         self._on_step = [*self._on_step, listener]
 
     def remove_step_listener(self, listener: Callable[[SimulationHandle], None]) -> None:
-        self._on_step = [known for known in self._on_step if known is not listener]
+        # `!=`, not `is not`: each read of a bound method makes a new, equal object
+        self._on_step = [known for known in self._on_step if known != listener]
 
     def play(self) -> None:
         self._send("play")
