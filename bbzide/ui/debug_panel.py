@@ -18,8 +18,9 @@ from bbzide.ui.breakpoints import LineBreakpoint
 from bbzide.ui.inspection import PausedAt
 from bbzide.ui.run_controller import RunController
 
-#: Forward row: button label -> controller command ("continue" and "pause" are play / pause).
-FORWARD = {"Continue": "continue", "Pause": "pause", "Over": "step_over", "Into": "step_into",
+#: Forward row: button label -> controller command ("continue" is play; pausing is the Run
+#: folder's Pause).
+FORWARD = {"Continue": "continue", "Over": "step_over", "Into": "step_into",
            "Out": "step_out", "Instr.": "step_instruction"}
 #: Backward row: button label -> controller command.
 BACKWARD = {"Line": "step_back_line", "Control step": "step_back_control_step",
@@ -36,7 +37,7 @@ class DebugControls:
             self.where = gui.add_markdown(NOT_PAUSED)
             self.forward = gui.add_button_group(
                 "Step", tuple(FORWARD),
-                hint="Continue · Pause · step Over / Into / Out of a call (the selected robot, "
+                hint="Continue · step Over / Into / Out of a call (the selected robot, "
                      "else the stopped one) · one VM Instruction (see the Build listing)")
             self.backward = gui.add_button_group(
                 "Back", tuple(BACKWARD),
