@@ -7,6 +7,7 @@
     bbzide run X.bzz|X.bbo --platform P ...   one robot on the VM model (bbzide.harness.commands)
     bbzide run X.bzz --world W --robots N ... a swarm in a world (bbzide.worlds.commands)
     bbzide run S.toml [--steps S] [--seed K]  a scenario file's swarm (bbzide.worlds.commands)
+    bbzide run ... --break F:LINE[:COND] [--stop]  breakpoint hits (bbzide.debugger.commands)
     bbzide ide [X.bzz] ...      the browser IDE (bbzide.ui.commands)
     bbzide replay X.rrd         the browser IDE in replay mode (bbzide.ui.commands)
     bbzide lesson [N] [--check [FILE] | --reset]  the teaching track (bbzide.ui.lesson_commands)
@@ -20,7 +21,9 @@ with `--world` or a scenario file (`.toml`) the worlds room runs it (`run_world(
 `run_scenario(args)`), otherwise the VM room
 (`run_single_robot(args)`); with `--record` (options from
 `bbzide.recording.commands.add_record_arguments`) the recording room runs it
-(`run_recorded(args)`, above the worlds, which never import it). This file only routes and
+(`run_recorded(args)`, above the worlds, which never import it); with `--break`/`--stop`
+(`bbzide.debugger.commands.add_break_arguments`) the debugger room drives the world run
+(`run_with_breakpoints(args)`). This file only routes and
 turns `UserError` into a one-screen message with exit status 1: no traceback reaches a user.
 Any other exception is a bug of ours: the user sees one line naming it and the file where its
 traceback was saved (exit status 70, `EX_SOFTWARE` of sysexits.h); `BBZIDE_TRACEBACK=1` lets it
@@ -97,6 +100,9 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
     record_commands = _optional_module("bbzide.recording.commands")
     if record_commands is not None:
         record_commands.add_record_arguments(run)
+    debugger_commands = _optional_module("bbzide.debugger.commands")
+    if debugger_commands is not None:
+        debugger_commands.add_break_arguments(run)
 
     def dispatch(args: argparse.Namespace) -> int:
         script = Path(str(getattr(args, "script", "")))
@@ -106,6 +112,10 @@ def _register_run(subparsers: argparse._SubParsersAction) -> None:
                             f"{script.with_suffix('.bbo')} (or run the .bzz)")
         if script.suffix == ".toml" and world_commands is None:
             raise UserError("scenario files need the worlds, not in this build")
+        if getattr(args, "breaks", None) or getattr(args, "stop", False):
+            if debugger_commands is None:
+                raise UserError("--break needs the debugger, not in this build")
+            return int(debugger_commands.run_with_breakpoints(args) or 0)
         if getattr(args, "record", None):
             if record_commands is None:
                 raise UserError("recording is not available in this build")

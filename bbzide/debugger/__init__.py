@@ -33,10 +33,12 @@ the stop finishes the step exactly as an uninterrupted run would have (`turn_obs
 the same turns in the same order; the traced robots run the VM's reference mode, which leaves
 the same bytes as the fast one).
 
-Reverse stepping restores a checkpoint taken at the start of a control step (every traced
-step, and every `CHECKPOINT_EVERY` steps of the fast path) and re-executes forward to the
-instruction wanted: the swarm, the world and the robots' heaps are byte for byte as they were
-the first time (hit counts of breakpoints are restored with them).
+Reverse stepping restores a checkpoint taken at the start of a control step (every
+`TRACED_CHECKPOINT_EVERY` traced steps, every `CHECKPOINT_EVERY` steps of the fast path) and
+re-executes forward to the instruction wanted: the swarm, the world and the robots' heaps are
+byte for byte as they were the first time (hit counts of breakpoints are restored with them).
+Breakpoints stop robots in their control steps: code that runs only at boot (the top level,
+`init`) is refused as a breakpoint line.
 
 Cost: with no breakpoint and nothing being stepped `run` is the engine's fast step plus a
 checkpoint every `CHECKPOINT_EVERY` steps; with breakpoints the robots they can stop run one

@@ -102,6 +102,17 @@ class SourceMap:
         location = self.program.location_of(pc)
         return location.col if location is not None else 0
 
+    def boot_only(self, line: int) -> str | None:
+        """When all the code of `line` is in the top level or in `init` (run once, when a
+        robot boots): which ("the top level", "init"); else None."""
+        functions = [self.function_at(pc) for pc, found in self.line_of.items()
+                     if found == line]
+        where = {function.name for function in functions if function is not None}
+        if where and where <= {"<top level>", "init"}:
+            return " and ".join("the top level" if w == "<top level>" else w
+                                for w in sorted(where))
+        return None
+
     def nearest_code_line(self, line: int) -> int | None:
         """The first line with code at or after `line` (None: none after it)."""
         index = bisect.bisect_left(self.code_lines, line)

@@ -53,13 +53,16 @@ from bbzide.diagnostics import UserError
 from bbzide.vm.inspector import globals_by_name, stack_frames, table_contents
 
 #: A checkpoint at every this many control steps on the fast path: a Kilobot swarm's
-#: checkpoint costs a few control steps of CPU (the pymunk space is copied), so one every 50
-#: steps keeps the fast path within a few percent (benchmarks/debugger_bench.py prints it),
-#: and a rewind re-executes at most 49 fast steps.
-CHECKPOINT_EVERY = 50
-#: Checkpoints kept at every step (the recent ones, e.g. of traced steps); older ones are
-#: thinned to one every CHECKPOINT_EVERY steps. 64 recent swarm states of 25 Kilobots are a
-#: few MB, and stepping back through 64 control steps needs no fast-forward at all.
+#: checkpoint costs about five of its control steps of CPU (the pymunk space is copied), so
+#: one every 100 steps keeps the fast path within a few percent
+#: (benchmarks/debugger_bench.py prints it); a rewind re-executes at most 99 fast steps.
+CHECKPOINT_EVERY = 100
+#: A checkpoint at every this many control steps while steps are traced: a traced step costs
+#: ten times a fast one, so a checkpoint every 10 adds a few percent to it, and a rewind
+#: re-executes at most 9 traced steps (traced, so breakpoint hit counts stay exact).
+TRACED_CHECKPOINT_EVERY = 10
+#: Checkpoints kept however they fall (the recent ones); older ones are thinned to one every
+#: CHECKPOINT_EVERY steps. 64 swarm states of 25 Kilobots are a few MB.
 RECENT_CHECKPOINTS = 64
 #: Control steps a stepping command runs at most before giving up (returns None): a robot
 #: that never runs again (failed, asleep) must not hang the caller.
@@ -134,7 +137,8 @@ class _Position:
 class _Request:
     """What a traced run waits for. kind: "continue" (breakpoints, errors), "into", "over",
     "out", "instruction" (stepping `index`), "until" (`index` at `instructions`), "collect"
-    (note `index`'s line events or the breakpoint hits, never stop), "pause"."""
+    (never stop; note robot `index`'s line events, or with index -2 the breakpoint stops,
+    or with -3 nothing: hits are counted all the same), "pause"."""
 
     kind: str
     index: int = -1
@@ -216,6 +220,9 @@ class SwarmDebugger:
         self._thread: _StepThread | None = None
         self._request = _Request("continue")
         self._maps: dict[int, SourceMap] = {}
+        self._maps_by_content: dict[tuple[Any, ...], SourceMap] = {}
+        self._programs: list[Any] = []
+        self._applies_cache: dict[tuple[str | None, int], bool] = {}
         self._checkpoints: dict[int, tuple[checkpoints.Checkpoint, dict[Breakpoint, int]]] = {}
         #: per robot index: (pc, line, blockptr) of its previous traced instruction this turn
         self._last: list[tuple[int, int | None, int] | None] = [None] * simulation.count
@@ -244,12 +251,8 @@ class SwarmDebugger:
         """A `DebuggerError` (one line) when `breakpoint` cannot stop anything: a line
         outside the file or without code, a condition that does not parse, an unknown
         robot, a hit count below 1."""
-        source_map = self._main_map()
+        source_map = self._map_for(breakpoint)
         where = source_map.main_file or "the program"
-        if breakpoint.path is not None and source_map.main_file is not None \
-                and not _same_file(breakpoint.path, source_map.main_file):
-            raise DebuggerError(f"breakpoint in {breakpoint.path}: the program's main file "
-                                f"is {source_map.main_file}")
         text = source_map.program.source_text
         lines = len(text.splitlines()) if text is not None else None
         if breakpoint.line < 1 or (lines is not None and breakpoint.line > lines):
@@ -259,6 +262,10 @@ class SwarmDebugger:
             after = source_map.nearest_code_line(breakpoint.line)
             hint = f" (the next line with code is {after})" if after is not None else ""
             raise DebuggerError(f"{where}:{breakpoint.line}: no code on this line{hint}")
+        boot_only = source_map.boot_only(breakpoint.line)
+        if boot_only:
+            raise DebuggerError(f"{where}:{breakpoint.line}: this line runs only when the "
+                                f"robots boot ({boot_only}), before the debugger runs them")
         if breakpoint.condition is not None:
             try:
                 self._conditions[breakpoint.condition] = parse_expression(breakpoint.condition)
@@ -274,6 +281,34 @@ class SwarmDebugger:
                                     ) from None
         if breakpoint.hit_count is not None and breakpoint.hit_count < 1:
             raise DebuggerError(f"hit count {breakpoint.hit_count}: must be at least 1")
+
+    def _map_for(self, breakpoint: Breakpoint) -> SourceMap:
+        """The program a breakpoint is in: its `path`'s (a program some robot runs), or
+        the first programmed robot's."""
+        if breakpoint.path is None:
+            return self._main_map()
+        files = []
+        for state in self.simulation.robots:
+            if state.program is None:
+                continue
+            source_map = self._map_of(state.program)
+            if source_map.main_file is not None:
+                if _same_file(breakpoint.path, source_map.main_file):
+                    return source_map
+                files.append(source_map.main_file)
+        known = ", ".join(sorted(set(files))) or "none with a source file"
+        raise DebuggerError(f"breakpoint in {breakpoint.path}: no robot runs that file "
+                            f"(the swarm's programs: {known})")
+
+    def _applies(self, breakpoint: Breakpoint, index: int) -> bool:
+        """Whether `breakpoint` is in the program robot `index` runs."""
+        key = (breakpoint.path, index)
+        found = self._applies_cache.get(key)
+        if found is None:
+            program = self.simulation.robots[index].program
+            found = self._applies_cache[key] = \
+                self._map_for(breakpoint) is self._map_of(program)
+        return found
 
     def hits(self, breakpoint: Breakpoint) -> int:
         """How many times `breakpoint` was hit so far (condition true)."""
@@ -301,6 +336,14 @@ class SwarmDebugger:
     def display(self, value: Any) -> str:
         """A value as the debugger prints it (`evaluate`'s result, for instance)."""
         return display(value)
+
+    def close(self) -> None:
+        """Finish a stopped control step (nothing stops it any more) and leave the swarm
+        to plain `Simulation.step` calls."""
+        if self._thread is not None:
+            self._request = _Request("collect", -3)
+            self._resume()
+        self._request = _Request("continue")
 
     def request_pause(self) -> None:
         """From any thread: make a running `run` stop at the next instruction of any robot."""
@@ -411,7 +454,8 @@ class SwarmDebugger:
 
     def _traced_step(self) -> Stop | None:
         sim = self.simulation
-        self._checkpoint_now()
+        if sim.step_count % TRACED_CHECKPOINT_EVERY == 0:
+            self._checkpoint_now()
         self._last = [None] * sim.count
         self._failed_before = [s.failure is not None or
                                (s.robot is not None and s.robot.failure is not None)
@@ -545,6 +589,8 @@ class SwarmDebugger:
         for breakpoint in candidates:
             if breakpoint.robot is not None and breakpoint.robot != robot_id:
                 continue
+            if not self._applies(breakpoint, index):
+                continue
             if breakpoint.condition is not None:
                 try:
                     value = self._conditions[breakpoint.condition].evaluate(
@@ -676,8 +722,14 @@ class SwarmDebugger:
         checkpoints.restore(self.simulation, checkpoint)
         self._hits = dict(hits)
         self._last = [None] * self.simulation.count
+        wanted = self._request
         while self.simulation.step_count < step:
-            self.simulation.step()
+            if self._breakpoints:        # traced, so that the hit counts are the run's
+                self._request = _Request("collect", -3)
+                self._traced_step()
+            else:
+                self.simulation.step()
+        self._request = wanted
 
     def _checkpoint_now(self) -> None:
         sim = self.simulation
@@ -716,10 +768,16 @@ class SwarmDebugger:
         raise DebuggerError("no robot of this swarm runs a program")
 
     def _map_of(self, program: Any) -> SourceMap:
-        key = id(program)
-        found = self._maps.get(key)
+        """The program's source map, one per distinct code (robots built from one compiled
+        program may each hold a converted copy of it)."""
+        found = self._maps.get(id(program))
         if found is None:
-            found = self._maps[key] = SourceMap(program)
+            content = (program.source_file, program.source_text, bytes(program.bbo))
+            found = self._maps_by_content.get(content)
+            if found is None:
+                found = self._maps_by_content[content] = SourceMap(program)
+            self._maps[id(program)] = found
+            self._programs.append(program)  # keeps the id() keys valid
         return found
 
     def _depth(self, index: int) -> int:
@@ -762,10 +820,9 @@ class SwarmDebugger:
             name = names.get(slot)
             if name is None:
                 continue
-            decoded = decode(vm, value, strings)
-            if name == "self" and decoded is None:
+            if name == "self":  # the closure's table or nil: not a variable of the script
                 continue
-            values[name] = decoded
+            values[name] = decode(vm, value, strings)
         return values
 
     def _lookup(self, index: int) -> Callable[[str], Any]:

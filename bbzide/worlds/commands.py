@@ -24,6 +24,7 @@ import argparse
 import re
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -121,13 +122,21 @@ def prepare_scenario(args: argparse.Namespace) -> tuple[Any, int, dict[str, Any]
     return scenario, steps, engine_options, programs
 
 
-def run_scenario(args: argparse.Namespace) -> int:
+#: Runs a built swarm for a command instead of `Simulation.run`: (simulation, steps) -> the
+#: control steps it ran (the debugger room's `--break` runs, bbzide/debugger/commands.py).
+Driver = Callable[[Any, int], int]
+
+
+def run_scenario(args: argparse.Namespace, drive: Driver | None = None) -> int:
     """`bbzide run S.toml`: the scenario's swarm, `--steps`/`--seed` overriding the file's."""
     scenario, steps, engine_options, programs = prepare_scenario(args)
     started = time.perf_counter()
     sim = scenario.simulation(programs, **engine_options)
     booted = time.perf_counter()
-    sim.run(steps)
+    if drive is not None:
+        steps = drive(sim, steps)
+    else:
+        sim.run(steps)
     finished = time.perf_counter()
     print(summary(sim, steps, booted - started, finished - booted))
     for name in scenario.watch:
@@ -142,7 +151,7 @@ def watched_line(sim: Any, name: str) -> str:
     return f"watch {name}: {shown}"
 
 
-def run_world(args: argparse.Namespace) -> int:
+def run_world(args: argparse.Namespace, drive: Driver | None = None) -> int:
     from bbzide.worlds.engine import Simulation
 
     spec = world_spec(args.world)
@@ -168,7 +177,9 @@ def run_world(args: argparse.Namespace) -> int:
                      asynchronous=bool(args.asynchronous), **engine_options)
     booted = time.perf_counter()
     meter = None
-    if getattr(args, "steptime", False):
+    if drive is not None:
+        steps = drive(sim, steps)
+    elif getattr(args, "steptime", False):
         from bbzide.worlds.steptime import StepTimeMeter
 
         meter = StepTimeMeter(sim)
