@@ -346,6 +346,9 @@ class RunController:
         sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed,
                                   **pinned)
         with self._sim_lock:
+            close = getattr(self._sim, "close_debugger", None)
+            if close is not None:
+                close()  # the old swarm's held step (a thread of its own) ends
             self._sim = sim
             if hasattr(sim, "set_pause_on_error"):
                 sim.set_pause_on_error(self._pause_on_error)

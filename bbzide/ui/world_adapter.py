@@ -314,6 +314,13 @@ class WorldsSimulation:
                 for (key, stamp, writer, value), ids in holders.items()]
         return sorted(rows, key=lambda row: (row[0], -row[1], row[2]))
 
+    def close_debugger(self) -> None:
+        """Finish a control step the debugger holds (as the old program would) and drop the
+        debugger: the swarm goes on with plain steps."""
+        if self._debugger is not None:
+            self._debugger.close()
+            self._debugger = None
+
     @property
     def has_debugger(self) -> bool:
         return self._debugger is not None
@@ -337,11 +344,7 @@ class WorldsSimulation:
 
     def load_program(self, program: Any, keep_state: bool) -> None:
         self.program = program
-        if self.mid_step:  # finish the step the debugger holds, as the old program would
-            self._debugger.breakpoints = ()
-            self._debugger.pause_on_error = False
-            self._debugger.run(1)
-        self._debugger = None  # its checkpoints and source maps belong to the old program
+        self.close_debugger()  # its checkpoints and source maps belong to the old program
         if self.recorder is not None and not keep_state:
             self.stop_recording()  # the world restarts at step 0: a new timeline
         self.sim.load_program(program, keep_state=keep_state)
