@@ -7,7 +7,9 @@ pictures follow the code: run the script again after a UI change. Each shot wait
 shows (the compile, the runtime marker, the inspector) before the capture; software WebGL then
 needs a moment to draw the last frame (`SETTLE_SECONDS`).
 
-    .venv/bin/python scripts/screenshots.py [OUT_DIR]     (default docs/screenshots)
+    .venv/bin/python scripts/screenshots.py [OUT_DIR [NAME ...]]   (default docs/screenshots;
+                                                                   NAMEs: only those pictures;
+                                                                   "lessons" = its four)
 """
 
 from __future__ import annotations
@@ -34,8 +36,10 @@ from browser import (  # noqa: E402
 
 from bbzide.lessons import catalog  # noqa: E402
 from bbzide.ui.app import IdeApp  # noqa: E402
+from bbzide.ui.breakpoints import LineBreakpoint  # noqa: E402
 from bbzide.ui.run_controller import RunSettings  # noqa: E402
 from bbzide.ui.teaching_panel import lesson_label  # noqa: E402
+from bbzide.ui.watches import Watch  # noqa: E402
 from bbzide.ui.world_adapter import WorldsBackend  # noqa: E402
 
 #: The page size the README's pictures show: a 14-inch laptop's browser window.
@@ -168,25 +172,86 @@ def _lesson_shots(out_dir: Path, work: Path) -> None:
         app.stop()
 
 
-def main(out_dir: Path) -> None:
+#: The gradient example's line where the debugger picture stops: `gradient = heard + 1`, run
+#: by a robot that heard a smaller gradient (the first steps of the spread).
+GRADIENT_BREAK_LINE = 20
+
+
+def _stop_at_breakpoint(app: IdeApp, page: object, client: object) -> None:
+    """A breakpoint on the gradient's update (as a gutter click sets it); the run stops there;
+    the panel scrolls to the inspector's Stack tab, which shows the robot's frames."""
+    session = app.session
+    app.controller.reset()  # the spread starts again: the line runs in its first steps
+    app.controller.flush()
+    app.breakpoints.set(session.revision, [LineBreakpoint(GRADIENT_BREAK_LINE)])
+    wait_until(lambda: app.controller.status.paused_at is not None, UI_WAIT_S,
+               message="the breakpoint's stop")
+    paused = app.controller.status.paused_at
+    inspector = app._inspectors[client.client_id]  # noqa: SLF001  # type: ignore[attr-defined]
+    wait_until(lambda: "**Paused**" in inspector.stack.content, UI_WAIT_S,
+               message="the frames in the Stack tab")
+    editor = page.frame_locator("iframe.bbzide-editor")  # type: ignore[attr-defined]
+    editor.locator(".cm-line.paused-line").wait_for(timeout=UI_WAIT_S * 1000)
+    page.get_by_role("tab", name="Stack").click()  # type: ignore[attr-defined]
+    page.get_by_role("button", name="Deselect").evaluate(  # type: ignore[attr-defined]
+        "button => button.scrollIntoView({block: 'end'})")  # the frames, under the heap
+    assert paused is not None
+
+
+def _watch_the_gradient(app: IdeApp, page: object, client: object) -> None:
+    """Two watches: every robot's `gradient`, and the swarm's heap in use (min, mean, max),
+    over the first steps; the Watches folder open."""
+    app.controller.reset()
+    app.controller.flush()  # from step 0 on
+    app.watches.add_watch(Watch("expression", "gradient"))
+    app.watches.add_watch(Watch("heap", aggregate=True))
+    wait_until(lambda: app.controller.status.step >= WARM_STEPS, UI_WAIT_S,
+               message=f"{WARM_STEPS} watched steps")
+    app.controller.pause()
+    page.get_by_text("Watches", exact=True).click()  # type: ignore[attr-defined]
+    wait_until(lambda: len(app.watches._charts) == 2, UI_WAIT_S,  # noqa: SLF001
+               message="both charts")
+    page.locator(".uplot").nth(1).wait_for()  # type: ignore[attr-defined]
+    page.get_by_text("Watches", exact=True).evaluate(  # type: ignore[attr-defined]
+        "header => header.scrollIntoView({block: 'start'})")
+
+
+def main(out_dir: Path, only: set[str]) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
+
+    def wanted(name: str) -> bool:
+        return not only or name in only
+
     with tempfile.TemporaryDirectory() as folder:
         scratch = Path(folder)
         for world, example, stage in (
                 ("kilobot", "examples/kilobot/gradient.bzz", _show_robot_ids),
                 ("crazyflie", "examples/crazyflie/consensus.bzz", _select_robot(0)),
                 ("m300", "examples/m300/flocking.bzz", _pick_heap_object("nbx"))):
+            if not wanted(f"ide-{world}"):
+                continue
             script = scratch / world / Path(example).name
             script.parent.mkdir()
             shutil.copy(REPO / example, script)
             _shoot(world, script, out_dir / f"ide-{world}.png", stage=stage)
-        student = scratch / "student" / "first.bzz"
-        student.parent.mkdir()
-        student.write_text(STUDENT_SCRIPT)
-        _shoot("kilobot", student, out_dir / "student-runtime-error.png", robots=9,
-               stage=_wait_for_runtime_marker)
-        _lesson_shots(out_dir, scratch / "lessons")
+        if wanted("student-runtime-error"):
+            student = scratch / "student" / "first.bzz"
+            student.parent.mkdir()
+            student.write_text(STUDENT_SCRIPT)
+            _shoot("kilobot", student, out_dir / "student-runtime-error.png", robots=9,
+                   stage=_wait_for_runtime_marker)
+        if wanted("lessons"):
+            _lesson_shots(out_dir, scratch / "lessons")
+        for name, stage in (("debugger-paused", _stop_at_breakpoint),
+                            ("debugger-watches", _watch_the_gradient)):
+            if not wanted(name):
+                continue
+            script = scratch / name / "gradient.bzz"
+            script.parent.mkdir()
+            shutil.copy(REPO / "examples/kilobot/gradient.bzz", script)
+            _shoot("kilobot", script, out_dir / f"{name}.png", robots=9, stage=stage)
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else REPO / "docs" / "screenshots")
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else REPO / "docs" / "screenshots",
+         set(sys.argv[2:]))

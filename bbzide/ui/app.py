@@ -6,6 +6,8 @@
     RunController thread ──frames (≤30 Hz)──▶ SwarmScene.draw
     ticker thread (4 Hz) ──▶ status line, build view, each tab's inspector (under the run lock)
     TeachingPanel: Lessons and Scenario folders; a page request `/?scenario=` ──▶ open_link
+    editor gutter ──breakpoints──▶ BreakpointBook ──▶ RunController ──stop──▶ paused line in the
+         editor, pc in the Build listing, the stopped robot selected, its frames in Stack
 
 `IdeApp` only connects the parts; each part lives in its own module. Everything is served on one
 port, behind one check of every request (`bbzide.ui.viser_server`, `bbzide.ui.access`).
@@ -23,8 +25,10 @@ import viser
 
 from bbzide.compiler.call_sites import lint_globals, robot_phrase
 from bbzide.ui.access import new_token
+from bbzide.ui.breakpoints import BreakpointBook
 from bbzide.ui.build_panel import footprint_markdown, listing_html
 from bbzide.ui.controls import RunControls
+from bbzide.ui.debug_panel import DebugControls
 from bbzide.ui.editor_server import EDITOR_PATH, editor_routes
 from bbzide.ui.file_watcher import FileWatcher
 from bbzide.ui.inspector_panel import InspectorPanel
@@ -35,7 +39,8 @@ from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.teaching_panel import TeachingPanel
 from bbzide.ui.viser_server import open_server, page_url
-from bbzide.ui.world_backend import SwarmFrame, WorldBackend
+from bbzide.ui.watches import WatchBook, WatchPanel
+from bbzide.ui.world_backend import SimulationHandle, SwarmFrame, WorldBackend
 from bbzide.ui.world_setup_panel import WorldSetupPanel
 
 #: How often the status line and inspectors refresh: 4 Hz reads as "live" and costs little.
@@ -47,6 +52,11 @@ EDITOR_PANEL_WIDTH = 600
 OVERLAY_TICKS = 4
 #: How long an inspector refresh may wait for the current step to end before skipping a tick.
 INSPECT_LOCK_TIMEOUT = 0.2
+#: Robots whose stigmergy the Stigmergy folder reads (once a second): a table about this many
+#: robots stays readable, and reading them costs well under a millisecond.
+STIGMERGY_ROBOTS = 64
+#: Versions listed in the Stigmergy folder (newest per key first).
+STIGMERGY_ROWS = 40
 
 
 class IdeApp:
@@ -66,9 +76,11 @@ class IdeApp:
         self.session = ProgramSession(
             source_path, self._compile, self.controller.load_program, lint_fn=self._pitfalls
         )
+        self.breakpoints = BreakpointBook(on_change=self.controller.set_breakpoints)
         self.server = open_server(
             host, port, self.token,
-            replace(editor_routes(self.session, lambda: self.controller.settings.world),
+            replace(editor_routes(self.session, lambda: self.controller.settings.world,
+                                  self.breakpoints, self._paused_in_editor),
                     on_visit=self._on_visit),
         )
         self.scene = SwarmScene(self.server, on_robot_click=self._on_robot_click)
@@ -84,6 +96,15 @@ class IdeApp:
             lambda _: self.overlays.set_visible(bool(self.controls.overlays.value))
         )
         self.teaching = TeachingPanel(self.server, self, scenario_folder)
+        self.debug = DebugControls(self.server, self.controller, self._robot_to_step)
+        self.watch_book = WatchBook(
+            on_first=lambda: self.controller.add_step_listener(self._sample_watches),
+            on_empty=lambda: self.controller.remove_step_listener(self._sample_watches))
+        self.watches = WatchPanel(self.server, self.watch_book, self._robot_ids)
+        with self.server.gui.add_folder("Stigmergy", order=2.6, expand_by_default=False):
+            self.stigmergy = self.server.gui.add_markdown("*no stigmergy yet*")
+        self._stops_shown = 0
+        self._listing_pc: int | None = None
         self._inspectors: dict[int, InspectorPanel] = {}
         self._world_generation = -1
         self._build_dirty = True
@@ -138,6 +159,12 @@ class IdeApp:
             )
         with panel.add_tab("Build", icon=viser.Icon.FILE_CODE):
             self.footprint = gui.add_markdown("*not compiled yet*")
+            self.step_instruction = gui.add_button(
+                "Step one instruction", icon=viser.Icon.ARROW_BAR_TO_DOWN,
+                hint="Run one VM instruction of the selected (else the stopped) robot; its pc "
+                     "is highlighted below")
+            self.step_instruction.on_click(
+                lambda event: self.debug.command("step_instruction", event.client))
             self.listing = gui.add_html("")
         panel.dock_left()
         panel.set_width(EDITOR_PANEL_WIDTH)
@@ -189,6 +216,8 @@ class IdeApp:
 
     def _on_compiled(self, outcome: CompileOutcome) -> None:
         self._build_dirty = True
+        if outcome.ok:
+            self.breakpoints.program_compiled(outcome.revision, outcome.program)
 
     def _change_world(self, world: str) -> None:
         if world == self.controller.settings.world:
@@ -234,8 +263,10 @@ class IdeApp:
         self.footprint.content = (
             footprint_markdown(good.compiled, good.program, name, budget) + note
         )
+        paused = self.controller.status.paused_at
+        self._listing_pc = paused.pc if paused is not None else None
         self.listing.content = listing_html(
-            good.compiled, good.program, self.session.text, self.session.path
+            good.compiled, good.program, self.session.text, self.session.path, self._listing_pc
         )
 
     # ---- frames and selection -------------------------------------------------------------------
@@ -279,7 +310,7 @@ class IdeApp:
         except StepInProgress:
             return  # keep the last view; the status line says a step is running long
         view.warnings = self._program_warnings() + view.warnings
-        inspector.refresh(view)
+        inspector.refresh(view, self.controller.status.paused_at)
 
     def _refresh_overlays(self) -> None:
         try:
@@ -318,6 +349,55 @@ class IdeApp:
             f"{d.line}:{d.col}: {d.message}" for d in good.diagnostics if d.severity == "warning"
         ]
 
+    # ---- debugger --------------------------------------------------------------------------------
+    def _robot_to_step(self, client: viser.ClientHandle | None) -> int | None:
+        """The robot a step command from `client`'s tab applies to: the one its inspector
+        shows, else (None) the one the debugger stopped."""
+        inspector = None if client is None else self._inspectors.get(client.client_id)
+        return None if inspector is None else inspector.selected
+
+    def _paused_in_editor(self) -> dict[str, object] | None:
+        """Where the editor marks the paused line: the line of the program the robots run."""
+        paused = self.controller.status.paused_at
+        good = self.session.last_good
+        if paused is None or paused.line is None or good is None:
+            return None
+        return {"line": paused.line, "robot": paused.robot_id, "reason": paused.reason,
+                "revision": good.revision}
+
+    def _show_stop(self) -> None:
+        """A new stop: every tab selects the stopped robot; the listing marks its pc."""
+        self._stops_shown = self.controller.status.stops
+        paused = self.controller.status.paused_at
+        if paused is None:
+            return
+        for client_id, inspector in list(self._inspectors.items()):
+            client = self.server.get_clients().get(client_id)
+            if client is not None and inspector.selected != paused.robot_index:
+                self._select(client, paused.robot_index)
+
+    # ---- watches and stigmergy -------------------------------------------------------------------
+    def _sample_watches(self, sim: SimulationHandle) -> None:
+        """After every step (simulation thread, run lock held): read every watch."""
+        read = getattr(sim, "watch_values", None)
+        if read is not None:
+            self.watch_book.sample(sim.step_count, read)
+
+    def _robot_ids(self) -> list[int]:
+        frame = self.controller.last_frame
+        return [] if frame is None else list(frame.robot_ids)
+
+    def _refresh_stigmergy(self) -> None:
+        try:
+            with self.controller.locked(timeout=INSPECT_LOCK_TIMEOUT) as sim:
+                read = getattr(sim, "stigmergy_versions", None)
+                rows = read(STIGMERGY_ROBOTS) if read is not None else []
+        except StepInProgress:
+            return
+        text = stigmergy_markdown(rows)
+        if self.stigmergy.content != text:
+            self.stigmergy.content = text
+
     # ---- ticker ----------------------------------------------------------------------------------
     def _tick_loop(self) -> None:
         while not self._stop.wait(TICK_SECONDS):
@@ -333,11 +413,17 @@ class IdeApp:
             note = "⚠ editor text has errors: robots keep running the last good program"
         self.controls.refresh_status(note)
         self.teaching.refresh()
-        if self._build_dirty:
+        self.debug.refresh(self.breakpoints.items)
+        if self.controller.status.stops != self._stops_shown:
+            self._show_stop()
+        paused = self.controller.status.paused_at
+        if self._build_dirty or (paused.pc if paused else None) != self._listing_pc:
             self._refresh_build_view()
         self._overlay_ticks += 1
         if self._overlay_ticks % OVERLAY_TICKS == 1:
             self._refresh_overlays()
+            self._refresh_stigmergy()
+        self.watches.refresh()
         self._refresh_runtime_errors()
         busy_since = self.controller.status.step_started_at
         step_is_long = (
@@ -346,6 +432,22 @@ class IdeApp:
         for inspector in list(self._inspectors.values()):
             if inspector.selected is not None and not step_is_long:
                 self._refresh_inspector(inspector)
+
+
+def stigmergy_markdown(rows: list[tuple[str, int, int, str, list[int]]]) -> str:
+    """The Stigmergy folder: each key's versions (Lamport timestamp, writer, value) and the
+    robots holding each, newest first."""
+    if not rows:
+        return "*no robot holds a stigmergy entry*"
+    lines = ["| key | t | by | value | held by |", "|---|---:|---:|---|---|"]
+    for key, stamp, writer, value, holders in rows[:STIGMERGY_ROWS]:
+        held = ", ".join(map(str, holders[:12])) + (f" +{len(holders) - 12}"
+                                                    if len(holders) > 12 else "")
+        lines.append(f"| `{key}` | {stamp} | {writer} | `{value}` | {held} |")
+    if len(rows) > STIGMERGY_ROWS:
+        lines.append(f"\n*{len(rows) - STIGMERGY_ROWS} older versions not shown*")
+    return (f"Versions held by the first {STIGMERGY_ROBOTS} robots (t = Lamport timestamp, "
+            "by = the robot that wrote it)\n\n" + "\n".join(lines))
 
 
 def new_recording_path(script: Path) -> Path:

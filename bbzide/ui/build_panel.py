@@ -39,10 +39,15 @@ def footprint_markdown(
     return text
 
 
-def listing_html(compiled: Any, program: Any, source_text: str, source_path: Path) -> str:
+#: The paused robot's instruction in the listing: the editor's paused-line colours.
+CURRENT_PC_STYLE = "background:#fff3bf;box-shadow:inset 3px 0 0 #f08c00;font-weight:600"
+
+
+def listing_html(compiled: Any, program: Any, source_text: str, source_path: Path,
+                 current_pc: int | None = None) -> str:
     """The assembly grouped under its source lines, as preformatted HTML: each instruction with
     its program counter in the `.bbo` (what the inspector's pc names) and a `pushs` with the
-    string it pushes."""
+    string it pushes; `current_pc` (where the debugger stopped) is highlighted."""
     source_lines = source_text.splitlines()
     pcs = _bbo_pcs(compiled, program)
     strings = list(getattr(compiled, "strings", []) or [])
@@ -77,8 +82,12 @@ def listing_html(compiled: Any, program: Any, source_text: str, source_path: Pat
         for pc, instruction in rows:
             colour = "#5f3dc4" if instruction.startswith("@") else "#212529"
             where = f"{pc:5d}" if pc is not None else "     "
-            out.append(f'<span style="color:{colour}" data-pc="{"" if pc is None else pc}">'
-                       f'     │ <span style="color:#868e96">{where}</span>  '
+            current = pc is not None and pc == current_pc
+            style = f"color:{colour}" + (f";{CURRENT_PC_STYLE}" if current else "")
+            marker = " ➜ " if current else "   "
+            css_class = ' class="current-pc"' if current else ""
+            out.append(f'<span style="{style}" data-pc="{"" if pc is None else pc}"{css_class}>'
+                       f'  {marker}│ <span style="color:#868e96">{where}</span>  '
                        f"{html.escape(instruction)}</span>")
     body = "\n".join(out)
     caption = (

@@ -22,9 +22,15 @@ the code keeps HTTP's meaning (200 done, 400 malformed, 409 conflict, 413 too la
     {"op": "reference"}                           -> {world, items}: the built-ins and the
                                                      world's host functions for completion and
                                                      hover (`completion_items`)
+    {"op": "breakpoints", "revision": r,          -> state: the page's breakpoints for text
+     "breakpoints": [{line, condition, robot,        revision r (`bbzide.ui.breakpoints`); the
+                      hit_count}]}                   ones on lines without code are dropped
 
 Every state carries ``world``, the world the program runs in, so the page asks for the
-reference again when the user switches worlds.
+reference again when the user switches worlds; ``breakpoints`` and ``breakpoints_revision``,
+the list in force and the text revision it belongs to; and ``paused``, where the debugger
+stopped (``{line, robot, reason, revision}``, the revision of the program the robots run), or
+null while the swarm runs.
 
 A save names the revision it was based on; if the file changed since (another tab, an external
 editor), nothing is written and the page shows both texts (`ProgramSession.edit_from_browser`).
@@ -47,6 +53,7 @@ from typing import Any
 from websockets.asyncio.server import ServerConnection
 from websockets.exceptions import ConnectionClosed
 
+from bbzide.ui.breakpoints import BadBreakpoint, BreakpointBook, parse_breakpoints
 from bbzide.ui.program_session import EditConflict, ProgramSession
 from bbzide.ui.viser_server import Page, Routes
 from bbzide.worlds.reference import completion_items, reference_markdown
@@ -85,9 +92,11 @@ class BadMessage(ValueError):
         self.status = status
 
 
-def editor_routes(session: ProgramSession, world: Callable[[], str | None] = lambda: None
-                  ) -> Routes:
-    """The editor's pages and socket; `world()` names the world the program runs in now."""
+def editor_routes(session: ProgramSession, world: Callable[[], str | None] = lambda: None,
+                  breakpoints: BreakpointBook | None = None,
+                  paused: Callable[[], dict[str, Any] | None] = lambda: None) -> Routes:
+    """The editor's pages and socket; `world()` names the world the program runs in now,
+    `breakpoints` keeps the gutter's breakpoints, `paused()` says where the debugger stopped."""
     pages = {
         path: Page((STATIC_DIR / name).read_bytes(), mime)
         for path, (name, mime) in STATIC_FILES.items()
@@ -95,7 +104,8 @@ def editor_routes(session: ProgramSession, world: Callable[[], str | None] = lam
     pages.update(bundle_pages())
     pages[REFERENCE_PATH + ".md"] = Page(reference_markdown().encode(),
                                          "text/markdown; charset=utf-8")
-    return Routes(pages=pages, sockets={SOCKET_PATH: EditorSocket(session, world).serve})
+    return Routes(pages=pages, sockets={SOCKET_PATH: EditorSocket(
+        session, world, breakpoints, paused).serve})
 
 
 def bundle_pages() -> dict[str, Page]:
@@ -119,9 +129,13 @@ class EditorSocket:
     """Answers one editor page's messages for as long as its websocket is open."""
 
     def __init__(self, session: ProgramSession,
-                 world: Callable[[], str | None] = lambda: None) -> None:
+                 world: Callable[[], str | None] = lambda: None,
+                 breakpoints: BreakpointBook | None = None,
+                 paused: Callable[[], dict[str, Any] | None] = lambda: None) -> None:
         self.session = session
         self.world = world
+        self.breakpoints = breakpoints if breakpoints is not None else BreakpointBook()
+        self.paused = paused
 
     async def serve(self, connection: ServerConnection) -> None:
         connection.protocol.max_message_size = MAX_MESSAGE_BYTES
@@ -158,6 +172,8 @@ class EditorSocket:
                     **self._state()}
         except BadMessage as bad:
             return {"id": request_id, "code": int(bad.status), "error": str(bad)}
+        except BadBreakpoint as bad:
+            return {"id": request_id, "code": int(HTTPStatus.BAD_REQUEST), "error": str(bad)}
         except OSError as error:  # the disk refused the save: the page shows why
             return {"id": request_id, "code": int(HTTPStatus.INTERNAL_SERVER_ERROR),
                     "error": f"could not save: {error.strerror or error}",
@@ -186,10 +202,18 @@ class EditorSocket:
             saved = session.save_from_browser(text, base_revision=base)
             session.ensure_compiled(saved)
             return {**self._state(), "saved_revision": saved}
-        raise BadMessage(f"unknown op {op!r}: state, source, save, compile or reference")
+        if op == "breakpoints":
+            revision = request.get("revision")
+            if not isinstance(revision, int) or isinstance(revision, bool):
+                raise BadMessage("breakpoints needs \"revision\": the text revision of the lines")
+            self.breakpoints.set(revision, parse_breakpoints(request.get("breakpoints")))
+            return self._state()
+        raise BadMessage(
+            f"unknown op {op!r}: state, source, save, compile, reference or breakpoints")
 
     def _state(self) -> dict[str, Any]:
-        return {**self.session.state(), "world": self.world()}
+        return {**self.session.state(), "world": self.world(), **self.breakpoints.state(),
+                "paused": self.paused()}
 
 
 def parse_message(message: str | bytes) -> dict[str, Any]:

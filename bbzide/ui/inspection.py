@@ -87,3 +87,31 @@ def value_text(value: Any) -> str:
     if isinstance(value, str):
         return repr(value)
     return str(value)
+
+
+@dataclass(frozen=True)
+class FrameView:
+    """One call frame of a paused robot: the function, the line it is at, its locals."""
+
+    function: str
+    line: int | None
+    locals: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PausedAt:
+    """Where the debugger stopped the swarm: which robot, at which instruction and line, why
+    ("breakpoint", "step", "error", "pause"), and that robot's call frames (innermost first)."""
+
+    robot_index: int
+    robot_id: int
+    step: int
+    pc: int | None
+    line: int | None
+    column: int | None
+    reason: str
+    frames: tuple[FrameView, ...] = ()
+    message: str | None = None  # an error's text
+    #: the debugger stopped inside a control step: robots before this one have run it, the
+    #: rest have not (the debugger room's "paused mid-step")
+    mid_step: bool = False

@@ -13,7 +13,7 @@ import html
 import viser
 
 from bbzide.ui.heap_map import legend_html, render_heap_svg
-from bbzide.ui.inspection import RobotInspection
+from bbzide.ui.inspection import PausedAt, RobotInspection
 
 
 class InspectorPanel:
@@ -54,7 +54,9 @@ class InspectorPanel:
             _set(handle, "")
         self.deselect.visible = self.selected is not None
 
-    def refresh(self, view: RobotInspection) -> None:
+    def refresh(self, view: RobotInspection, paused: PausedAt | None = None) -> None:
+        """Show `view`; with `paused` (the debugger's stop) on this robot, the Stack tab shows
+        its call frames and their locals first."""
         self.deselect.visible = True
         state = view.state if view.last_error is None else "error"
         pc = f" · pc {view.pc}" if view.pc is not None else ""
@@ -74,7 +76,10 @@ class InspectorPanel:
         _set(self.pick, pick_box_html(view.robot_index))
         _set(self.memory, _memory_markdown(view))
         _set(self.objects, _objects_html(view))
-        _set(self.stack, _list_markdown("Stack frames", view.frames))
+        stack = _list_markdown("Stack frames", view.frames)
+        if paused is not None and paused.robot_index == view.robot_index:
+            stack = paused_markdown(paused) + "\n\n" + stack
+        _set(self.stack, stack)
         _set(self.globals, _pairs_markdown("Globals", view.globals))
         comm = [
             _pairs_markdown("Stigmergy", view.stigmergy),
@@ -85,6 +90,26 @@ class InspectorPanel:
         ]
         _set(self.comm, "\n\n".join(comm))
         _set(self.problems, _problems_markdown(view))
+
+
+def paused_markdown(paused: PausedAt) -> str:
+    """Where the debugger stopped and the call frames there, innermost first, with locals."""
+    where = f"line {paused.line}" if paused.line else "no source line"
+    pc = f" · pc {paused.pc}" if paused.pc is not None else ""
+    parts = [f"**Paused** ({paused.reason}) at {where}{pc} · step {paused.step}"]
+    if paused.message:
+        parts.append(f"**Error:** {_escape_emphasis(paused.message)}")
+    for depth, frame in enumerate(paused.frames):
+        line = f" · line {frame.line}" if frame.line else ""
+        title = f"**#{depth} `{frame.function}`**{line}"
+        if frame.locals:
+            rows = "\n".join(f"| `{name}` | `{value}` |" for name, value in frame.locals.items())
+            parts.append(f"{title}\n\n| local | value |\n|---|---|\n{rows}")
+        else:
+            parts.append(f"{title} · no locals")
+    if not paused.frames:
+        parts.append("*no Buzz function running*")
+    return "\n\n".join(parts)
 
 
 def _set(handle: viser.GuiMarkdownHandle | viser.GuiHtmlHandle, text: str) -> None:

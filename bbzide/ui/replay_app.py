@@ -23,7 +23,7 @@ import viser
 from bbzide.ui.access import new_token
 from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
-from bbzide.ui.replay_session import JUMP_KINDS, ReplaySession
+from bbzide.ui.replay_session import JUMP_KINDS, MAX_HIT_SEARCH_STEPS, ReplaySession
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.viser_server import open_server, page_url
 
@@ -121,6 +121,15 @@ class ReplayApp:
             self.transport = gui.add_button_group("Play", ("▶ Play", "❚❚ Pause"))
             self.stepper = gui.add_button_group("Step", ("−1", "+1"))
             self.speed_choice = gui.add_dropdown("Speed", tuple(SPEEDS), initial_value="1×")
+            self.break_line = gui.add_number(
+                "Break at line", initial_value=0, min=0, step=1,
+                hint="A line of the recorded program (0: none); the button below seeks to the "
+                     "next step in which a robot runs it")
+            self.break_robots = gui.add_text(
+                "Break for robots", initial_value="",
+                hint="Robot ids, comma-separated (empty: any robot)")
+            self.seek_hit = gui.add_button("Seek to the next hit",
+                                           icon=viser.Icon.PLAYER_SKIP_FORWARD)
             self.jumps = {}
             for kind, label in session.jump_kinds():
                 count = len(session.event_steps(kind))
@@ -164,6 +173,8 @@ class ReplayApp:
         self.stepper.on_click(lambda event: self.step_by(-1 if "−" in event.target.value else 1))
         self.speed_choice.on_update(
             lambda _: setattr(self, "speed", SPEEDS.get(str(self.speed_choice.value), 1.0)))
+        self.seek_hit.on_click(lambda _: self.seek_next_hit(int(self.break_line.value),
+                                                            str(self.break_robots.value)))
         for kind, group in self.jumps.items():
             group.on_click(lambda event, kind=kind: self.jump(kind, "next" in event.target.value))
 
@@ -215,6 +226,40 @@ class ReplayApp:
             return
         self.playing = False
         self.seek(target)
+
+    def seek_next_hit(self, line: int, robot_ids: str = "") -> int | None:
+        """Seek to the next recorded step in which one of the robots (ids, comma-separated;
+        empty: any) runs a statement of `line`; say so when none does."""
+        self.playing = False
+        try:
+            wanted = [int(part) for part in robot_ids.replace(" ", "").split(",") if part]
+        except ValueError:
+            self.note = "robot ids are whole numbers, comma-separated"
+            self._refresh_status()
+            return None
+        ids = [int(i) for i in self.session.recording.meta["robot_ids"]]
+        unknown = [i for i in wanted if i not in ids]
+        if line < 1 or unknown:
+            self.note = (f"no robot {unknown[0]} in this recording" if unknown
+                         else "choose a line to break at")
+            self._refresh_status()
+            return None
+        robots = [ids.index(i) for i in wanted] or None
+        found = self.session.next_hit(line, self.step, robots)
+        if found is None:
+            self.note = (f"no robot runs line {line} in the next "
+                         f"{MAX_HIT_SEARCH_STEPS} recorded steps")
+            self._refresh_status()
+            return None
+        step, index = found
+        self.seek(step)
+        self.note = f"line {line} run by robot {ids[index]} in this step"
+        self._refresh_status()
+        for client_id in list(self._inspectors):
+            client = self.server.get_clients().get(client_id)
+            if client is not None:
+                self._select(client, index)
+        return step
 
     def play(self) -> None:
         if self.step >= self.session.last_step:

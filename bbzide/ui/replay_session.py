@@ -6,6 +6,12 @@ an inspection rebuilds the clicked robot's VM at that step from its keyframe and
 inputs (`bbzide.recording.rebuild`) and decodes it with the same `inspect_robot` the live
 inspector uses, so what a user sees at a recorded step is what the live inspector showed.
 Event lists (errors, role changes, targets found) give the timeline's jump targets.
+
+Breakpoints in a replay are "seek to the next hit": `next_hit` re-executes the recorded steps
+after the current one, robot by robot, with the debugger's tracer on the rebuilt VM (the
+reference mode, which leaves the same bytes), until a robot runs a statement of the line; the
+seek then shows the step in which it did. A rebuild is exact, so a hit found here is the hit
+the live run had.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from bbzide.debugger.source_map import SourceMap
 from bbzide.recording import layout
 from bbzide.recording.reader import Recording
 from bbzide.recording.rebuild import RobotRebuilder
@@ -24,6 +31,10 @@ from bbzide.ui.inspection import RobotInspection
 from bbzide.ui.world_adapter import inspect_robot, world_geometry
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 from bbzide.worlds.registry import WORLDS
+
+#: Recorded steps a "next hit" search re-executes at most: every robot of a step is replayed
+#: instruction by instruction (a 25-Kilobot step in ~0.1 s), so 500 steps is under a minute.
+MAX_HIT_SEARCH_STEPS = 500
 
 #: The jump buttons, in the order shown: (event kind, button label).
 JUMP_KINDS = (
@@ -40,6 +51,7 @@ class ReplaySession:
         self._lock = threading.Lock()  # one rebuild at a time (the cache is not thread-safe)
         self._compiled_programs: dict[int, Any] = {}  # program id -> with call sites (inspect)
         self._warmed: set[int] = set()  # robots `warm_up` has done
+        self._source_maps: dict[int, SourceMap | None] = {}  # program id -> statement lines
         self._event_steps = {
             kind: sorted({e.step for e in recording.events if e.kind == kind})
             for kind, _ in JUMP_KINDS
@@ -126,6 +138,60 @@ class ReplaySession:
                 except UserError:
                     pass  # an include that is not here any more: keep the recorded program
         return cache[program_id]
+
+    def next_hit(self, line: int, after: int, robots: list[int] | None = None,
+                 limit: int = MAX_HIT_SEARCH_STEPS) -> tuple[int, int] | None:
+        """(step, robot index) of the first recorded step after `after` (within `limit`
+        steps) in which one of `robots` (indexes; None: every robot with a VM) runs a
+        statement on `line` of the recorded program, or None."""
+        indexes = [i for i in (robots if robots is not None else
+                               range(int(self.recording.meta["robots"])))
+                   if self.has_vm(i)]
+        last = min(self.last_step, after + limit)
+        for step in range(after + 1, last + 1):
+            for index in indexes:
+                if self._runs_line(index, step, line):
+                    return step, index
+        return None
+
+    def _runs_line(self, index: int, step: int, line: int) -> bool:
+        """Whether robot `index` runs a statement of `line` in recorded `step` (re-executed
+        from its state before it, traced)."""
+        with self._lock:
+            if self.rebuilder.keyframe(index, step).step == step:
+                return False  # its state before this step is another keyframe's: not replayed
+            robot = self.rebuilder.robot_at(index, step - 1)
+            program_id = self.rebuilder.keyframe(index, step).program
+            program = self._source_map(program_id, index, step)
+            if program is None or line not in program.code_lines:
+                return False
+            lines = program.line_of
+            seen: list[bool] = []
+
+            def trace(vm: Any) -> None:
+                if not seen and lines.get(vm.pc) == line:
+                    seen.append(True)
+
+            vm = robot.vm
+            stress = vm.stress_gc
+            vm.tracer, vm.stress_gc = trace, True
+            try:
+                self.rebuilder.robot_at(index, step)
+            finally:
+                vm.tracer, vm.stress_gc = None, stress
+            return bool(seen)
+
+    def _source_map(self, program_id: int, index: int, step: int) -> SourceMap | None:
+        """The debugger's statement map of a recorded program (None without its source)."""
+        maps = self._source_maps
+        if program_id not in maps:
+            recorded = self.recording.programs.get(program_id) or {}
+            world = WORLDS.get(str(self.recording.meta.get("world", "")))
+            program = self._with_call_sites(program_id, self.rebuilder.program_at(index, step),
+                                            recorded.get("source"),
+                                            world.host_names if world else ())
+            maps[program_id] = SourceMap(program) if program.source_text else None
+        return maps[program_id]
 
     def warm_up(self, stop: threading.Event | None = None, count: int | None = None) -> None:
         """Get every robot's rebuild ready ahead of its first click (call from a background

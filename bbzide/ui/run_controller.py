@@ -12,6 +12,15 @@ Frames go to `on_frame` at most `MAX_FRAME_HZ` times a second (and after every s
 on pause, so a paused scene always shows the current step).
 A new world drops the program: bytecode names host functions by the old world's string ids, so
 the new world is built only when the program compiled for it arrives.
+
+The debugger (the debugger room's `SwarmDebugger`, reached through the simulation handle's
+`debug`) runs the steps only while it is needed: while breakpoints are set, or while it has
+the swarm paused inside a control step. Otherwise a step is the plain `step()` and costs
+nothing extra. Stepping commands (`debug`) apply on this thread like every other command; a
+stop pauses the run and lands in `status.paused_at`. With `pause_on_error`, a robot whose VM
+fails pauses the run too: inside the step at the failing instruction when the debugger drives
+the step, at the end of that step otherwise (the failed robot's state is the same: it runs no
+further).
 """
 
 from __future__ import annotations
@@ -26,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from bbzide.diagnostics import UserError
+from bbzide.ui.inspection import PausedAt
 from bbzide.ui.world_backend import SimulationHandle, SwarmFrame, WorldBackend
 
 #: The scene needs no more than a screen's worth of updates; 30 Hz is smooth and cheap (~1 ms).
@@ -73,6 +83,25 @@ class RunStatus:
     #: itself (the scenario's steps reached), or why a link opened nothing.
     notice: str | None = None
     last_recording: str | None = None  # the last .rrd written to its end (shown after a stop)
+    paused_at: PausedAt | None = None  # where the debugger stopped the swarm (None = it did not)
+    breakpoint_errors: tuple[str, ...] = ()  # breakpoints the debugger refused, and why
+    debug_note: str | None = None  # what the last debugger command could not do
+    stops: int = 0  # bumps at every debugger stop, so a listener sees a new one
+
+
+#: What the Debug folder says when a command ended without a stop.
+NOTHING_THERE = {
+    "step_back_line": "nothing to step back to: the debugger keeps the swarm's past from its "
+                      "first breakpoint or pause on",
+    "step_back_control_step": "nothing to step back to: the debugger keeps the swarm's past "
+                              "from its first breakpoint or pause on",
+    "run_back_to_previous_hit": "no earlier breakpoint hit",
+}
+
+#: The debugger commands `RunController.debug` takes, each the debugger room's method of that
+#: name but the two back-steps, which are `step_back(robot, unit)`.
+STEP_COMMANDS = ("step_over", "step_into", "step_out", "step_instruction", "step_back_line",
+                 "step_back_control_step", "run_back_to_previous_hit")
 
 
 class RunController:
@@ -86,6 +115,7 @@ class RunController:
         self.settings = settings
         self.status = RunStatus(robots=settings.robots)
         self._on_frame: list[Callable[[SwarmFrame], None]] = [on_frame] if on_frame else []
+        self._on_step: list[Callable[[SimulationHandle], None]] = []
         self._commands: queue.Queue[tuple[str, Any]] = queue.Queue()
         self._wake = threading.Event()
         self._stop = threading.Event()
@@ -97,6 +127,9 @@ class RunController:
         self._rate_marks: list[tuple[float, int]] = []
         self._last_frame_time = 0.0
         self.last_frame: SwarmFrame | None = None
+        self._breakpoints: list[Any] = []
+        self._pause_on_error = True
+        self._failed_before = 0  # failed robots after the last step (pause on a new one)
         self._thread = threading.Thread(target=self._loop, name="bbzide-simulation", daemon=True)
 
     # ---- UI side: every call only queues a command --------------------------------------------
@@ -113,6 +146,15 @@ class RunController:
     def add_frame_listener(self, listener: Callable[[SwarmFrame], None]) -> None:
         self._on_frame.append(listener)
 
+    def add_step_listener(self, listener: Callable[[SimulationHandle], None]) -> None:
+        """Call `listener(sim)` after every step (on the simulation thread, under the run
+        lock) until `remove_step_listener`: for watches, which read every step."""
+        self._on_step = [*self._on_step, listener]
+
+    def remove_step_listener(self, listener: Callable[[SimulationHandle], None]) -> None:
+        # `!=`, not `is not`: each read of a bound method makes a new, equal object
+        self._on_step = [known for known in self._on_step if known != listener]
+
     def play(self) -> None:
         self._send("play")
 
@@ -124,6 +166,29 @@ class RunController:
 
     def single_step(self) -> None:
         self._send("step")
+
+    def set_breakpoints(self, breakpoints: list[Any]) -> None:
+        """The editor's breakpoints (`bbzide.ui.breakpoints.LineBreakpoint`), for every robot."""
+        self._send("breakpoints", list(breakpoints))
+
+    @property
+    def pause_on_error(self) -> bool:
+        return self._pause_on_error
+
+    @pause_on_error.setter
+    def pause_on_error(self, on: bool) -> None:
+        """A robot entering an error pauses the run (on by default)."""
+        self._pause_on_error = on
+        self._send("pause_on_error", on)
+
+    def debug(self, command: str, robot: int | None = None) -> None:
+        """Pause and apply a debugger command (`STEP_COMMANDS`) to robot index `robot` (None:
+        the robot the debugger stopped, else robot 0). "Continue" is `play`."""
+        if command not in STEP_COMMANDS:
+            raise ValueError(f"unknown debugger command {command!r}")
+        self._running = False
+        self.status.running = False
+        self._send("debug", (command, robot))
 
     def reset(self) -> None:
         self._send("reset")
@@ -223,20 +288,34 @@ class RunController:
         if command == "play":
             self._running = True
             self.status.notice = None
+            self.status.paused_at = None
+            self.status.debug_note = None
         elif command == "pause":
             self._running = False
             self._pending_steps = 0
+            if hasattr(self._sim, "debugger"):  # its past starts here: step back reaches it
+                with self._sim_lock:
+                    self._sim.debugger()
             # The last step's frame may have been skipped by the frame-rate limit; a paused view
             # must show the state the inspector reads, not the one a step before.
             self._publish(force=True)
         elif command == "step":
             self._running = False
             self._pending_steps += 1
+        elif command == "pause_on_error":
+            if hasattr(self._sim, "set_pause_on_error"):
+                with self._sim_lock:
+                    self._sim.set_pause_on_error(argument)
         elif command == "reset":
             self.status.notice = None
             self._rebuild()
         elif command == "flush":
             argument.set()
+        elif command == "breakpoints":
+            self._breakpoints = argument
+            self._give_breakpoints()
+        elif command == "debug":
+            self._debug_command(*argument)
         elif command == "program":
             self._program = argument
             self.status.program_generation += 1
@@ -247,6 +326,8 @@ class RunController:
                 else:
                     with self._sim_lock:
                         self._sim.load_program(argument, keep_state=True)
+                    self._give_breakpoints()
+                    self.status.paused_at = None
                     self._publish(force=True)
             finally:
                 self.status.step_started_at = None
@@ -298,7 +379,15 @@ class RunController:
         sim = self.backend.create(settings.world, self._program, settings.robots, settings.seed,
                                   **pinned)
         with self._sim_lock:
+            close = getattr(self._sim, "close_debugger", None)
+            if close is not None:
+                close()  # the old swarm's held step (a thread of its own) ends
             self._sim = sim
+            if hasattr(sim, "set_pause_on_error"):
+                sim.set_pause_on_error(self._pause_on_error)
+        self._give_breakpoints()
+        self.status.paused_at = None
+        self._failed_before = 0
         self.status.error = None
         self.status.robots = settings.robots
         self._rate_marks.clear()
@@ -318,13 +407,21 @@ class RunController:
         self.status.step_started_at = time.monotonic()
         try:
             with self._sim_lock:
-                self._sim.step()
+                if self._debugging():
+                    stop = self._sim.debug("run", 1)  # type: ignore[attr-defined]
+                    if stop is not None:
+                        self._stopped(self._sim.paused_view(stop))  # type: ignore[attr-defined]
+                else:
+                    self._sim.step()
+                    if self._pause_on_error:
+                        self._pause_on_new_failure()
         except Exception as error:  # noqa: BLE001 - shown in the status line; the UI lives on
             self.status.error = f"{type(error).__name__}: {error}"
             self._running = False
             self.status.running = False
         finally:
             self.status.step_started_at = None
+        self._after_step()
         forced = self._pending_steps > 0
         self._pending_steps = max(0, self._pending_steps - 1)
         stop_at = self.scenario_steps
@@ -335,6 +432,85 @@ class RunController:
                                   "(Play runs on)")
             forced = True
         self._publish(force=forced or not self._running)
+
+    # ---- debugger (simulation thread, under the run lock where the swarm is touched) ---------
+    def _give_breakpoints(self) -> None:
+        """The breakpoints to the swarm's debugger (made only once there are some)."""
+        sim = self._sim
+        if sim is None or not hasattr(sim, "set_breakpoints"):
+            return
+        if not self._breakpoints and not getattr(sim, "has_debugger", False):
+            self.status.breakpoint_errors = ()
+            return
+        with self._sim_lock:
+            self.status.breakpoint_errors = tuple(sim.set_breakpoints(self._breakpoints))
+
+    def _debugging(self) -> bool:
+        """The debugger must drive this step: breakpoints are set, or it paused mid-step."""
+        sim = self._sim
+        if not hasattr(sim, "debug"):
+            return False
+        return bool(self._breakpoints) or bool(getattr(sim, "mid_step", False))
+
+    def _pause_on_new_failure(self) -> None:
+        """After a plain step: a robot that failed in it pauses the run (the first such)."""
+        states = _robot_states(self._sim)
+        failed = [state for state in states if state.failure is not None]
+        if len(failed) > self._failed_before and hasattr(self._sim, "error_view"):
+            latest = max(failed, key=lambda state: state.failure_step or 0)
+            self._stopped(self._sim.error_view(int(latest.index)))  # type: ignore[attr-defined]
+        self._failed_before = len(failed)
+
+    def _stopped(self, paused: PausedAt) -> None:
+        self._running = False
+        self._pending_steps = 0
+        self.status.running = False
+        self.status.paused_at = paused
+        self.status.stops += 1
+
+    def _debug_command(self, command: str, robot: int | None) -> None:
+        sim = self._sim
+        if sim is None or not hasattr(sim, "debug"):
+            return
+        self._running = False
+        self._pending_steps = 0
+        paused = self.status.paused_at
+        index = robot if robot is not None else paused.robot_index if paused else 0
+        self.status.step_started_at = time.monotonic()
+        try:
+            with self._sim_lock:
+                key = sim.robot_key(index)  # type: ignore[attr-defined]
+                if command == "step_back_line":
+                    stop = sim.debug("step_back", key, "line")  # type: ignore[attr-defined]
+                elif command == "step_back_control_step":
+                    stop = sim.debug("step_back", key, "control_step")  # type: ignore
+                elif command == "run_back_to_previous_hit":
+                    stop = sim.debug(command)  # type: ignore[attr-defined]
+                else:
+                    stop = sim.debug(command, key)  # type: ignore[attr-defined]
+                still = stop is None and sim.debugger().paused_at  # type: ignore[attr-defined]
+                self._failed_before = sum(s.failure is not None for s in _robot_states(sim))
+        finally:
+            self.status.step_started_at = None
+        if stop is not None:
+            self._stopped(sim.paused_view(stop))  # type: ignore[attr-defined]
+            self.status.debug_note = None
+        else:  # nothing found: where the swarm is stays shown (mid-step, or between steps)
+            self.status.paused_at = sim.paused_view(still) if still else None  # type: ignore
+            self.status.debug_note = NOTHING_THERE.get(command, "the robot did not stop")
+        self._after_step()
+        self._publish(force=True)
+
+    def _after_step(self) -> None:
+        listeners = self._on_step
+        if not listeners or self._sim is None:
+            return
+        with self._sim_lock:
+            for listener in listeners:
+                try:
+                    listener(self._sim)
+                except Exception as error:  # noqa: BLE001 - a watch must not stop the swarm
+                    self.status.error = f"watch: {type(error).__name__}: {error}"
 
     def _pace(self) -> None:
         target = self.settings.steps_per_second
@@ -371,3 +547,8 @@ class RunController:
                 listener(frame)
             except Exception as error:  # noqa: BLE001 - a drawing bug must not stop the swarm
                 self.status.error = f"display: {type(error).__name__}: {error}"
+
+
+def _robot_states(sim: Any) -> list[Any]:
+    """The engine's per-robot states behind a simulation handle (none for a double)."""
+    return list(getattr(getattr(sim, "sim", None), "robots", ()))

@@ -32,7 +32,8 @@ import numpy as np
 
 from bbzide.diagnostics import UserError
 from bbzide.ui.heap_decode import HeapGeometry, HeapReader, HeapRoots
-from bbzide.ui.inspection import RobotInspection
+from bbzide.ui.inspection import FrameView, PausedAt, RobotInspection
+from bbzide.ui.watches import BadWatch, number
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -166,6 +167,172 @@ class WorldsSimulation:
         self.recorder: Any = None
         self.source_text: str | None = None
         self._overlays: tuple[str, dict[str, Any]] | None = None
+        self._debugger: Any = None
+        self.pause_on_error = True  # what a debugger made later starts with
+
+    # ---- debugger ------------------------------------------------------------------------------
+    def debugger(self) -> Any:
+        """The debugger room's `SwarmDebugger` on this swarm (made on first use: a run without
+        breakpoints never builds one)."""
+        if self._debugger is None:
+            self._debugger = _import("bbzide.debugger").SwarmDebugger(self.sim)
+            self._debugger.pause_on_error = self.pause_on_error
+        return self._debugger
+
+    def set_breakpoints(self, lines: Sequence[Any]) -> list[str]:
+        """The IDE's breakpoints (`bbzide.ui.breakpoints.LineBreakpoint`) in the main script;
+        the ones the debugger refuses (a robot id not in the swarm, a condition that does not
+        parse) are left out, each with its one-line reason in the list returned."""
+        room = _import("bbzide.debugger")
+        debugger = self.debugger()
+        kept, refused = [], []
+        for line in lines:
+            breakpoint = room.Breakpoint(line.line, robot=line.robot, condition=line.condition,
+                                         hit_count=line.hit_count)
+            try:
+                debugger.check_breakpoint(breakpoint)
+            except room.DebuggerError as error:
+                refused.append(error.message)
+                continue
+            kept.append(breakpoint)
+        debugger.breakpoints = kept
+        return refused
+
+    def set_pause_on_error(self, on: bool) -> None:
+        self.pause_on_error = on
+        if self._debugger is not None:
+            self._debugger.pause_on_error = on
+
+    def debug(self, command: str, *arguments: Any) -> Any:
+        """One debugger command (`run`, `step_over`, `step_back`, ...): its `Stop` or None.
+        A step the debugger completes is recorded like any other; going back in time ends a
+        recording (a recording's timeline only goes forward)."""
+        before = self.step_count
+        stop = getattr(self.debugger(), command)(*arguments)
+        if self.recorder is not None:
+            if self.step_count == before + 1:
+                self.recorder.record_step()
+            elif self.step_count < before:
+                self.stop_recording()
+        return stop
+
+    def paused_view(self, stop: Any) -> PausedAt:
+        """The debugger room's `Stop` as the IDE shows it."""
+        index = self._index_of(int(stop.robot))
+        return PausedAt(index, int(self.sim.robots[index].robot_id), int(stop.step),
+                        _optional_int(stop.pc), _optional_int(stop.line),
+                        _optional_int(getattr(stop, "column", None)), str(stop.reason),
+                        tuple(FrameView(str(f.function), _optional_int(f.line),
+                                        {str(k): str(v) for k, v in dict(f.locals).items()})
+                              for f in getattr(stop, "frames", ()) or ()),
+                        self._stop_message(index, stop), self.mid_step)
+
+    def _stop_message(self, index: int, stop: Any) -> str | None:
+        """An error stop's text, in the student's terms when the failing call is known."""
+        failure = getattr(self.sim.robots[index].robot, "failure", None)
+        if stop.reason != "error" or failure is None:
+            return getattr(stop, "error", None) or None
+        _where, message = explain_robot_failure(
+            failure, self.sim.robots[index].program or self.program,
+            self.sim.world.host_names, self.sim.world.name)
+        return f"{getattr(failure, 'reason', 'error')}: {message}"
+
+    def error_view(self, index: int) -> PausedAt:
+        """Robot `index`, which has just failed, as a stop "error" at its failing call."""
+        state = self.sim.robots[index]
+        failure = state.failure
+        program = state.program or self.program
+        where, message = explain_robot_failure(failure, program, self.sim.world.host_names,
+                                               self.sim.world.name)
+        frames: tuple[FrameView, ...] = ()
+        try:
+            frames = self.paused_view_frames(index)
+        except Exception:  # noqa: BLE001 - the frames are a bonus; the error is what counts
+            frames = ()
+        return PausedAt(index, int(state.robot_id), self.step_count,
+                        _optional_int(getattr(failure, "pc", None)),
+                        None if where is None else int(where.line),
+                        None if where is None else int(where.col), "error", frames,
+                        f"{getattr(failure, 'reason', 'error')}: {message}")
+
+    def paused_view_frames(self, index: int) -> tuple[FrameView, ...]:
+        """Robot `index`'s call frames as the debugger reads them."""
+        frames = self.debugger().frames(self.robot_key(index))
+        return tuple(FrameView(str(f.function), _optional_int(f.line),
+                               {str(k): str(v) for k, v in dict(f.locals).items()})
+                     for f in frames)
+
+    def robot_key(self, index: int) -> int:
+        """How the debugger room names robot `index` (its Buzz id)."""
+        return int(self.sim.robots[index].robot_id)
+
+    def _index_of(self, key: int) -> int:
+        for state in self.sim.robots:
+            if int(state.robot_id) == key:
+                return int(state.index)
+        raise KeyError(key)
+
+    # ---- watches and the stigmergy view -----------------------------------------------------
+    def watch_values(self, watch: Any) -> list[float]:
+        """`watch` (`bbzide.ui.watches.Watch`) read from every robot: one number per robot,
+        NaN where there is none (no VM, no such global or key, not a number)."""
+        values = []
+        simple_global = watch.kind == "expression" and watch.text.isidentifier()
+        for state in self.sim.robots:
+            robot = state.robot
+            vm = getattr(robot, "vm", None)
+            if vm is None:
+                values.append(float("nan"))
+            elif watch.kind == "heap":
+                values.append(float(vm.heap.size - (vm.heap.ltseg - vm.heap.rtobj)))
+            elif watch.kind == "stigmergy":
+                values.append(number(_stigmergy_value(vm, state.program or self.program,
+                                                              watch.text)))
+            elif simple_global:
+                values.append(number(state.global_value(watch.text)))
+            else:
+                try:
+                    value = self.debugger().evaluate(int(state.robot_id), watch.text)
+                except Exception as error:  # noqa: BLE001 - a bad expression is the user's
+                    raise BadWatch(str(error).splitlines()[0] if str(error)
+                                           else type(error).__name__) from None
+                values.append(number(value))
+        return values
+
+    def stigmergy_versions(self, max_robots: int) -> list[tuple[str, int, int, str, list[int]]]:
+        """Every virtual-stigmergy version the first `max_robots` robots hold: (key, Lamport
+        timestamp, writer robot id, value, ids of the robots holding that version), by key
+        and newest first."""
+        holders: dict[tuple[str, int, int, str], list[int]] = {}
+        for state in self.sim.robots[:max_robots]:
+            vm = getattr(state.robot, "vm", None)
+            if vm is None:
+                continue
+            strings = list(getattr(state.program or self.program, "strings", []) or [])
+            for entry in getattr(vm.vstig, "entries", []):
+                key = strings[entry.key] if 0 <= entry.key < len(strings) else f"#{entry.key}"
+                value = _heap_text(vm, strings, entry.value)
+                holders.setdefault((key, int(entry.timestamp), int(entry.robot), value),
+                                   []).append(int(state.robot_id))
+        rows = [(key, stamp, writer, value, ids)
+                for (key, stamp, writer, value), ids in holders.items()]
+        return sorted(rows, key=lambda row: (row[0], -row[1], row[2]))
+
+    def close_debugger(self) -> None:
+        """Finish a control step the debugger holds (as the old program would) and drop the
+        debugger: the swarm goes on with plain steps."""
+        if self._debugger is not None:
+            self._debugger.close()
+            self._debugger = None
+
+    @property
+    def has_debugger(self) -> bool:
+        return self._debugger is not None
+
+    @property
+    def mid_step(self) -> bool:
+        """The debugger stopped inside a control step (some robots have not run it yet)."""
+        return self._debugger is not None and self._debugger.paused_at is not None
 
     @property
     def step_count(self) -> int:
@@ -181,6 +348,7 @@ class WorldsSimulation:
 
     def load_program(self, program: Any, keep_state: bool) -> None:
         self.program = program
+        self.close_debugger()  # its checkpoints and source maps belong to the old program
         if self.recorder is not None and not keep_state:
             self.stop_recording()  # the world restarts at step 0: a new timeline
         self.sim.load_program(program, keep_state=keep_state)
@@ -256,6 +424,46 @@ class WorldsSimulation:
             text = f"{getattr(state.failure, 'reason', 'error')}: {message}"
             counts[(where, text)] = counts.get((where, text), 0) + 1
         return [(where, text, count) for (where, text), count in counts.items()]
+
+
+def _heap_value(vm: Any, strings: Sequence[str], index: int) -> Any:
+    """The heap object `index` as a Python value (int, float, string; None otherwise)."""
+    heap_room = _import("bbzide.vm.heap")
+    heap = vm.heap
+    if not 0 <= index < heap.object_count:
+        return None
+    kind = heap.obj_type(index)
+    if kind == heap_room.INT:
+        return heap.int_value(index)
+    if kind == heap_room.FLOAT:
+        return _import("bbzide.compiler.bbzfloat").to_float(heap.u16(index))
+    if kind == heap_room.STRING:
+        sid = heap.u16(index)
+        return strings[sid] if sid < len(strings) else f"#{sid}"
+    return None
+
+
+def _heap_text(vm: Any, strings: Sequence[str], index: int) -> str:
+    value = _heap_value(vm, strings, index)
+    if value is None:
+        kind = vm.heap.obj_type(index) if 0 <= index < vm.heap.object_count else -1
+        names = ("nil", "int", "float", "string", "table", "closure", "userdata")
+        return names[kind] if 0 <= kind < len(names) else "?"
+    return f"{value:.4g}" if isinstance(value, float) else repr(value) \
+        if isinstance(value, str) else str(value)
+
+
+def _stigmergy_value(vm: Any, program: Any, key: str) -> Any:
+    """The value robot's stigmergy holds for `key` (None when it holds none)."""
+    strings = list(getattr(program, "strings", []) or [])
+    for entry in getattr(vm.vstig, "entries", []):
+        if 0 <= entry.key < len(strings) and strings[entry.key] == key:
+            return _heap_value(vm, strings, entry.value)
+    return None
+
+
+def _optional_int(value: Any) -> int | None:
+    return None if value is None else int(value)
 
 
 def world_geometry(world: Any) -> WorldGeometry:

@@ -13,6 +13,9 @@
 //                                        changed since base_revision (another tab, another editor)
 //   {op: "compile"} -> state
 //   {op: "reference"} -> {world, items}: the built-ins and the world's host functions
+//   {op: "breakpoints", revision, breakpoints} -> state; every state carries the breakpoints in
+//                       force (breakpoints, breakpoints_revision, breakpoints_generation) and
+//                       where the debugger paused (paused: {line, robot, reason, revision} | null)
 // A poll of "state" brings in external edits (the file watcher bumps the revision) and the
 // diagnostics of the latest compile. A 409 never loses text: the user's stays in the editor and
 // a notice offers the file's version or overwriting it with theirs.
@@ -31,6 +34,7 @@ import {
 } from "@codemirror/view";
 
 import { buzzHighlighter, buzzIndentation, buzzLanguage } from "./buzz-language.js";
+import { breakpointList, breakpointsExtension, setBreakpoints, showPaused } from "./breakpoints.js";
 import { builtinNames, buzzCompletions, hoverDoc, setReferenceItems } from "./completion.js";
 import { diagnosticPlace, diagnosticText, diagnosticsExtension, showDiagnostics } from "./diagnostics.js";
 
@@ -53,6 +57,9 @@ let conflict = null;        // {revision, text} of the file when a save was refu
 let lastState = null;
 let shownDiagnostics = "";  // what the editor shows now (JSON), to dispatch only on a change
 let referenceWorld = null;  // the world whose built-ins completion offers
+let breakpointsOut = 0;     // breakpoint lists sent and not yet answered
+let breakpointsGeneration = -1;  // the newest breakpoint list the server told us of
+let shownPaused = "null";   // where the debugger paused, as shown (JSON)
 
 /** Marks a transaction that brings the server's text: it is not uploaded back. */
 const fromServer = Annotation.define();
@@ -63,6 +70,7 @@ const view = new EditorView({
   state: EditorState.create({
     doc: "",
     extensions: [
+      breakpointsExtension(() => sendBreakpoints()),  // left of the line numbers, as IDEs do
       lineNumbers(),
       highlightActiveLineGutter(),
       highlightSpecialChars(),
@@ -103,7 +111,9 @@ const view = new EditorView({
 });
 
 // For tests and the console: the text shown, and the view itself.
-window.buzzEditor = { view, text: () => view.state.doc.toString() };
+window.buzzEditor = {
+  view, text: () => view.state.doc.toString(), breakpoints: () => breakpointList(view.state),
+};
 
 // ---- diagnostics ---------------------------------------------------------------------------
 function currentDiagnostics() {
@@ -133,7 +143,46 @@ function render() {
       }));
     }
   }
+  renderDebugger();
   renderStatus();
+}
+
+/** The server's breakpoints (when they belong to this text and are newer than our last change)
+ *  and the paused line (when the robots run this text). */
+function renderDebugger() {
+  if (hasLocalEdits() || !lastState) return;
+  const s = lastState;
+  if (breakpointsOut === 0 && s.breakpoints_revision === localRevision
+      && s.breakpoints_generation >= breakpointsGeneration
+      && JSON.stringify(s.breakpoints) !== JSON.stringify(breakpointList(view.state))) {
+    breakpointsGeneration = s.breakpoints_generation;
+    view.dispatch(setBreakpoints(view.state, s.breakpoints));
+  }
+  const paused = s.paused && s.paused.revision === localRevision ? s.paused : null;
+  const key = JSON.stringify(paused);
+  if (key !== shownPaused) {
+    shownPaused = key;
+    const spec = showPaused(view.state, paused);
+    if (paused && paused.line >= 1 && paused.line <= view.state.doc.lines) {
+      spec.effects = [spec.effects, EditorView.scrollIntoView(view.state.doc.line(paused.line).from, { y: "center" })];
+    }
+    view.dispatch(spec);
+  }
+}
+
+/** Send the breakpoints shown (their lines belong to the text the server has: while an edit
+ *  waits for its upload, the upload sends them). */
+async function sendBreakpoints() {
+  if (hasLocalEdits()) return;
+  breakpointsOut++;
+  try {
+    const reply = await call("breakpoints", { revision: localRevision, breakpoints: breakpointList(view.state) });
+    if (reply.code === 200) breakpointsGeneration = Math.max(breakpointsGeneration, reply.breakpoints_generation);
+    breakpointsOut--;
+    if (reply.code === 200) applyState(reply);
+  } catch (error) {
+    breakpointsOut--;  // connection lost: the next change or save sends them again
+  }
 }
 
 function renderStatus() {
@@ -200,6 +249,7 @@ async function loadSource() {
 /** Show the server's `text`: only the part that differs changes (one undoable step). */
 function showText(text, revision) {
   const current = view.state.doc.toString();
+  const firstText = localRevision < 0;
   localRevision = revision;
   if (text !== current) {
     let start = 0;
@@ -215,7 +265,11 @@ function showText(text, revision) {
     });
   }
   shownDiagnostics = "";  // markers are placed again on this text
+  shownPaused = "";
   render();
+  // The breakpoints shown moved with the text: they belong to `revision` now. (A page that
+  // just opened shows none yet: it takes the server's, and must not send its empty list.)
+  if (!firstText && breakpointList(view.state).length > 0) sendBreakpoints();
 }
 
 function hasLocalEdits() {
@@ -234,7 +288,9 @@ async function uploadNow(baseRevision = localRevision) {
       localRevision = reply.saved_revision;  // a newer revision, if any, comes with the next poll
       uploading = false;
       shownDiagnostics = "";
+      shownPaused = "";
       applyState(reply);
+      if (!hasLocalEdits()) sendBreakpoints();  // their lines now belong to the saved text
     } else {
       statusBox.className = "status-error";
       statusBox.textContent = reply.error || `save refused (${reply.code})`;

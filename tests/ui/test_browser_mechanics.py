@@ -56,7 +56,7 @@ def test_play_advances_the_step_counter(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Pause").click()
     wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="paused")
     paused = ide.shown_step()
-    ide.page.get_by_role("button", name="Step").click()
+    ide.page.get_by_role("button", name="Step", exact=True).click()
     wait_until(lambda: ide.shown_step() == paused + 1, UI_WAIT_S, message="one step")
     ide.page.get_by_role("button", name="Play").click()
 
