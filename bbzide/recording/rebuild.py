@@ -187,10 +187,30 @@ class RobotRebuilder:
         return bool(self.recording.keyframes.get(index))
 
     def robot_at(self, index: int, step: int) -> Any:
-        """A robot whose VM is exactly robot `index`'s at recorded `step` (do not step it)."""
-        recording = self.recording
-        recording.row(step)
+        """A robot whose VM is exactly robot `index`'s at recorded `step` (do not step it).
+
+        At a keyframe's own step the step is re-executed from the keyframe before when that
+        gives the keyframe's bytes, so that what the robot sent in it is known (the inspector's
+        warnings read it); where it does not (a reboot, a new program) the keyframe is taken."""
+        self.recording.row(step)
         keyframe = self.keyframe(index, step)
+        frames = self.recording.keyframes[index]
+        if keyframe.step == step and frames[0].step < step:
+            earlier = self.keyframe(index, step - 1)
+            if earlier.program == keyframe.program:
+                try:
+                    robot = self._rebuilt_from(index, earlier, step)
+                    if robot.snapshot() == self.snapshot(index, keyframe):
+                        return robot
+                except RecordingError:
+                    pass
+                self._cache.pop(index, None)
+                self._sent.pop(index, None)
+        return self._rebuilt_from(index, keyframe, step)
+
+    def _rebuilt_from(self, index: int, keyframe: Keyframe, step: int) -> Any:
+        """Robot `index` at `step`: `keyframe` restored (or the cached robot, when it lies
+        between them) and the recorded inputs of the steps after it re-executed."""
         cached = self._cache.get(index)
         if cached is not None and keyframe.step <= cached[0] <= step and cached[3] == id(
                 keyframe):
@@ -212,7 +232,8 @@ class RobotRebuilder:
 
     def sent_at(self, index: int, step: int) -> list[bytes]:
         """The payloads robot `index` sent in recorded `step`, as its last rebuild re-executed
-        them (empty when that step was not re-executed: a keyframe's own step)."""
+        them (empty when that step was not re-executed: the first keyframe's step, a reboot
+        or a new program)."""
         at, sent = self._sent.get(index, (-1, []))
         return sent if at == step else []
 

@@ -218,3 +218,29 @@ def test_a_replayed_step_shows_the_live_warnings(tmp_path: Path) -> None:
     shown = live.inspect(0).warnings
     assert any("a table is being sent" in warning for warning in shown)
     assert session.inspect(0, recording.last_step).warnings == shown
+
+
+def test_a_replay_warns_as_live_at_every_step_keyframe_steps_included(tmp_path: Path) -> None:
+    """At a keyframe's own step the rebuild re-executes the step from the keyframe before, so
+    the "table being sent" warning is there too, as it was live, at every recorded step."""
+    from bbzide.cli import main
+    from bbzide.recording.reader import read_recording
+    from bbzide.recording.rebuild import RobotRebuilder
+    from bbzide.ui.replay_session import ReplaySession
+
+    path = tmp_path / "probe.bzz"
+    path.write_text(SCRIPT.replace("TABLE", "{.a = 1}"))
+    recording_path = tmp_path / "probe.rrd"
+    assert main(["run", str(path), "--world", "kilobot", "--robots", "3", "--steps", "9",
+                 "--record", str(recording_path), "--keyframe-every", "3"]) == 0
+    _, program = BACKEND.compile(path.read_text(), path, "kilobot")
+    live = BACKEND.create("kilobot", program, 3, 0)
+    recording = read_recording(recording_path)
+    keyframe_steps = {k.step for k in recording.keyframes[0]}
+    assert {3, 6} <= keyframe_steps  # the steps this test is about
+    session = ReplaySession(recording, RobotRebuilder(recording))
+    for step in range(1, recording.last_step + 1):
+        live.step()
+        shown = live.inspect(0).warnings
+        assert any("a table is being sent" in warning for warning in shown)
+        assert session.inspect(0, step).warnings == shown, step
