@@ -24,10 +24,13 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from bbzide.vm import messages
 from bbzide.vm.heap import CLOSURE, INT, STRING
+from bbzide.vm.kernels import COMPILED, fasthost, fastloop
 from bbzide.vm.messages import RingBuffer
-from bbzide.vm.states import Error
+from bbzide.vm.states import Error, State
 from bbzide.vm.table_library import (
     call_and_take,
     foreach_live,
@@ -125,17 +128,33 @@ def _is_neighbors_table(vm: VM, self_obj: int) -> bool:
     return compare(vm.heap, self_obj, vm.neighbors.hpos) == 0
 
 
-def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None]) -> None:
+#: What follows a neighbour's closure call in a compiled walk (:func:`_walk_compiled`): the
+#: walk's kind and the rest of ``fun`` once ``closure_call`` has returned (given the stack
+#: depth ``neighbors_reduce`` compares with).
+CompiledWalk = tuple[int, int, Callable[[int], None]]
+
+
+def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
+                          walk: CompiledWalk | None = None) -> None:
+    """Call ``fun(key, data)`` per neighbour. ``walk``: the fast mode may do the XTREME
+    ring's neighbours in machine code (:func:`fasthost.xtreme_walk`), the same steps."""
     if not vm.profile.xtreme:
         vm.op_lload(0)
         sub = _subfield(vm, STR_DATA)
         vm.pop()
-        foreach_live(vm, sub, fun)
+        start = None
+        if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
+            start = _table_walk_compiled(vm, sub, walk)
+            if start is None:
+                return
+        foreach_live(vm, sub, fun, start)
         return
     self_obj = vm.lsym(0)
     if _is_neighbors_table(vm, self_obj):
         ring = vm.neighbors.ring
         i = ring.size()
+        if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
+            i = _walk_compiled(vm, walk)
         while i:
             i -= 1
             e = ring.at(i)
@@ -147,6 +166,59 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None]) -> None:
     else:
         foreach_live(vm, self_obj, fun)
     vm.gc()
+
+
+def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int, int] | None:
+    """The data table's elements by :func:`fasthost.table_walk` as far as it goes; the
+    (segment, slot, visit) the Python walk goes on from, or None when it is over."""
+    kind, closure, after_call = walk
+    w = np.zeros(fasthost.WALK_SLOTS, np.int64)
+    w[fasthost.W_SEGMENT] = vm.heap.u16(sub)
+    saved, budget = vm.blockptr, vm.instruction_budget
+    regs = vm.kernel_registers(saved, budget)
+    h = vm.heap
+    result = fasthost.table_walk(
+        h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+        fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, w,
+        *fasthost.NO_HOST_ARGS)
+    vm.take_kernel_registers(regs)
+    _index, status, depth, segment, slot, visit = w.tolist()
+    if result == fasthost.WALK_DONE:
+        return None
+    if result == fasthost.WALK_PYTHON:
+        return segment, slot, visit
+    if result == fasthost.WALK_IN_CALL:  # closure_call's loop, from where the kernel left it
+        vm._loop(saved, budget, resume=(status, regs))
+    after_call(depth)
+    return segment, slot + 1, visit
+
+
+def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
+    """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk` as far as it
+    goes; returns how many (the oldest) are left for the Python loop."""
+    kind, closure, after_call = walk
+    ring = vm.neighbors.ring
+    count = ring.size()
+    rows = np.array([(e.robot, e.distance, e.azimuth, e.elevation)
+                     for e in (ring.at(i) for i in range(count - 1, -1, -1))],
+                    np.int64).reshape(count, 4)
+    w = np.zeros(fasthost.WALK_SLOTS, np.int64)
+    saved, budget = vm.blockptr, vm.instruction_budget
+    regs = vm.kernel_registers(saved, budget)
+    h = vm.heap
+    result = fasthost.xtreme_walk(
+        h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+        fastloop.RULES, h.obj_size, h.elems, h.reserved, rows, 0, kind, closure,
+        vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
+    vm.take_kernel_registers(regs)
+    index, status, depth = w.tolist()[:3]
+    if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
+        return count - index
+    if result == fasthost.WALK_IN_CALL:  # closure_call's loop, from where the kernel left it
+        vm._loop(saved, budget, resume=(status, regs))
+    after_call(depth)
+    vm.gc()
+    return count - index - 1
 
 
 # ---- library closures -------------------------------------------------------------------
@@ -197,10 +269,13 @@ def neighbors_foreach(vm: VM) -> None:
         vm.push(key)
         vm.push(value)
         vm.closure_call(2)
+        after_call(0)
+
+    def after_call(_depth: int) -> None:
         vm.pop()
         vm.gc()
 
-    _neighborlike_foreach(vm, fun)
+    _neighborlike_foreach(vm, fun, (fasthost.WALK_FOREACH, c, after_call))
     vm.ret0()
 
 
@@ -264,12 +339,15 @@ def neighbors_reduce(vm: VM) -> None:
         vm.push(value)
         vm.push(accum)
         vm.closure_call(3)
+        after_call(ss)
+
+    def after_call(ss: int) -> None:
         if not vm.stack_depth() > ss:
             vm.seterror(Error.RET)
             return
         vm.gc()
 
-    _neighborlike_foreach(vm, fun)
+    _neighborlike_foreach(vm, fun, (fasthost.WALK_REDUCE, c, after_call))
     vm.ret1()
 
 
