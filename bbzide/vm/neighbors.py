@@ -169,33 +169,38 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
 
 
 def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int, int] | None:
-    """The data table's elements by :func:`fasthost.table_walk` as far as it goes; the
-    (segment, slot, visit) the Python walk goes on from, or None when it is over."""
+    """The data table's elements by :func:`fasthost.table_walk`, re-entered after each
+    call it leaves to Python; the (segment, slot, visit) the Python walk goes on from,
+    or None when it is over."""
     kind, closure, after_call = walk
     w = np.zeros(fasthost.WALK_SLOTS, np.int64)
     w[fasthost.W_SEGMENT] = vm.heap.u16(sub)
-    saved, budget = vm.blockptr, vm.instruction_budget
-    regs = vm.kernel_registers(saved, budget)
     h = vm.heap
-    result = fasthost.table_walk(
-        h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
-        fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, w,
-        *fasthost.NO_HOST_ARGS)
-    vm.take_kernel_registers(regs)
-    _index, status, depth, segment, slot, visit = w.tolist()
-    if result == fasthost.WALK_DONE:
-        return None
-    if result == fasthost.WALK_PYTHON:
-        return segment, slot, visit
-    if result == fasthost.WALK_IN_CALL:  # closure_call's loop, from where the kernel left it
-        vm._loop(saved, budget, resume=(status, regs))
-    after_call(depth)
-    return segment, slot + 1, visit
+    while True:
+        saved, budget = vm.blockptr, vm.instruction_budget
+        regs = vm.kernel_registers(saved, budget)
+        result = fasthost.table_walk(
+            h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+            fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, w,
+            *fasthost.NO_HOST_ARGS)
+        vm.take_kernel_registers(regs)
+        _index, status, depth, segment, slot, visit = w.tolist()
+        if result == fasthost.WALK_DONE:
+            return None
+        if result == fasthost.WALK_PYTHON:
+            return segment, slot, visit
+        if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
+            vm._loop(saved, budget, resume=(status, regs))
+        after_call(depth)
+        if vm.state != State.READY:
+            return segment, slot + 1, visit
+        w[fasthost.W_SLOT] = slot + 1
 
 
 def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
-    """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk` as far as it
-    goes; returns how many (the oldest) are left for the Python loop."""
+    """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk`, re-entered
+    after each neighbour it leaves to Python; returns how many (the oldest) are left for
+    the Python loop."""
     kind, closure, after_call = walk
     ring = vm.neighbors.ring
     count = ring.size()
@@ -203,22 +208,26 @@ def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
                      for e in (ring.at(i) for i in range(count - 1, -1, -1))],
                     np.int64).reshape(count, 4)
     w = np.zeros(fasthost.WALK_SLOTS, np.int64)
-    saved, budget = vm.blockptr, vm.instruction_budget
-    regs = vm.kernel_registers(saved, budget)
     h = vm.heap
-    result = fasthost.xtreme_walk(
-        h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
-        fastloop.RULES, h.obj_size, h.elems, h.reserved, rows, 0, kind, closure,
-        vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
-    vm.take_kernel_registers(regs)
-    index, status, depth = w.tolist()[:3]
-    if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
-        return count - index
-    if result == fasthost.WALK_IN_CALL:  # closure_call's loop, from where the kernel left it
-        vm._loop(saved, budget, resume=(status, regs))
-    after_call(depth)
-    vm.gc()
-    return count - index - 1
+    start = 0
+    while True:
+        saved, budget = vm.blockptr, vm.instruction_budget
+        regs = vm.kernel_registers(saved, budget)
+        result = fasthost.xtreme_walk(
+            h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+            fastloop.RULES, h.obj_size, h.elems, h.reserved, rows, start, kind, closure,
+            vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
+        vm.take_kernel_registers(regs)
+        index, status, depth = w.tolist()[:3]
+        if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
+            return count - index
+        if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
+            vm._loop(saved, budget, resume=(status, regs))
+        after_call(depth)
+        vm.gc()
+        start = index + 1
+        if vm.state != State.READY or start == count:
+            return count - start
 
 
 # ---- library closures -------------------------------------------------------------------
