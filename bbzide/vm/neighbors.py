@@ -32,7 +32,6 @@ from bbzide.vm.kernels import COMPILED, fasthost, fastloop
 from bbzide.vm.messages import RingBuffer
 from bbzide.vm.states import Error, State
 from bbzide.vm.table_library import (
-    call_and_take,
     foreach_live,
     table_set_quiet,
     table_size_live,
@@ -128,10 +127,10 @@ def _is_neighbors_table(vm: VM, self_obj: int) -> bool:
     return compare(vm.heap, self_obj, vm.neighbors.hpos) == 0
 
 
-#: What follows a neighbour's closure call in a compiled walk (:func:`_walk_compiled`): the
-#: walk's kind and the rest of ``fun`` once ``closure_call`` has returned (given the stack
-#: depth ``neighbors_reduce`` compares with).
-CompiledWalk = tuple[int, int, Callable[[int], None]]
+#: What a compiled walk (:func:`_walk_compiled`) needs: the walk's kind, the closure, the
+#: table map/filter return (else -1) and the rest of ``fun`` once ``closure_call`` has
+#: returned, given the stack depth before the call, the element's key and its data.
+CompiledWalk = tuple[int, int, int, Callable[[int, int, int], None]]
 
 
 def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
@@ -172,7 +171,7 @@ def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int
     """The data table's elements by :func:`fasthost.table_walk`, re-entered after each
     call it leaves to Python; the (segment, slot, visit) the Python walk goes on from,
     or None when it is over."""
-    kind, closure, after_call = walk
+    kind, closure, result_table, after_call = walk
     w = np.zeros(fasthost.WALK_SLOTS, np.int64)
     w[fasthost.W_SEGMENT] = vm.heap.u16(sub)
     h = vm.heap
@@ -181,17 +180,17 @@ def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int
         regs = vm.kernel_registers(saved, budget)
         result = fasthost.table_walk(
             h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
-            fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, w,
+            fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, result_table, w,
             *fasthost.NO_HOST_ARGS)
         vm.take_kernel_registers(regs)
-        _index, status, depth, segment, slot, visit = w.tolist()
+        _index, status, depth, segment, slot, visit, key, data = w.tolist()
         if result == fasthost.WALK_DONE:
             return None
         if result == fasthost.WALK_PYTHON:
             return segment, slot, visit
         if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
             vm._loop(saved, budget, resume=(status, regs))
-        after_call(depth)
+        after_call(depth, key, data)
         if vm.state != State.READY:
             return segment, slot + 1, visit
         w[fasthost.W_SLOT] = slot + 1
@@ -201,7 +200,7 @@ def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
     """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk`, re-entered
     after each neighbour it leaves to Python; returns how many (the oldest) are left for
     the Python loop."""
-    kind, closure, after_call = walk
+    kind, closure, result_table, after_call = walk
     ring = vm.neighbors.ring
     count = ring.size()
     rows = np.array([(e.robot, e.distance, e.azimuth, e.elevation)
@@ -216,14 +215,14 @@ def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
         result = fasthost.xtreme_walk(
             h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
             fastloop.RULES, h.obj_size, h.elems, h.reserved, rows, start, kind, closure,
-            vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
+            result_table, vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
         vm.take_kernel_registers(regs)
-        index, status, depth = w.tolist()[:3]
+        index, status, depth, _segment, _slot, _visit, key, data = w.tolist()
         if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
             return count - index
         if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
             vm._loop(saved, budget, resume=(status, regs))
-        after_call(depth)
+        after_call(depth, key, data)
         vm.gc()
         start = index + 1
         if vm.state != State.READY or start == count:
@@ -278,17 +277,17 @@ def neighbors_foreach(vm: VM) -> None:
         vm.push(key)
         vm.push(value)
         vm.closure_call(2)
-        after_call(0)
+        after_call(0, key, value)
 
-    def after_call(_depth: int) -> None:
+    def after_call(_depth: int, _key: int, _value: int) -> None:
         vm.pop()
         vm.gc()
 
-    _neighborlike_foreach(vm, fun, (fasthost.WALK_FOREACH, c, after_call))
+    _neighborlike_foreach(vm, fun, (fasthost.WALK_FOREACH, c, -1, after_call))
     vm.ret0()
 
 
-def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
+def _map_base(vm: VM, kind: int, put: Callable[[int, int], None]) -> None:
     if not vm.assert_lnum(1):
         return
     c = vm.lsym(1)
@@ -298,15 +297,27 @@ def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
     _add_neighborlike_fields(vm, 0)
 
     def fun(key: int, value: int) -> None:
-        ret = call_and_take(vm, 0, c, key, value)
-        if ret is None:
+        # call_and_take(vm, 0, c, key, value), its end in after_call
+        ss = vm.stack_depth()
+        vm.op_lload(0)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.closure_call(2)
+        after_call(ss, key, value)
+
+    def after_call(ss: int, key: int, value: int) -> None:
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
             return
+        ret = vm.stack[vm.stackptr]
+        vm.pop()
         vm.push(ret_tbl)
         vm.push_int(key)  # bbzvm_pushi(key): the firmware pushes the key's heap index
         put(value, ret)
         vm.gc()
 
-    _neighborlike_foreach(vm, fun)
+    _neighborlike_foreach(vm, fun, (kind, c, ret_tbl, after_call))
     vm.ret1()
 
 
@@ -315,7 +326,7 @@ def neighbors_map(vm: VM) -> None:
         vm.push(ret)
         vm.tput()
 
-    _map_base(vm, put)
+    _map_base(vm, fasthost.WALK_MAP, put)
 
 
 def neighbors_filter(vm: VM) -> None:
@@ -327,7 +338,7 @@ def neighbors_filter(vm: VM) -> None:
             vm.pop()
             vm.pop()
 
-    _map_base(vm, put)
+    _map_base(vm, fasthost.WALK_FILTER, put)
 
 
 def neighbors_reduce(vm: VM) -> None:
@@ -348,15 +359,15 @@ def neighbors_reduce(vm: VM) -> None:
         vm.push(value)
         vm.push(accum)
         vm.closure_call(3)
-        after_call(ss)
+        after_call(ss, key, value)
 
-    def after_call(ss: int) -> None:
+    def after_call(ss: int, _key: int, _value: int) -> None:
         if not vm.stack_depth() > ss:
             vm.seterror(Error.RET)
             return
         vm.gc()
 
-    _neighborlike_foreach(vm, fun, (fasthost.WALK_REDUCE, c, after_call))
+    _neighborlike_foreach(vm, fun, (fasthost.WALK_REDUCE, c, -1, after_call))
     vm.ret1()
 
 

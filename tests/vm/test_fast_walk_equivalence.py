@@ -1,11 +1,12 @@
 """The compiled neighbour walks (``fasthost.xtreme_walk``/``table_walk``) against the reference.
 
-``neighbors.foreach``/``reduce`` hand their per-neighbour closure calls to machine code in the
-fast mode; each must leave every observable byte as the reference mode does (heap bytes, mark
-bits, rtobj/ltseg, stack, pc, state, errors, GC runs, instruction counts) after every control
-step, on an XTREME build (the ring) and on heap-table builds, including the cases where the
-kernel hands back: a heap too full for a neighbour's objects, a closure calling a host
-function or another walk, an error inside the closure, the instruction budget running out.
+``neighbors.foreach``/``reduce``/``map``/``filter`` hand their per-neighbour closure calls to
+machine code in the fast mode; each must leave every observable byte as the reference mode
+does (heap bytes, mark bits, rtobj/ltseg, stack, pc, state, errors, GC runs, instruction
+counts) after every control step, on an XTREME build (the ring) and on heap-table builds,
+including the cases where the kernel hands back: a heap too full for a neighbour's objects,
+a closure calling a host function or another walk, an error inside the closure, a closure
+returning nothing, the instruction budget running out.
 """
 
 from __future__ import annotations
@@ -40,6 +41,20 @@ function step() {
     if (data.distance < acc) { acc = data.distance }
     return acc
   }, 1000)
+}
+""",
+    "map and filter": """
+kept = 0
+function step() {
+  var near = neighbors.filter(function(rid, data) { return data.distance < 50 })
+  var hops = neighbors.map(function(rid, data) { return data.distance / 10 })
+  var odd = neighbors.filter(function(rid, data) { return rid % 2 })
+  kept = near.count() + odd.count()
+}
+""",
+    "map without return": """
+function step() {
+  var m = neighbors.map(function(rid, data) { var x = 1 })
 }
 """,
     "host and nested walk": """
@@ -139,7 +154,7 @@ def test_walks_identical_on_a_full_heap(heap_size: int) -> None:
     (or the reference runs out of memory at the same allocation)."""
     small = Profile(name="small", heap_size=heap_size, ptr_size=2, xtreme=True,
                     neighbors_floats=False, float_ops=False)
-    for name in ("foreach", "reduce"):
+    for name in ("foreach", "reduce", "map and filter"):
         stress = _run(SCRIPTS[name], small, True, 15, None)
         fast = _run(SCRIPTS[name], small, False, 15, None)
         assert stress == fast, f"{name} with a {heap_size}-byte heap"

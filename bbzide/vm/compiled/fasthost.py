@@ -73,13 +73,13 @@ from bbzide.vm.compiled.packed_queues import (
     OUT_START,
     ROBOT,
 )
-from bbzide.vm.heap_layout import FLOAT, INT, STRING, TABLE
+from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING, TABLE
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk", "WALK_FOREACH",
-           "WALK_REDUCE", "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL",
-           "table_walk", "WALK_SLOTS"]
+           "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_DONE", "WALK_PYTHON",
+           "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk", "WALK_SLOTS"]
 
 # Columns of a ``hosts`` row, and its kinds.
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
@@ -226,9 +226,10 @@ def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
 # (stack room, a free gap for its objects and segment, ``self`` readable) and otherwise
 # hands that neighbour, not started, to Python; a closure call that ``run_hosted`` leaves
 # under way is handed back with its status (Python resumes it, ``VM._loop(resume=)``).
-#: walk kinds: ``neighbors_foreach`` (f(key, data)) and ``neighbors_reduce`` (f(key, data,
-#: accumulator), the accumulator kept on the stack)
-WALK_FOREACH, WALK_REDUCE = 0, 1
+#: walk kinds: ``neighbors_foreach`` (f(key, data)), ``neighbors_reduce`` (f(key, data,
+#: accumulator), the accumulator kept on the stack), ``neighbors_map`` and
+#: ``neighbors_filter`` (f(key, data), its result or the data put in the returned table)
+WALK_FOREACH, WALK_REDUCE, WALK_MAP, WALK_FILTER = 0, 1, 2, 3
 #: results: every neighbour done; neighbour ``w[W_INDEX]`` not started (Python does it and
 #: the rest); its call under way (status ``w[W_STATUS]``: Python resumes it, then ends the
 #: neighbour); its call done but its end (pop or RET check, collections) left to Python
@@ -236,6 +237,8 @@ WALK_DONE, WALK_PYTHON, WALK_IN_CALL, WALK_AFTER_CALL = 0, 1, 2, 3
 #: slots of the ``w`` array (``xtreme_walk``): the neighbour (row) reached, the run status,
 #: the stack depth ``neighbors_reduce`` compares the depth after the call with
 W_INDEX, W_STATUS, W_DEPTH = 0, 1, 2
+#: slots of ``w``: the key and the data of the element whose call was made
+W_KEY, W_DATA = 6, 7
 #: ring columns: robot, distance, azimuth, elevation (rows newest first, as the walk visits)
 NB_ROBOT, NB_DISTANCE = 0, 1
 #: objects a neighbour allocates at most: its data table, three values, three field-name
@@ -261,10 +264,82 @@ def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: A
 
 
 @_compile
+def _table_set_sure(d: Any, t: int, s: int, elems: int) -> bool:
+    """Would ``_table_set`` on table ``t`` take its path (every segment of the chain inside
+    the heap, every key index too, a chain no longer than the heap)? The room for a new
+    segment is the caller's check."""
+    size = len(d)
+    g = 4 * elems + 2
+    nobj = size // s
+    seg = _i(d[t * s + 1]) | (_i(d[t * s + 2]) << 8)
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return False
+        o = size - (seg + 1) * g
+        for k in range(elems):
+            kw = _i(d[o + 2 * k]) | (_i(d[o + 2 * k + 1]) << 8)
+            if kw & 0x8000 and kw & 0x7FFF >= nobj:
+                return False
+        seg = (_i(d[o + 4 * elems]) | (_i(d[o + 4 * elems + 1]) << 8)) & _NO_NEXT_SEGMENT
+        if seg == _NO_NEXT_SEGMENT:
+            return True
+    return False
+
+
+@_compile
+def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any,
+                 s: int, elems: int, reserved: int, kind: int, result_table: int,
+                 w: Any) -> bool:
+    """The end of an element's ``fun`` once its closure call returned: foreach's pop,
+    reduce's RET check, map's and filter's put in ``result_table``; then the collection.
+    False with nothing done when Python must do it (an error, no room, a method to bind,
+    a result table ``_table_set`` would refuse)."""
+    sp = regs[R_SP]
+    if kind == WALK_FOREACH:
+        if sp < 0:
+            return False
+        regs[R_SP] = sp - 1
+    elif sp + 1 <= w[W_DEPTH]:
+        return False  # the closure left nothing: RET
+    elif kind == WALK_MAP or kind == WALK_FILTER:
+        g = 4 * elems + 2
+        ret = _i(stack[sp])
+        nobj = len(d) // s
+        if (sp + 2 >= regs[R_STACK_SIZE] or regs[R_LTSEG] - regs[R_RTOBJ] < s + g
+                or ret >= nobj or w[W_DATA] >= nobj or result_table >= nobj
+                or _i(d[result_table * s]) & 7 != TABLE
+                or not _table_set_sure(d, result_table, s, elems)):
+            return False
+        m = _i(d[ret * s])
+        put = ret if kind == WALK_MAP else w[W_DATA]
+        pm = _i(d[put * s])
+        if pm & 7 == CLOSURE and pm & FLAG2:
+            ar = _i(d[put * s + 2])
+            if ar != NO_ACTREC and not _i(d[ar * s]) & FLAG2:
+                return False  # tput would bind a method
+        # ret popped; push ret_tbl, push_int(key); then put
+        key = _obj_alloc(d, regs, s, reserved, INT, 0)
+        kv = w[W_KEY]
+        d[key * s + 1] = kv & 0xFF
+        d[key * s + 2] = (kv >> 8) & 0xFF
+        stack[sp] = result_table
+        stack[sp + 1] = key
+        if kind == WALK_MAP:
+            stack[sp + 2] = ret
+            _table_set(d, regs, result_table, key, ret, s, elems)
+        elif m & 7 == INT and (_i(d[ret * s + 1]) | _i(d[ret * s + 2])) != 0:
+            stack[sp + 2] = w[W_DATA]
+            _table_set(d, regs, result_table, key, w[W_DATA], s, elems)
+        regs[R_SP] = sp - 1
+    _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+    return True
+
+
+@_compile
 def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 rules: Any, s: int, elems: int, reserved: int, ring: Any, start: int,
-                kind: int, closure: int, floats: bool, w: Any, hosts: Any, outq: Any,
-                ctl: Any, latch: Any) -> int:
+                kind: int, closure: int, result_table: int, floats: bool, w: Any,
+                hosts: Any, outq: Any, ctl: Any, latch: Any) -> int:
     """Neighbours ``start``.. of ``ring`` as ``neighbors._neighborlike_foreach`` does them
     for ``neighbors_foreach``/``neighbors_reduce`` (``kind``): data table, robot id,
     the closure call, the collections; a ``WALK_*`` result (see above)."""
@@ -310,6 +385,8 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
             accum = _i(stack[sp])
             sp -= 1
         w[W_DEPTH] = sp + 1
+        w[W_KEY] = key
+        w[W_DATA] = t
         stack[sp + 1] = self_obj
         stack[sp + 2] = closure
         stack[sp + 3] = key
@@ -330,15 +407,10 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         if status != EXIT:
             w[W_STATUS] = status
             return WALK_IN_CALL
-        # ---- the end of the neighbour: pop (foreach) or the RET check (reduce), collect
-        sp = regs[R_SP]
-        if kind == WALK_FOREACH:
-            if sp < 0:
-                return WALK_AFTER_CALL
-            regs[R_SP] = sp - 1
-        elif sp + 1 <= w[W_DEPTH]:
+        # ---- the end of the neighbour's fun, then the walk's collection
+        if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
+                            kind, result_table, w):
             return WALK_AFTER_CALL
-        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
         _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
     w[W_INDEX] = len(ring)
     return WALK_DONE
@@ -347,13 +419,14 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
 #: slots of ``w`` for :func:`table_walk`: the segment, slot and segment visit reached
 W_SEGMENT, W_SLOT, W_VISIT = 3, 4, 5
 #: slots in ``w``
-WALK_SLOTS = 6
+WALK_SLOTS = 8
 
 
 @_compile
 def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                rules: Any, s: int, elems: int, reserved: int, kind: int, closure: int,
-               w: Any, hosts: Any, outq: Any, ctl: Any, latch: Any) -> int:
+               result_table: int, w: Any, hosts: Any, outq: Any, ctl: Any,
+               latch: Any) -> int:
     """``table_library.foreach_live`` over a table's segments from ``w``'s position, with
     the neighbours' ``fun`` of ``neighbors_foreach``/``neighbors_reduce`` (``kind``) per
     valid element: the heap-table builds' (not XTREME) walk. The segments are read live,
@@ -390,6 +463,8 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                 accum = _i(stack[sp])
                 sp -= 1
             w[W_DEPTH] = sp + 1
+            w[W_KEY] = key
+            w[W_DATA] = value
             stack[sp + 1] = self_obj
             stack[sp + 2] = closure
             stack[sp + 3] = key
@@ -410,14 +485,9 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
             if status != EXIT:
                 w[W_STATUS] = status
                 return WALK_IN_CALL
-            sp = regs[R_SP]
-            if kind == WALK_FOREACH:
-                if sp < 0:
-                    return WALK_AFTER_CALL
-                regs[R_SP] = sp - 1
-            elif sp + 1 <= w[W_DEPTH]:
+            if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems,
+                                reserved, kind, result_table, w):
                 return WALK_AFTER_CALL
-            _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
         first = 0
         o = size - (si + 1) * g + 4 * elems
         si = (_i(d[o]) | (_i(d[o + 1]) << 8)) & _NO_NEXT_SEGMENT
