@@ -6,9 +6,8 @@ made while the 1,000-robot Kilobot simulation of the gradient example is built a
 ``STEPS`` steps (Python objects and numpy/numba arrays: numpy reports its buffers to
 tracemalloc). The figure is the traced memory still held after the steps, divided by the
 robots: the VMs (heap bytes, stacks, queues, neighbour rings), the packed arrays the compiled
-swarm step works on, the world's per-robot state, the radio. The VM's own ``bytearray`` heap
-(the Kilobot's 1,088 bytes, what the firmware has) is printed beside it, and the share of
-numpy arrays (their ``nbytes``, found among the live objects).
+swarm step works on, the world's per-robot state, the radio. The firmware's heap (the
+Kilobot's 1,088 bytes, BBZHEAP_SIZE) is printed beside it.
 
     PYTHONPATH=. python benchmarks/memory_bench.py [robots, default 1000]
 """
@@ -19,8 +18,6 @@ import gc
 import sys
 import tracemalloc
 from pathlib import Path
-
-import numpy as np
 
 from bbzide.vm.profiles import PROFILES
 from bbzide.worlds.commands import load_script
@@ -34,19 +31,12 @@ STEPS = 5
 OPTIONS = {"width": 2.0, "height": 2.0}
 
 
-def _numpy_bytes() -> int:
-    """``nbytes`` of the live numpy arrays that own their memory (views are not counted)."""
-    return sum(o.nbytes for o in gc.get_objects()
-               if isinstance(o, np.ndarray) and o.base is None)
-
-
 def main() -> None:
     robots = int(sys.argv[1]) if len(sys.argv) > 1 else 1000
     program = load_script(REPO / "examples/kilobot/gradient.bzz", WORLDS["kilobot"].host_names,
                           [])
     Simulation("kilobot", program, robots=2, seed=1, world_options=OPTIONS, watch=()).run(2)
     gc.collect()
-    numpy_before = _numpy_bytes()
     tracemalloc.start()
     sim = Simulation("kilobot", program, robots=robots, seed=1, world_options=OPTIONS,
                      watch=())
@@ -54,12 +44,10 @@ def main() -> None:
     gc.collect()
     held, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    arrays = _numpy_bytes() - numpy_before
     heap = PROFILES["kilobot"].heap_size
     print(f"kilobot x {robots} gradient, after {STEPS} steps (tracemalloc, allocations made "
           "while the simulation was built and run):")
     print(f"  held per robot: {held / robots:10,.0f} bytes (peak {peak / robots:,.0f})")
-    print(f"  of which numpy arrays (nbytes): {arrays / robots:,.0f} bytes per robot")
     print(f"  the firmware's heap per robot:  {heap:,} bytes (BBZHEAP_SIZE)")
     del sim
 
