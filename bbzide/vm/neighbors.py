@@ -24,12 +24,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from bbzide.vm import messages
 from bbzide.vm.heap import CLOSURE, INT, STRING
+from bbzide.vm.kernels import COMPILED, fasthost, fastloop
 from bbzide.vm.messages import RingBuffer
-from bbzide.vm.states import Error
+from bbzide.vm.states import Error, State
 from bbzide.vm.table_library import (
-    call_and_take,
     foreach_live,
     table_set_quiet,
     table_size_live,
@@ -125,17 +127,33 @@ def _is_neighbors_table(vm: VM, self_obj: int) -> bool:
     return compare(vm.heap, self_obj, vm.neighbors.hpos) == 0
 
 
-def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None]) -> None:
+#: What a compiled walk (:func:`_walk_compiled`) needs: the walk's kind, the closure, the
+#: table map/filter return (else -1) and the rest of ``fun`` once ``closure_call`` has
+#: returned, given the stack depth before the call, the element's key and its data.
+CompiledWalk = tuple[int, int, int, Callable[[int, int, int], None]]
+
+
+def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
+                          walk: CompiledWalk | None = None) -> None:
+    """Call ``fun(key, data)`` per neighbour. ``walk``: the fast mode may do the XTREME
+    ring's neighbours in machine code (:func:`fasthost.xtreme_walk`), the same steps."""
     if not vm.profile.xtreme:
         vm.op_lload(0)
         sub = _subfield(vm, STR_DATA)
         vm.pop()
-        foreach_live(vm, sub, fun)
+        start = None
+        if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
+            start = _table_walk_compiled(vm, sub, walk)
+            if start is None:
+                return
+        foreach_live(vm, sub, fun, start)
         return
     self_obj = vm.lsym(0)
     if _is_neighbors_table(vm, self_obj):
         ring = vm.neighbors.ring
         i = ring.size()
+        if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
+            i = _walk_compiled(vm, walk)
         while i:
             i -= 1
             e = ring.at(i)
@@ -147,6 +165,68 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None]) -> None:
     else:
         foreach_live(vm, self_obj, fun)
     vm.gc()
+
+
+def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int, int] | None:
+    """The data table's elements by :func:`fasthost.table_walk`, re-entered after each
+    call it leaves to Python; the (segment, slot, visit) the Python walk goes on from,
+    or None when it is over."""
+    kind, closure, result_table, after_call = walk
+    w = np.zeros(fasthost.WALK_SLOTS, np.int64)
+    w[fasthost.W_SEGMENT] = vm.heap.u16(sub)
+    h = vm.heap
+    while True:
+        saved, budget = vm.blockptr, vm.instruction_budget
+        regs = vm.kernel_registers(saved, budget)
+        result = fasthost.table_walk(
+            h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+            fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, result_table, w,
+            *fasthost.NO_HOST_ARGS)
+        vm.take_kernel_registers(regs)
+        _index, status, depth, segment, slot, visit, key, data = w.tolist()
+        if result == fasthost.WALK_DONE:
+            return None
+        if result == fasthost.WALK_PYTHON:
+            return segment, slot, visit
+        if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
+            vm._loop(saved, budget, resume=(status, regs))
+        after_call(depth, key, data)
+        if vm.state != State.READY:
+            return segment, slot + 1, visit
+        w[fasthost.W_SLOT] = slot + 1
+
+
+def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
+    """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk`, re-entered
+    after each neighbour it leaves to Python; returns how many (the oldest) are left for
+    the Python loop."""
+    kind, closure, result_table, after_call = walk
+    ring = vm.neighbors.ring
+    count = ring.size()
+    rows = np.array([(e.robot, e.distance, e.azimuth, e.elevation)
+                     for e in (ring.at(i) for i in range(count - 1, -1, -1))],
+                    np.int64).reshape(count, 4)
+    w = np.zeros(fasthost.WALK_SLOTS, np.int64)
+    h = vm.heap
+    start = 0
+    while True:
+        saved, budget = vm.blockptr, vm.instruction_budget
+        regs = vm.kernel_registers(saved, budget)
+        result = fasthost.xtreme_walk(
+            h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
+            fastloop.RULES, h.obj_size, h.elems, h.reserved, rows, start, kind, closure,
+            result_table, vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
+        vm.take_kernel_registers(regs)
+        index, status, depth, _segment, _slot, _visit, key, data = w.tolist()
+        if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
+            return count - index
+        if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
+            vm._loop(saved, budget, resume=(status, regs))
+        after_call(depth, key, data)
+        vm.gc()
+        start = index + 1
+        if vm.state != State.READY or start == count:
+            return count - start
 
 
 # ---- library closures -------------------------------------------------------------------
@@ -197,14 +277,17 @@ def neighbors_foreach(vm: VM) -> None:
         vm.push(key)
         vm.push(value)
         vm.closure_call(2)
+        after_call(0, key, value)
+
+    def after_call(_depth: int, _key: int, _value: int) -> None:
         vm.pop()
         vm.gc()
 
-    _neighborlike_foreach(vm, fun)
+    _neighborlike_foreach(vm, fun, (fasthost.WALK_FOREACH, c, -1, after_call))
     vm.ret0()
 
 
-def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
+def _map_base(vm: VM, kind: int, put: Callable[[int, int], None]) -> None:
     if not vm.assert_lnum(1):
         return
     c = vm.lsym(1)
@@ -214,15 +297,27 @@ def _map_base(vm: VM, put: Callable[[int, int], None]) -> None:
     _add_neighborlike_fields(vm, 0)
 
     def fun(key: int, value: int) -> None:
-        ret = call_and_take(vm, 0, c, key, value)
-        if ret is None:
+        # call_and_take(vm, 0, c, key, value), its end in after_call
+        ss = vm.stack_depth()
+        vm.op_lload(0)
+        vm.push(c)
+        vm.push(key)
+        vm.push(value)
+        vm.closure_call(2)
+        after_call(ss, key, value)
+
+    def after_call(ss: int, key: int, value: int) -> None:
+        if not vm.stack_depth() > ss:
+            vm.seterror(Error.RET)
             return
+        ret = vm.stack[vm.stackptr]
+        vm.pop()
         vm.push(ret_tbl)
         vm.push_int(key)  # bbzvm_pushi(key): the firmware pushes the key's heap index
         put(value, ret)
         vm.gc()
 
-    _neighborlike_foreach(vm, fun)
+    _neighborlike_foreach(vm, fun, (kind, c, ret_tbl, after_call))
     vm.ret1()
 
 
@@ -231,7 +326,7 @@ def neighbors_map(vm: VM) -> None:
         vm.push(ret)
         vm.tput()
 
-    _map_base(vm, put)
+    _map_base(vm, fasthost.WALK_MAP, put)
 
 
 def neighbors_filter(vm: VM) -> None:
@@ -243,7 +338,7 @@ def neighbors_filter(vm: VM) -> None:
             vm.pop()
             vm.pop()
 
-    _map_base(vm, put)
+    _map_base(vm, fasthost.WALK_FILTER, put)
 
 
 def neighbors_reduce(vm: VM) -> None:
@@ -264,12 +359,15 @@ def neighbors_reduce(vm: VM) -> None:
         vm.push(value)
         vm.push(accum)
         vm.closure_call(3)
+        after_call(ss, key, value)
+
+    def after_call(ss: int, _key: int, _value: int) -> None:
         if not vm.stack_depth() > ss:
             vm.seterror(Error.RET)
             return
         vm.gc()
 
-    _neighborlike_foreach(vm, fun)
+    _neighborlike_foreach(vm, fun, (fasthost.WALK_REDUCE, c, -1, after_call))
     vm.ret1()
 
 

@@ -25,19 +25,23 @@ if TYPE_CHECKING:
 STR_FOREACH, STR_FILTER, STR_MAP, STR_REDUCE, STR_SIZE = 18, 28, 19, 20, 35
 
 
-def foreach_live(vm: VM, t: int, fun: Callable[[int, int], None]) -> None:
-    """``bbztable_foreach``: call ``fun(key, value)`` for every valid element, live."""
+def foreach_live(vm: VM, t: int, fun: Callable[[int, int], None],
+                 start: tuple[int, int, int] | None = None) -> None:
+    """``bbztable_foreach``: call ``fun(key, value)`` for every valid element, live.
+    ``start``: (segment, slot, segment visit) to go on from, where a compiled walk
+    (``fasthost.table_walk``) stopped."""
     h = vm.heap
     E = h.elems
     max_segments = h.size // h.seg_size
-    si = h.u16(t)
-    for _ in range(max_segments + 1):
+    si, first, visit = (h.u16(t), 0, 0) if start is None else start
+    for _ in range(visit, max_segments + 1):
         if si >= max_segments:
             return
-        for i in range(E):
+        for i in range(first, E):
             kw = h.word(si, i)
             if kw & ELEM_VALID:
                 fun(kw & ELEM_INDEX, h.word(si, i + E) & ELEM_INDEX)
+        first = 0
         si = h.seg_next(si)
         if si == SEG_NEXT:
             return

@@ -35,23 +35,32 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
+    EXIT,
     HOST_CALL,
     NONE,
     R_BP,
     R_BUDGET,
     R_CALL_FIRST,
     R_FIXED,
+    R_GC_RUNS,
     R_HOST,
     R_LSYMS,
+    R_LTSEG,
+    R_MARK_DEPTH,
     R_N,
     R_PENDING,
+    R_RTOBJ,
     R_SAVED,
     R_SP,
+    R_STACK_SIZE,
+    _obj_alloc,
     _ret,
     _ret_ok,
     _s16,
+    _seg_alloc,
+    _table_set,
     run,
 )
 from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
@@ -64,11 +73,13 @@ from bbzide.vm.compiled.packed_queues import (
     OUT_START,
     ROBOT,
 )
-from bbzide.vm.heap_layout import INT
+from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING, TABLE
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
-           "HOST_LATCH", "HOST_COLUMNS", "NO_HOST_ARGS"]
+           "HOST_LATCH", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk", "WALK_FOREACH",
+           "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_DONE", "WALK_PYTHON",
+           "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk", "WALK_SLOTS"]
 
 # Columns of a ``hosts`` row, and its kinds.
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
@@ -204,3 +215,282 @@ def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     regs[R_CALL_FIRST] = 1
     return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
                       hosts, outq, ctl, latch)
+
+
+# ---- the neighbors library's walks over an XTREME ring: a closure call per neighbour ----
+# ``neighbors.foreach``/``reduce`` on a Kilobot build the neighbour's data table, call the
+# Buzz closure and collect, per neighbour, from Python: ~60 µs a neighbour, which made a
+# behaviour iterating its neighbours run at a fifth of the C library's speed.
+# :func:`xtreme_walk` does those neighbours in machine code under the kernels' rule: before
+# a neighbour's first side effect it checks that every push and allocation of it succeeds
+# (stack room, a free gap for its objects and segment, ``self`` readable) and otherwise
+# hands that neighbour, not started, to Python; a closure call that ``run_hosted`` leaves
+# under way is handed back with its status (Python resumes it, ``VM._loop(resume=)``).
+#: walk kinds: ``neighbors_foreach`` (f(key, data)), ``neighbors_reduce`` (f(key, data,
+#: accumulator), the accumulator kept on the stack), ``neighbors_map`` and
+#: ``neighbors_filter`` (f(key, data), its result or the data put in the returned table)
+WALK_FOREACH, WALK_REDUCE, WALK_MAP, WALK_FILTER = 0, 1, 2, 3
+#: results: every neighbour done; neighbour ``w[W_INDEX]`` not started (Python does it and
+#: the rest); its call under way (status ``w[W_STATUS]``: Python resumes it, then ends the
+#: neighbour); its call done but its end (pop or RET check, collections) left to Python
+WALK_DONE, WALK_PYTHON, WALK_IN_CALL, WALK_AFTER_CALL = 0, 1, 2, 3
+#: slots of the ``w`` array (``xtreme_walk``): the neighbour (row) reached, the run status,
+#: the stack depth ``neighbors_reduce`` compares the depth after the call with
+W_INDEX, W_STATUS, W_DEPTH = 0, 1, 2
+#: slots of ``w``: the key and the data of the element whose call was made
+W_KEY, W_DATA = 6, 7
+#: ring columns: robot, distance, azimuth, elevation (rows newest first, as the walk visits)
+NB_ROBOT, NB_DISTANCE = 0, 1
+#: objects a neighbour allocates at most: its data table, three values, three field-name
+#: strings (deduplicated when alive), the robot id and closure_call's argument count
+_WALK_OBJECTS = 9
+#: pushes at the deepest point of a neighbour: self, closure, key, data, (accumulator), count
+_WALK_PUSHES = 5
+#: string id of the data table's first field, ``distance`` (``azimuth``, ``elevation`` follow)
+_FIRST_FIELD_SID = 21
+#: a segment's next field meaning "none" (``SEG_NEXT``)
+_NO_NEXT_SEGMENT = 0x3FFF
+
+
+@_compile
+def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any, s: int,
+             elems: int, reserved: int) -> None:
+    """``VM.gc`` in the fast mode (``collect_fast``) on the registers."""
+    regs[R_GC_RUNS] += 1
+    r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
+                     frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
+    regs[R_RTOBJ] = r >> 16
+    regs[R_LTSEG] = r & 0xFFFF
+
+
+@_compile
+def _table_set_sure(d: Any, t: int, s: int, elems: int) -> bool:
+    """Would ``_table_set`` on table ``t`` take its path (every segment of the chain inside
+    the heap, every key index too, a chain no longer than the heap)? The room for a new
+    segment is the caller's check."""
+    size = len(d)
+    g = 4 * elems + 2
+    nobj = size // s
+    seg = _i(d[t * s + 1]) | (_i(d[t * s + 2]) << 8)
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return False
+        o = size - (seg + 1) * g
+        for k in range(elems):
+            kw = _i(d[o + 2 * k]) | (_i(d[o + 2 * k + 1]) << 8)
+            if kw & 0x8000 and kw & 0x7FFF >= nobj:
+                return False
+        seg = (_i(d[o + 4 * elems]) | (_i(d[o + 4 * elems + 1]) << 8)) & _NO_NEXT_SEGMENT
+        if seg == _NO_NEXT_SEGMENT:
+            return True
+    return False
+
+
+@_compile
+def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any,
+                 s: int, elems: int, reserved: int, kind: int, result_table: int,
+                 w: Any) -> bool:
+    """The end of an element's ``fun`` once its closure call returned: foreach's pop,
+    reduce's RET check, map's and filter's put in ``result_table``; then the collection.
+    False with nothing done when Python must do it (an error, no room, a method to bind,
+    a result table ``_table_set`` would refuse)."""
+    sp = regs[R_SP]
+    if kind == WALK_FOREACH:
+        if sp < 0:
+            return False
+        regs[R_SP] = sp - 1
+    elif sp + 1 <= w[W_DEPTH]:
+        return False  # the closure left nothing: RET
+    elif kind == WALK_MAP or kind == WALK_FILTER:
+        g = 4 * elems + 2
+        ret = _i(stack[sp])
+        nobj = len(d) // s
+        if (sp + 2 >= regs[R_STACK_SIZE] or regs[R_LTSEG] - regs[R_RTOBJ] < s + g
+                or ret >= nobj or w[W_DATA] >= nobj or result_table >= nobj
+                or _i(d[result_table * s]) & 7 != TABLE
+                or not _table_set_sure(d, result_table, s, elems)):
+            return False
+        m = _i(d[ret * s])
+        put = ret if kind == WALK_MAP else w[W_DATA]
+        pm = _i(d[put * s])
+        if pm & 7 == CLOSURE and pm & FLAG2:
+            ar = _i(d[put * s + 2])
+            if ar != NO_ACTREC and not _i(d[ar * s]) & FLAG2:
+                return False  # tput would bind a method
+        # ret popped; push ret_tbl, push_int(key); then put
+        key = _obj_alloc(d, regs, s, reserved, INT, 0)
+        kv = w[W_KEY]
+        d[key * s + 1] = kv & 0xFF
+        d[key * s + 2] = (kv >> 8) & 0xFF
+        stack[sp] = result_table
+        stack[sp + 1] = key
+        if kind == WALK_MAP:
+            stack[sp + 2] = ret
+            _table_set(d, regs, result_table, key, ret, s, elems)
+        elif m & 7 == INT and (_i(d[ret * s + 1]) | _i(d[ret * s + 2])) != 0:
+            stack[sp + 2] = w[W_DATA]
+            _table_set(d, regs, result_table, key, w[W_DATA], s, elems)
+        regs[R_SP] = sp - 1
+    _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+    return True
+
+
+@_compile
+def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+                rules: Any, s: int, elems: int, reserved: int, ring: Any, start: int,
+                kind: int, closure: int, result_table: int, floats: bool, w: Any,
+                hosts: Any, outq: Any, ctl: Any, latch: Any) -> int:
+    """Neighbours ``start``.. of ``ring`` as ``neighbors._neighborlike_foreach`` does them
+    for ``neighbors_foreach``/``neighbors_reduce`` (``kind``): data table, robot id,
+    the closure call, the collections; a ``WALK_*`` result (see above)."""
+    g = 4 * elems + 2
+    frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
+    value_type = FLOAT if floats else INT
+    for j in range(start, len(ring)):
+        w[W_INDEX] = j
+        sp = regs[R_SP]
+        lsyms = regs[R_LSYMS]
+        self_obj = darray_get(d, lsyms, 0, s, elems)
+        if (sp + _WALK_PUSHES >= regs[R_STACK_SIZE] or self_obj < 0
+                or regs[R_LTSEG] - regs[R_RTOBJ] < _WALK_OBJECTS * s + g
+                or (kind == WALK_REDUCE and sp < 0)):
+            return WALK_PYTHON
+        # ---- the data table (_push_data_table): table, then each field's value, its name
+        t = _obj_alloc(d, regs, s, reserved, TABLE, 0)
+        seg = _seg_alloc(d, regs, elems)
+        d[t * s + 1] = seg & 0xFF
+        d[t * s + 2] = seg >> 8
+        sp += 1
+        stack[sp] = t
+        for f in range(3):
+            v = _obj_alloc(d, regs, s, reserved, value_type, 0)
+            bits = ring[j, NB_DISTANCE + f] & 0xFFFF
+            d[v * s + 1] = bits & 0xFF
+            d[v * s + 2] = bits >> 8
+            sid = _FIRST_FIELD_SID + f
+            k = _obj_alloc(d, regs, s, reserved, STRING, sid)
+            d[k * s + 1] = sid & 0xFF
+            d[k * s + 2] = sid >> 8
+            stack[sp + 1] = k
+            stack[sp + 2] = v
+            _table_set(d, regs, t, k, v, s, elems)  # a fresh table: room in its segment
+        sp -= 1  # data = top; pop
+        key = _obj_alloc(d, regs, s, reserved, INT, 0)
+        robot = ring[j, NB_ROBOT] & 0xFFFF
+        d[key * s + 1] = robot & 0xFF
+        d[key * s + 2] = robot >> 8
+        # ---- the call: (accumulator popped) self, closure, key, data, (accumulator), count
+        accum = -1
+        if kind == WALK_REDUCE:
+            accum = _i(stack[sp])
+            sp -= 1
+        w[W_DEPTH] = sp + 1
+        w[W_KEY] = key
+        w[W_DATA] = t
+        stack[sp + 1] = self_obj
+        stack[sp + 2] = closure
+        stack[sp + 3] = key
+        stack[sp + 4] = t
+        sp += 4
+        argc = 2
+        if kind == WALK_REDUCE:
+            sp += 1
+            stack[sp] = accum
+            argc = 3
+        count = _obj_alloc(d, regs, s, reserved, INT, 0)
+        d[count * s + 1] = argc
+        d[count * s + 2] = 0
+        sp += 1
+        stack[sp] = count
+        status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                             reserved, sp, hosts, outq, ctl, latch)
+        if status != EXIT:
+            w[W_STATUS] = status
+            return WALK_IN_CALL
+        # ---- the end of the neighbour's fun, then the walk's collection
+        if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
+                            kind, result_table, w):
+            return WALK_AFTER_CALL
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+    w[W_INDEX] = len(ring)
+    return WALK_DONE
+
+
+#: slots of ``w`` for :func:`table_walk`: the segment, slot and segment visit reached
+W_SEGMENT, W_SLOT, W_VISIT = 3, 4, 5
+#: slots in ``w``
+WALK_SLOTS = 8
+
+
+@_compile
+def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+               rules: Any, s: int, elems: int, reserved: int, kind: int, closure: int,
+               result_table: int, w: Any, hosts: Any, outq: Any, ctl: Any,
+               latch: Any) -> int:
+    """``table_library.foreach_live`` over a table's segments from ``w``'s position, with
+    the neighbours' ``fun`` of ``neighbors_foreach``/``neighbors_reduce`` (``kind``) per
+    valid element: the heap-table builds' (not XTREME) walk. The segments are read live,
+    as the C loop reads them, between the calls; a ``WALK_*`` result with ``w`` at the
+    element reached."""
+    size = len(d)
+    g = 4 * elems + 2
+    max_segments = size // g
+    frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
+    si = w[W_SEGMENT]
+    first = w[W_SLOT]
+    for visit in range(w[W_VISIT], max_segments + 1):
+        if si >= max_segments:
+            return WALK_DONE
+        for i in range(first, elems):
+            w[W_SEGMENT] = si
+            w[W_SLOT] = i
+            w[W_VISIT] = visit
+            o = size - (si + 1) * g
+            kw = _i(d[o + 2 * i]) | (_i(d[o + 2 * i + 1]) << 8)
+            if not kw & 0x8000:
+                continue
+            key = kw & 0x7FFF
+            vo = o + 2 * (i + elems)
+            value = (_i(d[vo]) | (_i(d[vo + 1]) << 8)) & 0x7FFF
+            sp = regs[R_SP]
+            self_obj = darray_get(d, regs[R_LSYMS], 0, s, elems)
+            if (sp + _WALK_PUSHES >= regs[R_STACK_SIZE] or self_obj < 0
+                    or regs[R_LTSEG] - regs[R_RTOBJ] < s
+                    or (kind == WALK_REDUCE and sp < 0)):
+                return WALK_PYTHON
+            accum = -1
+            if kind == WALK_REDUCE:
+                accum = _i(stack[sp])
+                sp -= 1
+            w[W_DEPTH] = sp + 1
+            w[W_KEY] = key
+            w[W_DATA] = value
+            stack[sp + 1] = self_obj
+            stack[sp + 2] = closure
+            stack[sp + 3] = key
+            stack[sp + 4] = value
+            sp += 4
+            argc = 2
+            if kind == WALK_REDUCE:
+                sp += 1
+                stack[sp] = accum
+                argc = 3
+            count = _obj_alloc(d, regs, s, reserved, INT, 0)
+            d[count * s + 1] = argc
+            d[count * s + 2] = 0
+            sp += 1
+            stack[sp] = count
+            status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                                 reserved, sp, hosts, outq, ctl, latch)
+            if status != EXIT:
+                w[W_STATUS] = status
+                return WALK_IN_CALL
+            if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems,
+                                reserved, kind, result_table, w):
+                return WALK_AFTER_CALL
+        first = 0
+        o = size - (si + 1) * g + 4 * elems
+        si = (_i(d[o]) | (_i(d[o + 1]) << 8)) & _NO_NEXT_SEGMENT
+        if si == _NO_NEXT_SEGMENT:
+            return WALK_DONE
+    return WALK_DONE
