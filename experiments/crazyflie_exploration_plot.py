@@ -18,7 +18,7 @@ import matplotlib
 matplotlib.use("Agg")   # files only: no display on a server
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from common import compile_example  # noqa: E402
+from common import compile_example, run_script  # noqa: E402
 
 from bbzide.worlds.engine import Simulation  # noqa: E402
 
@@ -80,4 +80,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

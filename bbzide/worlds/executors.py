@@ -17,7 +17,10 @@ resumes from them) and advance its progress bar (`progress_bar`, tqdm).
   sources or pins, is a one-line `UserError`, not a pickling error in the first task. Tasks
   travel as bytes unpickled inside the task (`worker_check.ship`), so a worker that joins
   later without bbzide fails its task with an import error (one line here too) instead of
-  dropping off the cluster.
+  dropping off the cluster. While it waits for results it asks the scheduler every
+  WATCH_SECONDS whether it is still there and still has workers: a scheduler lost mid-sweep,
+  or one left without workers for FIRST_WORKER_SECONDS, is a one-line `UserError` (the
+  finished runs are already stored, so the same command resumes), not a traceback or a hang.
 
 Dask is the optional `cluster` extra (pyproject.toml): it is imported only for `--cluster`.
 """
