@@ -52,6 +52,9 @@ CONNECT_SECONDS = 10
 #: Seconds to wait for the first worker of a scheduler that has none yet: time to start
 #: `dask worker` on another machine after the scheduler, not an endless hang.
 FIRST_WORKER_SECONDS = 60
+#: Tasks a LocalCluster's scheduler hands a worker per thread (its "worker-saturation"): 1.0,
+#: the next run is sent when one finishes, like `multiprocessing.Pool.imap_unordered`.
+LOCAL_WORKER_SATURATION = 1.0
 #: Seconds without a finished task after which the sweep asks the scheduler whether it still
 #: has workers: a SAR run takes ~1-60 s, and a question every 5 s costs the scheduler nothing.
 WATCH_SECONDS = 5
@@ -145,9 +148,16 @@ class DaskExecutor:
             cloudpickle.register_pickle_by_value(module)
         try:
             if self.address == LOCAL:
-                self._cluster = LocalCluster(
-                    n_workers=self.jobs, threads_per_worker=1, processes=True,
-                    host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+                import dask
+
+                # One task per worker at a time, as a pool process takes them: Dask's default
+                # (1.1 x threads, rounded up: 2) queues a second run on a busy worker, and at
+                # the end of a sweep a long run can wait there while the other worker idles.
+                with dask.config.set({"distributed.scheduler.worker-saturation":
+                                      LOCAL_WORKER_SATURATION}):
+                    self._cluster = LocalCluster(
+                        n_workers=self.jobs, threads_per_worker=1, processes=True,
+                        host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
                 self._client = Client(self._cluster)
                 self.description = f"a Dask LocalCluster of {self.jobs} workers"
             else:
