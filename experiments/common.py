@@ -15,10 +15,11 @@ import re
 import statistics
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from bbzide.diagnostics import UserError
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.executors import Executor, add_executor_arguments, open_executor
@@ -89,3 +90,16 @@ def executor_from_argv(argv: list[str]) -> tuple[Executor, list[str]]:
     # The script itself (`__main__`) is shipped by value anyway; this module is not.
     return open_executor(options.jobs, options.cluster,
                          local_modules=[sys.modules[__name__]]), rest
+
+
+def run_script(main: Callable[[], None]) -> None:
+    """A script's `main()` as `bbzide` runs its commands: a `UserError` (a bad argument, an
+    unreachable Dask scheduler, a cluster lost mid-run) is one line on stderr and exit
+    status 1, never a traceback."""
+    try:
+        main()
+    except UserError as error:
+        print(error.render(), file=sys.stderr)
+        sys.exit(1)
+    except KeyboardInterrupt:
+        sys.exit(130)

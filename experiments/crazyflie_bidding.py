@@ -21,7 +21,7 @@ from __future__ import annotations
 import sys
 from functools import partial
 
-from common import compile_example, executor_from_argv, globals_of, mean_sd, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run_script, table
 
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.executors import run_in_order
@@ -74,4 +74,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

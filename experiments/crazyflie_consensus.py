@@ -26,7 +26,7 @@ from collections import Counter
 from functools import partial
 
 import numpy as np
-from common import compile_example, executor_from_argv, globals_of, mean_sd, run, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run, run_script, table
 
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.executors import run_in_order
@@ -115,4 +115,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

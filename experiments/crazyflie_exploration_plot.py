@@ -24,7 +24,7 @@ import matplotlib
 matplotlib.use("Agg")   # files only: no display on a server
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from common import compile_example  # noqa: E402
+from common import compile_example, run_script  # noqa: E402
 
 from bbzide.diagnostics import UserError  # noqa: E402
 from bbzide.worlds.engine import Simulation  # noqa: E402
@@ -116,4 +116,4 @@ def main(argv: list[str]) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    run_script(lambda: sys.exit(main(sys.argv[1:])))

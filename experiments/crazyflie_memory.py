@@ -19,7 +19,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from common import REPO, compile_example, table
+from common import REPO, compile_example, run_script, table
 
 from bbzide.worlds.memory import DEFAULT_STEPS, STACK_ENTRY_BYTES, measure
 
@@ -50,4 +50,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import sys
 from functools import partial
 
-from common import compile_example, executor_from_argv, globals_of, mean_sd, run, table
+from common import compile_example, executor_from_argv, globals_of, mean_sd, run, run_script, table
 
 from bbzide.worlds.executors import run_in_order
 
@@ -59,4 +59,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

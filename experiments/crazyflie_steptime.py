@@ -17,7 +17,7 @@ from __future__ import annotations
 import statistics
 import sys
 
-from common import compile_example, table
+from common import compile_example, run_script, table
 
 from bbzide.vm.steptime import COST_MODELS
 from bbzide.worlds.engine import Simulation
@@ -70,4 +70,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_script(main)

@@ -17,7 +17,10 @@ resumes from them) and advance its progress bar (`progress_bar`, tqdm).
   sources or pins, is a one-line `UserError`, not a pickling error in the first task. Tasks
   travel as bytes unpickled inside the task (`worker_check.ship`), so a worker that joins
   later without bbzide fails its task with an import error (one line here too) instead of
-  dropping off the cluster.
+  dropping off the cluster. While it waits for results it asks the scheduler every
+  WATCH_SECONDS whether it is still there and still has workers: a scheduler lost mid-sweep,
+  or one left without workers for FIRST_WORKER_SECONDS, is a one-line `UserError` (the
+  finished runs are already stored, so the same command resumes), not a traceback or a hang.
 
 Dask is the optional `cluster` extra (pyproject.toml): it is imported only for `--cluster`.
 """
@@ -30,6 +33,7 @@ import multiprocessing
 import os
 import pickle
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from types import ModuleType, TracebackType
 from typing import Any, Protocol, TypeVar
@@ -48,6 +52,12 @@ CONNECT_SECONDS = 10
 #: Seconds to wait for the first worker of a scheduler that has none yet: time to start
 #: `dask worker` on another machine after the scheduler, not an endless hang.
 FIRST_WORKER_SECONDS = 60
+#: Tasks a LocalCluster's scheduler hands a worker per thread (its "worker-saturation"): 1.0,
+#: the next run is sent when one finishes, like `multiprocessing.Pool.imap_unordered`.
+LOCAL_WORKER_SATURATION = 1.0
+#: Seconds without a finished task after which the sweep asks the scheduler whether it still
+#: has workers: a SAR run takes ~1-60 s, and a question every 5 s costs the scheduler nothing.
+WATCH_SECONDS = 5
 
 
 class Executor(Protocol):
@@ -138,9 +148,16 @@ class DaskExecutor:
             cloudpickle.register_pickle_by_value(module)
         try:
             if self.address == LOCAL:
-                self._cluster = LocalCluster(
-                    n_workers=self.jobs, threads_per_worker=1, processes=True,
-                    host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
+                import dask
+
+                # One task per worker at a time, as a pool process takes them: Dask's default
+                # (1.1 x threads, rounded up: 2) queues a second run on a busy worker, and at
+                # the end of a sweep a long run can wait there while the other worker idles.
+                with dask.config.set({"distributed.scheduler.worker-saturation":
+                                      LOCAL_WORKER_SATURATION}):
+                    self._cluster = LocalCluster(
+                        n_workers=self.jobs, threads_per_worker=1, processes=True,
+                        host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
                 self._client = Client(self._cluster)
                 self.description = f"a Dask LocalCluster of {self.jobs} workers"
             else:
@@ -195,26 +212,80 @@ class DaskExecutor:
 
     def map_unordered(self, function: Callable[[Item], Result], items: Sequence[Item],
                       keys: Sequence[str]) -> Iterator[tuple[int, Result]]:
-        from distributed import as_completed
+        from distributed import wait
 
         if len(set(keys)) != len(keys):
             raise ValueError("two tasks share a key: Dask would run only one of them")
-        futures = [self._client.submit(pickle.loads, worker_check.ship(function, item), key=key)
-                   for item, key in zip(items, keys, strict=True)]
+        try:
+            futures = [self._client.submit(pickle.loads, worker_check.ship(function, item),
+                                           key=key)
+                       for item, key in zip(items, keys, strict=True)]
+        except Exception as error:   # the scheduler went away between the check and now
+            raise self._cluster_lost(error, 0, len(items)) from None
         index_of = {future.key: index for index, future in enumerate(futures)}
-        for future in as_completed(futures):
+        pending, finished = set(futures), 0
+        workers_seen = time.monotonic()
+        while pending:
             try:
-                result = future.result()
-            except ImportError as error:
-                raise UserError(f"a Dask worker could not load the task {future.key}: "
-                                f"{_first_line(error)}; {worker_check.INSTALL_HINT}") from None
+                done, pending = wait(pending, timeout=WATCH_SECONDS, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                # Nothing finished for a while: fine while workers run long tasks, a clear
+                # error once the scheduler is gone or has had no worker for too long.
+                workers_seen = self._check_still_there(workers_seen, finished, len(futures))
+                continue
             except Exception as error:
-                if type(error).__name__ == "KilledWorker":
-                    raise UserError(f"the task {future.key} stopped every worker that ran it "
-                                    "(out of memory, or the worker was killed)") from None
-                raise
-            yield index_of[future.key], result
-            future.release()
+                raise self._cluster_lost(error, finished, len(futures)) from None
+            for future in sorted(done, key=lambda done_future: index_of[done_future.key]):
+                yield index_of[future.key], self._result(future, finished, len(futures))
+                finished += 1
+                future.release()
+
+    def _result(self, future: Any, finished: int, total: int) -> Any:
+        """The task's result, or its failure as one line."""
+        try:
+            return future.result()
+        except ImportError as error:
+            raise UserError(f"a Dask worker could not load the task {future.key}: "
+                            f"{_first_line(error)}; {worker_check.INSTALL_HINT}") from None
+        except Exception as error:
+            if type(error).__name__ == "KilledWorker":
+                raise UserError(f"the task {future.key} stopped every worker that ran it "
+                                "(out of memory, or the worker was killed)") from None
+            if _is_lost_connection(error) or self._client.status != "running":
+                raise self._cluster_lost(error, finished, total) from None
+            raise
+
+    def _check_still_there(self, workers_seen: float, finished: int, total: int) -> float:
+        """The time a worker was last seen; raises once the cluster is gone."""
+        if self._client.status != "running":
+            raise self._cluster_lost(None, finished, total)
+        try:
+            workers = self._client.scheduler_info().get("workers", {})
+        except Exception as error:
+            raise self._cluster_lost(error, finished, total) from None
+        now = time.monotonic()
+        if workers:
+            return now
+        if now - workers_seen > FIRST_WORKER_SECONDS:
+            raise UserError(f"every Dask worker left the scheduler at {self.address} "
+                            f"{FIRST_WORKER_SECONDS} s ago, {finished} of {total} tasks done "
+                            "(kept): start `dask worker` again and rerun the same command to "
+                            "resume")
+        return workers_seen
+
+    def _cluster_lost(self, error: BaseException | None, finished: int, total: int) -> UserError:
+        why = "" if error is None else f" ({_first_line(error)})"
+        return UserError(f"lost the Dask scheduler at {self.address} after {finished} of "
+                         f"{total} tasks{why}: the finished ones are kept; rerun the same "
+                         "command to resume")
+
+
+def _is_lost_connection(error: BaseException) -> bool:
+    """A task failed because the client lost its scheduler, not because the task failed."""
+    from concurrent.futures import CancelledError
+
+    return isinstance(error, (CancelledError, OSError)) or type(error).__name__ in (
+        "CommClosedError", "FutureCancelledError")
 
 
 def _first_line(error: BaseException) -> str:

@@ -371,8 +371,13 @@ def jzs_bayes_factor(differences: Sequence[float], scale: float = CAUCHY_SCALE) 
     scale `scale` on the effect size): the thesis' comparison (BF > 1 favours a difference).
     From the t statistic of the differences: BF10 = integral over g of
     (1 + n g r^2)^(-1/2) (1 + t^2 / ((1 + n g r^2) v))^(-(v+1)/2) (2 pi)^(-1/2) g^(-3/2)
-    e^(-1/(2g)) dg / (1 + t^2/v)^(-(v+1)/2), v = n - 1, integrated numerically on ln g (no
-    scipy). None with fewer than 2 differences or all differences equal."""
+    e^(-1/(2g)) dg / (1 + t^2/v)^(-(v+1)/2), v = n - 1, integrated by scipy's adaptive
+    quadrature (QUADPACK) on ln g, scaled by the integrand's peak so that the BF10 of a
+    270-pair sweep (~1e25) neither overflows nor underflows. None with fewer than 2
+    differences or all differences equal."""
+    from scipy.integrate import quad
+    from scipy.optimize import minimize_scalar
+
     n = len(differences)
     if n < 2:
         return None
@@ -382,16 +387,25 @@ def jzs_bayes_factor(differences: Sequence[float], scale: float = CAUCHY_SCALE) 
         return None
     t = mean / (sd / math.sqrt(n))
     v = n - 1
-    # ln g from -30 to 30 in steps of 0.01: the integrand is negligible outside (e^-1/(2g)
-    # kills small g, g^-3/2 large g), and the step resolves its peak for any n of a sweep.
-    u = np.linspace(-30.0, 30.0, 6001)
-    g = np.exp(u)
-    spread = 1.0 + n * g * scale ** 2
-    log_integrand = (-0.5 * np.log(spread) - (v + 1) / 2 * np.log1p(t * t / (spread * v))
-                     - 0.5 * math.log(2 * math.pi) - 1.5 * u - 1 / (2 * g) + u)   # + u: dg = g du
+
+    def log_integrand(u: float) -> float:   # u = ln g; + u: dg = g du
+        g = math.exp(u)
+        spread = 1.0 + n * g * scale ** 2
+        return (-0.5 * math.log(spread) - (v + 1) / 2 * math.log1p(t * t / (spread * v))
+                - 0.5 * math.log(2 * math.pi) - 1.5 * u - 1 / (2 * g) + u)
+
+    # The integrand has one peak on ln g (e^-1/(2g) kills it on the left, it falls as e^-u
+    # on the right): found in [-30, 30] and given to QUADPACK as the split point. 60 on
+    # either side of the peak it is below e^-60 of it, far under quad's relative tolerance.
+    peak_u = float(minimize_scalar(lambda u: -log_integrand(u), bounds=(-30.0, 30.0),
+                                   method="bounded", options={"xatol": 1e-6}).x)
+    peak = log_integrand(peak_u)
+    area = 0.0
+    for low, high in ((peak_u - 60.0, peak_u), (peak_u, peak_u + 60.0)):
+        part, _ = quad(lambda u: math.exp(log_integrand(u) - peak), low, high,
+                       epsabs=0.0, epsrel=1e-9, limit=200)
+        area += part
     log_null = -(v + 1) / 2 * math.log1p(t * t / v)
-    peak = float(log_integrand.max())
-    area = float(np.trapezoid(np.exp(log_integrand - peak), u))
     return math.exp(peak + math.log(area) - log_null)
 
 
@@ -490,6 +504,14 @@ def task_key(spec: RunSpec) -> str:
     return f"sar-{spec.run_id}-seed{spec.seed}-{digest}"
 
 
+def in_submission_order(specs: Iterable[RunSpec]) -> list[RunSpec]:
+    """The order runs are handed to an executor, the same for local processes and Dask: trial
+    by trial, so a sweep stopped early has as many pairs in every configuration (give it
+    --trials 30 and stop it when time is up); within a trial, longest runs first (big arenas,
+    few drones) so the workers do not end on one straggler."""
+    return sorted(specs, key=lambda s: (s.trial, -s.arena, s.drones, s.search))
+
+
 def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     validate(settings, settings.extra.get("comm_range", COMM_RANGE))
     out = settings.out
@@ -512,10 +534,7 @@ def run_sweep(settings: SweepSettings) -> list[dict[str, Any]]:
     started = time.monotonic()
     executor = open_executor(settings.jobs, settings.cluster)
     if todo:
-        # Trial by trial, so a sweep stopped early has as many pairs in every configuration
-        # (give it --trials 30 and stop it when time is up); within a trial, longest runs first
-        # (big arenas, few drones) so the pool does not end on one straggler.
-        todo.sort(key=lambda s: (s.trial, -s.arena, s.drones, s.search))
+        todo = in_submission_order(todo)
         with executor, progress_bar(len(specs), len(results)) as bar:
             for _, result in executor.map_unordered(run_one, todo, [task_key(s) for s in todo]):
                 write_result(out, result)

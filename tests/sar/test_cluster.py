@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from bbzide.cli import main
+from bbzide.diagnostics import UserError
 from bbzide.worlds import worker_check
 from bbzide.worlds.executors import DaskExecutor, ProcessExecutor, run_in_order
 
@@ -207,3 +208,64 @@ def test_a_crazyflie_experiment_prints_the_same_table_on_a_local_dask_cluster():
     serial = consensus()
     assert "| chain | 2 |" in serial and "| circle | 2 |" in serial
     assert consensus("--cluster", "local", "--jobs", "2") == serial
+
+
+def _slow_square(n: int) -> int:
+    import time
+
+    time.sleep(0.2 * n)   # later tasks still run when the cluster goes away
+    return n * n
+
+
+@pytest.mark.slow
+def test_a_cluster_that_dies_mid_sweep_is_one_line_and_keeps_the_finished_tasks():
+    from distributed import LocalCluster
+
+    cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None)
+    finished = []
+    with pytest.raises(UserError) as caught:
+        with DaskExecutor(cluster.scheduler_address) as executor:
+            items = list(range(8))
+            for index, result in executor.map_unordered(_slow_square, items,
+                                                        [f"slow-{n}" for n in items]):
+                finished.append((index, result))
+                if len(finished) == 1:
+                    cluster.close()       # the scheduler and its worker stop here
+    message = str(caught.value)
+    assert message.startswith(f"lost the Dask scheduler at {cluster.scheduler_address} after 1 "
+                              "of 8 tasks")
+    assert "rerun the same command to resume" in message and "\n" not in message
+    assert finished == [(0, 0)]
+
+
+def test_an_unreachable_scheduler_is_one_line_for_the_sweep(tmp_path, capsys, monkeypatch):
+    import bbzide.worlds.executors as executors
+
+    monkeypatch.setattr(executors, "CONNECT_SECONDS", 2)   # a closed port: no need to wait 10 s
+    address = f"tcp://127.0.0.1:{_closed_port()}"
+    assert main([*SWEEP, "--cluster", address, "--out", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: cannot reach the Dask scheduler at {address}")
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_an_unreachable_scheduler_is_one_line_for_the_experiment_scripts():
+    address = f"tcp://127.0.0.1:{_closed_port()}"
+    done = subprocess.run(
+        [sys.executable, "experiments/crazyflie_packet_loss.py", "2", "--cluster", address],
+        cwd=REPO, capture_output=True, text=True, timeout=600,
+        env={**os.environ, "PYTHONPATH": str(REPO)})
+    assert done.returncode == 1
+    assert done.stderr.startswith(f"error: cannot reach the Dask scheduler at {address}")
+    assert len(done.stderr.strip().splitlines()) == 1 and "Traceback" not in done.stderr
+
+
+def _closed_port() -> int:
+    """A port of 127.0.0.1 nothing listens on (bound, then released)."""
+    import socket
+
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
