@@ -19,6 +19,7 @@ import random
 import sys
 from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -50,20 +51,27 @@ def _harness_lines() -> list[tuple[str, list[str]]]:
     return runs
 
 
-def test_corpus_harness_runs_identical() -> None:
+HARNESS_RUNS = _harness_lines()
+
+
+def test_the_corpus_has_every_harness_run() -> None:
+    assert len(HARNESS_RUNS) == 92
+
+
+# one case per run (the suite's longest check as one test): a parallel run spreads them
+@pytest.mark.parametrize(("profile", "argv"), HARNESS_RUNS,
+                         ids=[" ".join(argv) for _profile, argv in HARNESS_RUNS])
+def test_corpus_harness_runs_identical(profile: str, argv: list[str]) -> None:
     """The whole firmware loop (messages, neighbors, stigmergy, swarms, injections) through
     vm-runtime's harness: every ``#BBZDUMP 1`` line (all heap bytes) equal in both modes."""
     from bbzide.harness.runner import run_command_line
     from bbzide.vm.profiles import get_profile
 
-    runs = _harness_lines()
-    assert len(runs) == 92
-    for profile, argv in runs:
-        stress = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=True)
-        fast = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=False)
-        assert (stress.lines, stress.status) == (fast.lines, fast.status), argv
-        assert stress.robot.vm.heap.gc_runs == fast.robot.vm.heap.gc_runs, argv
-        assert stress.robot.vm.heap.peak_used == fast.robot.vm.heap.peak_used, argv
+    stress = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=True)
+    fast = run_command_line(argv, Path(BBZ_DIR), get_profile(profile), stress_gc=False)
+    assert (stress.lines, stress.status) == (fast.lines, fast.status), argv
+    assert stress.robot.vm.heap.gc_runs == fast.robot.vm.heap.gc_runs, argv
+    assert stress.robot.vm.heap.peak_used == fast.robot.vm.heap.peak_used, argv
 
 
 def test_kernel_skip_rules_are_the_vm_rules() -> None:
