@@ -25,6 +25,7 @@ import importlib
 import importlib.metadata
 import platform
 import re
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -48,16 +49,20 @@ def _sources_digest(root: Path) -> str:
     return digest.hexdigest()
 
 
-def _pinned_versions() -> dict[str, str | None]:
-    """The installed version of every core dependency the project's metadata names."""
-    versions: dict[str, str | None] = {}
+def _pinned_versions(root: Path) -> dict[str, str | None]:
+    """The installed version of every core dependency the checkout's pyproject.toml pins.
+
+    Read from the checkout, not from the installed metadata (`importlib.metadata.requires`):
+    started from the checkout's folder, Python finds a `bbzide.egg-info` left there by an older
+    install before the venv's own record, and client and worker would then compare different
+    lists of pins."""
     try:
-        requirements = importlib.metadata.requires(PROJECT) or []
-    except importlib.metadata.PackageNotFoundError:
-        return versions   # run from a checkout without installing it: no pins to compare
+        with (root / "pyproject.toml").open("rb") as file:
+            requirements = tomllib.load(file)["project"]["dependencies"]
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        return {}   # no checkout beside the package: `mismatch` refuses such a worker anyway
+    versions: dict[str, str | None] = {}
     for requirement in requirements:
-        if "extra ==" in requirement:
-            continue
         name = re.match(r"[A-Za-z0-9_.-]+", requirement)
         if name is None:
             continue
@@ -80,7 +85,7 @@ def probe() -> dict[str, Any]:
     report["root"] = str(root)
     report["examples"] = (root / "examples").is_dir()
     report["sources"] = _sources_digest(root)
-    report["versions"] = _pinned_versions()
+    report["versions"] = _pinned_versions(root)
     return report
 
 

@@ -153,6 +153,24 @@ def test_a_worker_with_other_sources_or_pins_is_refused_with_what_differs():
     assert "no examples/ folder" in worker_check.mismatch({**here, "examples": False}, here)
 
 
+def test_the_pins_come_from_the_checkout_not_from_a_stale_egg_info_in_the_working_folder(
+        tmp_path, monkeypatch):
+    """Started from a folder holding an older install's `bbzide.egg-info` (which Python finds
+    before the venv's record), a client must compare the same pins as a worker started
+    elsewhere: those of the checkout's pyproject.toml."""
+    stale = tmp_path / "bbzide.egg-info"
+    stale.mkdir()
+    (stale / "PKG-INFO").write_text("Metadata-Version: 2.1\nName: bbzide\nVersion: 0.0.1\n")
+    (stale / "requires.txt").write_text("numba==0.1\nnumpy==0.1\n")
+    elsewhere = worker_check.probe()["versions"]
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import importlib.metadata
+    assert "numba==0.1" in (importlib.metadata.requires("bbzide") or [])  # the stale record wins
+    assert worker_check.probe()["versions"] == elsewhere
+    assert "numba" not in elsewhere and "numpy" in elsewhere
+
+
 def test_cluster_without_dask_installed_says_which_extra_to_install(tmp_path, capsys,
                                                                      monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)   # `import distributed` fails
