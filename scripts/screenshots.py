@@ -75,7 +75,9 @@ def _shoot(world: str, script: Path, out: Path, robots: int | None = None,
         with chromium_context(*PAGE) as context:
             page = open_app_page(context, app)
             dismiss_software_gl_notice(page)  # it would cover the top of the 3D view
-            wait_until(lambda: app.controller.status.step >= WARM_STEPS, UI_WAIT_S,
+            # warm steps, or until a robot's error paused the run (Pause on error is on)
+            wait_until(lambda: app.controller.status.step >= WARM_STEPS
+                       or app.controller.status.paused_at is not None, UI_WAIT_S,
                        message=f"{WARM_STEPS} steps")
             client = next(iter(app.server.get_clients().values()))
             if stage is not None:
@@ -148,6 +150,7 @@ def _lesson_shots(out_dir: Path, work: Path) -> None:
     try:
         with chromium_context(*PAGE) as context:
             page = open_app_page(context, app)
+            dismiss_software_gl_notice(page)
             page.locator("input[value='(choose a lesson)']").first.click()  # type: ignore[attr-defined]
             option = page.get_by_role("option", name=lesson_label(lesson))  # type: ignore[attr-defined]
             option.wait_for()
