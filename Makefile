@@ -67,9 +67,12 @@ run: setup
 lint: setup
 	$(VENV)/bin/ruff check bbzide tests benchmarks
 
-# The tests run on every core (pytest-xdist): tests sharing a module-scoped fixture stay on one
-# worker (tests/conftest.py groups them). `make test TEST_WORKERS=0` runs them in one process.
-TEST_WORKERS ?= auto
+# The tests run in one process by default. `make test TEST_WORKERS=auto` runs them on every core
+# (pytest-xdist; tests sharing a module-scoped fixture stay on one worker, tests/conftest.py
+# groups them): on a 2-core machine that gained nothing (771 s against ~750 s in one process)
+# and left the browser tests, the IDE subprocesses and two workers fighting for the cores, so
+# that waits of 60 s ran out.
+TEST_WORKERS ?= 0
 
 test: setup browser lint
 	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
