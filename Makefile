@@ -69,9 +69,9 @@ lint: setup
 
 # The tests run in one process by default. `make test TEST_WORKERS=auto` runs them on every core
 # (pytest-xdist; tests sharing a module-scoped fixture stay on one worker, tests/conftest.py
-# groups them): on a 2-core machine that gained nothing (771 s against ~750 s in one process)
-# and left the browser tests, the IDE subprocesses and two workers fighting for the cores, so
-# that waits of 60 s ran out.
+# groups them): on a 2-core machine two workers took 771 s against 949 s in one process, but
+# with the browser tests, their IDEs and two workers fighting for the cores a 60 s wait of a
+# browser test ran out.
 TEST_WORKERS ?= 0
 
 test: setup browser lint
