@@ -35,7 +35,7 @@ from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
 from bbzide.ui.pitfalls import find_pitfalls
 from bbzide.ui.program_session import CompileOutcome, Diagnostic, ProgramSession
-from bbzide.ui.run_controller import RunController, RunSettings, StepInProgress
+from bbzide.ui.run_controller import STOP_WAIT_S, RunController, RunSettings, StepInProgress
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.teaching_panel import TeachingPanel
 from bbzide.ui.viser_server import open_server, page_url
@@ -139,13 +139,18 @@ class IdeApp:
         self._ticker.start()
         return self
 
-    def stop(self) -> None:
+    def stop(self, wait_for_run: bool = False) -> None:
+        """Stop serving; the run thread gets `STOP_WAIT_S` to end its current step, or with
+        `wait_for_run` all it takes. A KeyboardInterrupt during that wait cuts it short and
+        still stops the server, then goes on up."""
         self._stop.set()
         self.watcher.stop()
-        self.controller.stop()
-        if self._ticker.is_alive():
-            self._ticker.join(timeout=5)
-        self.server.stop()
+        try:
+            self.controller.stop(None if wait_for_run else STOP_WAIT_S)
+        finally:
+            if self._ticker.is_alive():
+                self._ticker.join(timeout=5)
+            self.server.stop()
 
     # ---- layout --------------------------------------------------------------------------------
     def _build_gui(self) -> None:

@@ -263,8 +263,15 @@ def serve_until_interrupted(app: IdeApp | ReplayApp, open_browser: bool) -> int:
             time.sleep(3600)
     except KeyboardInterrupt:
         pass
-    finally:
-        app.stop()
+    # Ctrl-C stops the app once its run thread has ended its current work. On a fresh clone
+    # whose kernels `make setup` has not compiled yet that work can be numba compiling one for
+    # the first time (a minute or more on a loaded machine): a compile cannot be interrupted,
+    # but the process can exit once the thread returns, cleanly and with the kernel cached.
+    # A second Ctrl-C quits without waiting (a Buzz step that never ends), with no traceback.
+    try:
+        app.stop(wait_for_run=True)
+    except KeyboardInterrupt:
+        pass
     return 0
 
 

@@ -101,11 +101,15 @@ class ReplayApp:
                          name="bbzide-replay-warm-up", daemon=True).start()
         return self
 
-    def stop(self) -> None:
+    def stop(self, wait_for_run: bool = False) -> None:
+        """Stop serving; the player thread gets 5 s to end its current frame, or with
+        `wait_for_run` all it takes (a first rebuild may be compiling VM functions)."""
         self._stop.set()
-        if self._player.is_alive():
-            self._player.join(timeout=5)
-        self.server.stop()
+        try:
+            if self._player.is_alive():
+                self._player.join(timeout=None if wait_for_run else 5)
+        finally:
+            self.server.stop()
 
     # ---- layout ----------------------------------------------------------------------------------
     def _build_gui(self) -> None:

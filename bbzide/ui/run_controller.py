@@ -42,6 +42,10 @@ from bbzide.ui.world_backend import SimulationHandle, SwarmFrame, WorldBackend
 MAX_FRAME_HZ = 30.0
 #: Steps/s is averaged over this window so the figure is readable, not jittery.
 RATE_WINDOW_SECONDS = 1.0
+#: How long `stop` waits by default for the simulation thread's current step: a step of a
+#: Buzz loop without an instruction budget may never end, and a test or a rebuild must not
+#: hang on it; ten seconds covers any ordinary step on a loaded machine.
+STOP_WAIT_S = 10.0
 
 
 class StepInProgress(Exception):
@@ -137,10 +141,12 @@ class RunController:
         self._thread.start()
         return self
 
-    def stop(self) -> None:
+    def stop(self, wait_s: float | None = STOP_WAIT_S) -> None:
+        """End the simulation thread after its current work, waiting at most `wait_s`
+        seconds for it (None: as long as it takes), then end the recording."""
         self._stop.set()
         self._wake.set()
-        self._thread.join(timeout=10)
+        self._thread.join(timeout=wait_s)
         self._stop_recording()
 
     def add_frame_listener(self, listener: Callable[[SwarmFrame], None]) -> None:

@@ -336,6 +336,42 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
 
 
 @_compile
+def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
+                      traversed: Any, rules: Any, s: int, elems: int, reserved: int,
+                      sp: int, kind: int, self_obj: int, closure: int, key: int, data: int,
+                      w: Any, hosts: Any, outq: Any, ctl: Any, latch: Any) -> int:
+    """A walk's call of ``fun`` on one element (``sp``: the stack top, the accumulator on
+    it for ``neighbors_reduce``): the accumulator popped, then self, closure, key, data,
+    (the accumulator), the argument count pushed, ``w``'s depth, key and data noted for
+    :func:`_end_of_call`, and :func:`call_pushed`'s status. The caller has checked the
+    room for the pushes and the count."""
+    accum = -1
+    if kind == WALK_REDUCE:
+        accum = _i(stack[sp])
+        sp -= 1
+    w[W_DEPTH] = sp + 1
+    w[W_KEY] = key
+    w[W_DATA] = data
+    stack[sp + 1] = self_obj
+    stack[sp + 2] = closure
+    stack[sp + 3] = key
+    stack[sp + 4] = data
+    sp += 4
+    argc = 2
+    if kind == WALK_REDUCE:
+        sp += 1
+        stack[sp] = accum
+        argc = 3
+    count = _obj_alloc(d, regs, s, reserved, INT, 0)
+    d[count * s + 1] = argc
+    d[count * s + 2] = 0
+    sp += 1
+    stack[sp] = count
+    return call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
+                       sp, hosts, outq, ctl, latch)
+
+
+@_compile
 def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 rules: Any, s: int, elems: int, reserved: int, ring: Any, start: int,
                 kind: int, closure: int, result_table: int, floats: bool, w: Any,
@@ -379,35 +415,13 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         robot = ring[j, NB_ROBOT] & 0xFFFF
         d[key * s + 1] = robot & 0xFF
         d[key * s + 2] = robot >> 8
-        # ---- the call: (accumulator popped) self, closure, key, data, (accumulator), count
-        accum = -1
-        if kind == WALK_REDUCE:
-            accum = _i(stack[sp])
-            sp -= 1
-        w[W_DEPTH] = sp + 1
-        w[W_KEY] = key
-        w[W_DATA] = t
-        stack[sp + 1] = self_obj
-        stack[sp + 2] = closure
-        stack[sp + 3] = key
-        stack[sp + 4] = t
-        sp += 4
-        argc = 2
-        if kind == WALK_REDUCE:
-            sp += 1
-            stack[sp] = accum
-            argc = 3
-        count = _obj_alloc(d, regs, s, reserved, INT, 0)
-        d[count * s + 1] = argc
-        d[count * s + 2] = 0
-        sp += 1
-        stack[sp] = count
-        status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
-                             reserved, sp, hosts, outq, ctl, latch)
+        # ---- the call, then the end of the neighbour's fun and the walk's collection
+        status = _call_element_fun(d, stack, bcode, regs, info, traversed, rules, s,
+                                   elems, reserved, sp, kind, self_obj, closure, key, t, w,
+                                   hosts, outq, ctl, latch)
         if status != EXIT:
             w[W_STATUS] = status
             return WALK_IN_CALL
-        # ---- the end of the neighbour's fun, then the walk's collection
         if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
                             kind, result_table, w):
             return WALK_AFTER_CALL
@@ -458,30 +472,9 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                     or regs[R_LTSEG] - regs[R_RTOBJ] < s
                     or (kind == WALK_REDUCE and sp < 0)):
                 return WALK_PYTHON
-            accum = -1
-            if kind == WALK_REDUCE:
-                accum = _i(stack[sp])
-                sp -= 1
-            w[W_DEPTH] = sp + 1
-            w[W_KEY] = key
-            w[W_DATA] = value
-            stack[sp + 1] = self_obj
-            stack[sp + 2] = closure
-            stack[sp + 3] = key
-            stack[sp + 4] = value
-            sp += 4
-            argc = 2
-            if kind == WALK_REDUCE:
-                sp += 1
-                stack[sp] = accum
-                argc = 3
-            count = _obj_alloc(d, regs, s, reserved, INT, 0)
-            d[count * s + 1] = argc
-            d[count * s + 2] = 0
-            sp += 1
-            stack[sp] = count
-            status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
-                                 reserved, sp, hosts, outq, ctl, latch)
+            status = _call_element_fun(d, stack, bcode, regs, info, traversed, rules,
+                                       s, elems, reserved, sp, kind, self_obj, closure,
+                                       key, value, w, hosts, outq, ctl, latch)
             if status != EXIT:
                 w[W_STATUS] = status
                 return WALK_IN_CALL

@@ -88,6 +88,12 @@ NB_FIELDS = 5
 
 #: bytes compared to find a queued duplicate: type, rid, topic (offsets 0 ... 4)
 _BROADCAST_KEY = 5
+#: a broadcast's payload bytes: type, rid (2), topic (2), value (metadata, 2 payload bytes)
+_BROADCAST_LENGTH = 8
+#: a stigmergy record's payload bytes: type, rid (2), key (2), data (3), lamport clock
+_STIGMERGY_LENGTH = 9
+#: ``lamport_at`` of a record without a lamport clock (a broadcast)
+_NO_LAMPORT = -1
 #: ``neighbors.MARK``: the refreshed-since-the-last-data-GC bit
 _MARK = 0x01
 #: the most a u8 situated value can be (``robot._to_u8``)
@@ -119,6 +125,29 @@ def _read_object(records: Any, m: int, at: int, payload: Any, p: int, n: int) ->
 
 
 @_compile
+def _read_keyed_record(records: Any, m: int, key_at: int, object_at: int, lamport_at: int,
+                       length: int, payload: Any, p: int, n: int) -> bool:
+    """The part of ``messages.inmsg_append`` after the sender that a broadcast (topic,
+    value) and a stigmergy record (key, data, lamport) share: ``payload[p:p + n]``'s key
+    (bytes 3-4) and object (from byte 5) copied to the scratch record ``m``'s ``key_at``
+    and ``object_at``, then (``lamport_at`` >= 0) byte ``length - 1`` to ``lamport_at``.
+    False when ``n`` cuts the record short of ``length`` bytes: it is dropped, with what
+    was read before the cut left in the scratch record, as on the robot."""
+    if n < 5:
+        return False
+    records[m + key_at] = payload[p + 3]
+    records[m + key_at + 1] = payload[p + 4]
+    if n < 6:
+        return False
+    _read_object(records, m, object_at, payload, p, n)
+    if n < length:
+        return False
+    if lamport_at != _NO_LAMPORT:
+        records[m + lamport_at] = payload[p + length - 1]
+    return True
+
+
+@_compile
 def _inmsg_append(records: Any, rings: Any, size: int, payload: Any, p: int, n: int,
                   spare: Any) -> None:
     """``messages.inmsg_append`` of ``payload[p:p + n]`` (n already cut to the ring's)."""
@@ -134,26 +163,13 @@ def _inmsg_append(records: Any, rings: Any, size: int, payload: Any, p: int, n: 
     records[m + RID] = payload[p + 1]
     records[m + RID + 1] = payload[p + 2]
     if t == BROADCAST:
-        if n < 5:
-            return
-        records[m + BC_TOPIC] = payload[p + 3]
-        records[m + BC_TOPIC + 1] = payload[p + 4]
-        if n < 6:
-            return
-        _read_object(records, m, BC_VALUE, payload, p, n)
-        if n < 8:
+        if not _read_keyed_record(records, m, BC_TOPIC, BC_VALUE, _NO_LAMPORT,
+                                  _BROADCAST_LENGTH, payload, p, n):
             return
     elif t == VSTIG_PUT or t == VSTIG_QUERY:
-        if n < 5:
+        if not _read_keyed_record(records, m, VS_KEY, VS_DATA, VS_LAMPORT,
+                                  _STIGMERGY_LENGTH, payload, p, n):
             return
-        records[m + VS_KEY] = payload[p + 3]
-        records[m + VS_KEY + 1] = payload[p + 4]
-        if n < 6:
-            return
-        _read_object(records, m, VS_DATA, payload, p, n)
-        if n < 9:
-            return
-        records[m + VS_LAMPORT] = payload[p + 8]
     else:
         return
     start = rings[IN_START]
