@@ -345,6 +345,13 @@ class SwarmDebugger:
             self._resume()
         self._request = _Request("continue")
 
+    def checkpoint(self) -> None:
+        """Keep the swarm's state now (between two control steps) as a point to step back
+        from: for a caller that runs plain `Simulation.step` calls itself and wants the past
+        of a later pause (the same thinning as the debugger's own checkpoints)."""
+        if self._thread is None:
+            self._checkpoint_now()
+
     def request_pause(self) -> None:
         """From any thread: make a running `run` stop at the next instruction of any robot."""
         self._pause_requested.set()
