@@ -350,6 +350,9 @@ class ReplayApp:
                 self._refresh_status()
                 return None
             except (UserError, DebuggerError) as error:
+                # e.g. the recording's end: the scratch copy is dropped (a step it failed in
+                # cannot go on) and the next command rebuilds it at the shown step
+                self.debugger = None
                 self.note = str(error).splitlines()[0]
                 self._refresh_status()
                 return None
