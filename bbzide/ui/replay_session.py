@@ -49,9 +49,11 @@ from bbzide.worlds.registry import WORLDS
 MAX_HIT_SEARCH_STEPS = 500
 
 #: Recorded steps a watch's series reaches back from the shown step: the live IDE keeps this
-#: many (`watches.MAX_SAMPLES`), so a replay's chart is the live one at the same step. A seek
-#: reads only the steps not read before; a jump far ahead re-executes at most this many steps
-#: of every robot (a 25-Kilobot recording: about a second per 100 steps).
+#: many (`watches.MAX_SAMPLES`), so a replay's chart is the live one at the same step. The work
+#: is bounded by it: a seek reads only the steps not read before (values are kept), and reading
+#: a span in order re-executes each robot once per step (the rebuilder goes on from its last
+#: robot), so a jump far ahead costs at most this many recorded steps of every robot, about
+#: what a seek to a step that far past its keyframe costs; playing on costs one step a frame.
 WATCH_STEPS = MAX_SAMPLES
 
 #: The jump buttons, in the order shown: (event kind, button label).
