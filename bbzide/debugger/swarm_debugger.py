@@ -379,7 +379,9 @@ class SwarmDebugger:
 
     def step_out(self, robot: int, max_steps: int = STEP_LIMIT) -> Stop | None:
         """Run until the robot's current function has returned and its caller starts its
-        next line (from `step` or a listener: the robot's next line, whatever calls it)."""
+        next line; out of `step` or a listener, which the firmware calls: the first line of
+        the next function it calls (the same listener's calls for the step's other messages
+        run through, as `foreach`'s calls of a closure do)."""
         index = self._index(robot)
         depth = self._depth(index)
         state = self.simulation.robots[index]
