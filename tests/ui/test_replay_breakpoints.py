@@ -52,9 +52,9 @@ def test_the_next_hit_is_the_step_that_ran_the_line(session: ReplaySession) -> N
     assert session.next_hit(5, session.first_step - 1, robots=[ids.index(2)]) is None
 
 
-#: Robot 1 runs line 5 + 3 * (n - 3) only in the control step where its count is n (3..9).
-ONCE_EACH = "var count = 0\nfunction step() {\n  count = count + 1\n" + "".join(
-    f"  if (id == 1 and count == {n}) {{\n    log(\"{n}\")\n  }}\n" for n in range(3, 10)
+#: Robot 1 runs line 6 + 3 * (n - 3) only in the control step where its count is n (3..9).
+ONCE_EACH = "var count = 0\nvar last = 0\nfunction step() {\n  count = count + 1\n" + "".join(
+    f"  if (id == 1 and count == {n}) {{\n    last = {n}\n  }}\n" for n in range(3, 10)
 ) + "}\n"
 
 
@@ -84,7 +84,7 @@ def test_a_hit_in_a_keyframe_s_own_step_is_found(tmp_path: Path) -> None:
               for step in range(recording.first_step, recording.last_step + 1)}
     # a keyframe step (not the first) in which robot 1's count is one of 3..9
     step = next(s for s in keyframe_steps[1:] if 3 <= counts[s] <= 9)
-    line = 5 + 3 * (counts[step] - 3)
+    line = 6 + 3 * (counts[step] - 3)
     assert session.next_hit(line, recording.first_step - 1, [robot]) == (step, robot)
     assert session.next_hit(line, recording.first_step - 1) == (step, robot)
     assert session.next_hit(line, step) is None  # it runs once
