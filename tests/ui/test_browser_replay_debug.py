@@ -52,6 +52,7 @@ def test_into_marks_the_paused_line_in_the_program_tab(replay: tuple) -> None:
     app, page = replay
     app.seek(2)
     page.get_by_role("button", name="Into", exact=True).click()
+    page.get_by_role("tab", name="Program").click()
     marked = page.locator(".bbzide-paused-line")
     marked.wait_for(timeout=UI_WAIT_MS)
     # robot 0's first line of recorded step 3: the listener (it hears the others) or `step`
@@ -66,7 +67,7 @@ def test_a_watch_draws_the_recorded_series(replay: tuple) -> None:
     app, page = replay
     app.seek(RECORDED_STEPS)
     page.get_by_text("Watches", exact=True).click()
-    page.get_by_label("Watch", exact=True).fill("total")
+    app.watches.what.value = "total"  # as typed in the folder's Watch field
     page.get_by_role("button", name="Add watch", exact=True).click()
     page.locator(".uplot").first.wait_for(timeout=UI_WAIT_MS)
     steps, table = app.watch_book.series(Watch("expression", "total"))
