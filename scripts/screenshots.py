@@ -219,6 +219,50 @@ def _watch_the_gradient(app: IdeApp, page: object, client: object) -> None:
         "header => header.scrollIntoView({block: 'start'})")
 
 
+#: Steps of the recorded leader election the replay picture shows (the swarm agrees by then).
+REPLAY_STEPS = 60
+
+
+def _shoot_replay(scratch: Path, out: Path) -> None:
+    """`bbzide replay` of a recorded leader election (examples/kilobot/leader.bzz, 9 Kilobots):
+    a watch of every robot's `leader`, and the Stigmergy folder at the last step."""
+    from bbzide.recording.reader import read_recording
+    from bbzide.ui.replay_app import ReplayApp
+    from bbzide.ui.replay_session import ReplaySession
+
+    backend = WorldsBackend()
+    script = scratch / "leader.bzz"
+    script.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copy(REPO / "examples/kilobot/leader.bzz", script)
+    text = script.read_text()
+    _compiled, program = backend.compile(text, script, "kilobot")
+    swarm = backend.create("kilobot", program, 9, 1)
+    swarm.source_text = text
+    swarm.start_recording(scratch / "leader.rrd")
+    for _ in range(REPLAY_STEPS):
+        swarm.step()
+    path = swarm.stop_recording()
+    app = ReplayApp(ReplaySession(read_recording(path)), port=free_port()).start()
+    try:
+        with chromium_context(*PAGE) as context:
+            page = open_app_page(context, app)
+            dismiss_software_gl_notice(page)
+            app.watches.add_watch(Watch("expression", "leader"))
+            app.seek(REPLAY_STEPS)
+            page.get_by_text("Watches", exact=True).click()  # type: ignore[attr-defined]
+            page.get_by_text("Stigmergy", exact=True).click()  # type: ignore[attr-defined]
+            wait_until(lambda: len(app.watches._charts) == 1, UI_WAIT_S,  # noqa: SLF001
+                       message="the chart")
+            page.locator(".uplot").first.wait_for()  # type: ignore[attr-defined]
+            page.get_by_text("Watches", exact=True).evaluate(  # type: ignore[attr-defined]
+                "header => header.scrollIntoView({block: 'start'})")
+            time.sleep(SETTLE_SECONDS)
+            page.screenshot(path=str(out))  # type: ignore[attr-defined]
+    finally:
+        app.stop()
+    print(out)
+
+
 def main(out_dir: Path, only: set[str]) -> None:
     out_dir.mkdir(parents=True, exist_ok=True)
 
@@ -253,6 +297,8 @@ def main(out_dir: Path, only: set[str]) -> None:
             script.parent.mkdir()
             shutil.copy(REPO / "examples/kilobot/gradient.bzz", script)
             _shoot("kilobot", script, out_dir / f"{name}.png", robots=9, stage=stage)
+        if wanted("replay-watches"):
+            _shoot_replay(scratch / "replay", out_dir / "replay-watches.png")
 
 
 if __name__ == "__main__":

@@ -146,6 +146,8 @@ class _Request:
     instructions: int = -1
     stop_reason: str = "step"
     noted: list[tuple[_Position, Breakpoint | None]] = field(default_factory=list)
+    #: "out" of a function the firmware called: (its entry pc, the control step)
+    leaving: tuple[int, int] = (-1, -1)
 
 
 class _Abandoned(BaseException):
@@ -345,6 +347,13 @@ class SwarmDebugger:
             self._resume()
         self._request = _Request("continue")
 
+    def checkpoint(self) -> None:
+        """Keep the swarm's state now (between two control steps) as a point to step back
+        from: for a caller that runs plain `Simulation.step` calls itself and wants the past
+        of a later pause (the same thinning as the debugger's own checkpoints)."""
+        if self._thread is None:
+            self._checkpoint_now()
+
     def request_pause(self) -> None:
         """From any thread: make a running `run` stop at the next instruction of any robot."""
         self._pause_requested.set()
@@ -370,10 +379,16 @@ class SwarmDebugger:
 
     def step_out(self, robot: int, max_steps: int = STEP_LIMIT) -> Stop | None:
         """Run until the robot's current function has returned and its caller starts its
-        next line (from `step` or a listener: the robot's next line, whatever calls it)."""
+        next line; out of `step` or a listener, which the firmware calls: the first line of
+        the next function it calls (the same listener's calls for the step's other messages
+        run through, as `foreach`'s calls of a closure do)."""
         index = self._index(robot)
         depth = self._depth(index)
-        return self._go(_Request("out" if depth else "into", index, depth), max_steps)
+        state = self.simulation.robots[index]
+        function = self._map_of(state.program).function_at(state.robot.vm.pc)
+        leaving = (function.start if function else -1, self.simulation.step_count)
+        return self._go(_Request("out" if depth else "into", index, depth, leaving=leaving),
+                        max_steps)
 
     def step_instruction(self, robot: int, max_steps: int = STEP_LIMIT) -> Stop | None:
         """Run the robot's next VM instruction and stop before the one after."""
@@ -537,14 +552,16 @@ class SwarmDebugger:
                     self._check(index, vm, pc, line, False, False)
                 return
             last[index] = (pc, line, bp)
-            returned = previous is not None and bp < previous[2] and pc not in starts
-            self._check(index, vm, pc, line, True, returned)
+            entering = pc in starts
+            returned = previous is not None and bp < previous[2] and not entering
+            self._check(index, vm, pc, line, True, returned, entering)
 
         return trace
 
     def _check(self, index: int, vm: Any, pc: int, line: int | None, event: bool,
-               returned: bool) -> None:
-        """A traced robot about to run `pc`: does anything stop here? (worker thread)"""
+               returned: bool, entering: bool = False) -> None:
+        """A traced robot about to run `pc` (`entering`: a function's first instruction):
+        does anything stop here? (worker thread)"""
         request = self._request
         kind = request.kind
         starts_line = event and not returned and line is not None
@@ -575,9 +592,18 @@ class SwarmDebugger:
             return
         if index != request.index:
             return
-        if kind == "into" or (kind == "over" and self._depth(index) <= request.depth) \
-                or (kind == "out" and self._depth(index) < request.depth):
+        if kind == "into" or (kind == "over" and self._depth(index) <= request.depth):
             self._suspend(index, vm, "step")
+        elif kind == "out":
+            depth = self._depth(index)
+            # out of a function the robot's firmware called (`step`, a listener: depth 1),
+            # whose caller has no line: the next function the firmware calls is its next
+            # line, but for more calls of the same one in this step (a listener's other
+            # messages: like `foreach`'s calls of its closure, they are run through)
+            if depth < request.depth or (request.depth == 1 and entering and depth == 1
+                                         and (pc, self.simulation.step_count)
+                                         != request.leaving):
+                self._suspend(index, vm, "step")
 
     def _hit(self, index: int, vm: Any, line: int) -> Breakpoint | None:
         """Count the breakpoints of `line` that apply; the first that stops, if any."""

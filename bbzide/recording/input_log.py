@@ -438,6 +438,13 @@ class ReplayHostFunctions:
 def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> list[bytes]:
     """Apply one recorded control step to `robot` (restored to the state before that step);
     the payloads it sent in that step (what the live inspector saw leave its out-queue)."""
+    replay_receive(robot, inputs)
+    return replay_control_step(robot, inputs, host)
+
+
+def replay_receive(robot: Any, inputs: StepInputs) -> None:
+    """The messages `robot` received in a recorded step, handed to it again (the engine
+    delivers every robot's messages before any robot's turn)."""
     s = inputs.situation
     receive_all = getattr(robot, "receive_all", None)
     if receive_all is not None and inputs.payloads:  # the engine's way, when the robot has it
@@ -446,6 +453,12 @@ def replay_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions) -> li
     else:
         for k, message in enumerate(inputs.payloads):
             robot.receive(message, s[3 * k], s[3 * k + 1], s[3 * k + 2])
+
+
+def replay_control_step(robot: Any, inputs: StepInputs, host: ReplayHostFunctions
+                        ) -> list[bytes]:
+    """`robot`'s turn of a recorded step (after `replay_receive`), its host calls answered
+    as recorded; the payloads it sent."""
     sent: list[bytes] = []
     if inputs.stepped:
         host.load(inputs.host_calls)

@@ -230,6 +230,23 @@ class RobotRebuilder:
         self._cache[index] = (step, robot, host, id(keyframe))
         return robot
 
+    def scratch_robot(self, index: int, step: int) -> tuple[Any, ReplayHostFunctions]:
+        """Robot `index` rebuilt at `step` with its replaying host functions, handed over:
+        this rebuilder forgets it (its next rebuild of that robot boots a new one), so the
+        caller may run it on (`bbzide.recording.recorded_swarm`)."""
+        robot = self.robot_at(index, step)
+        _at, cached, host, _keyframe = self._cache.pop(index)
+        assert cached is robot
+        for key in [key for key, (booted, _host) in self._booted.items() if booted is robot]:
+            del self._booted[key]
+        self._sent.pop(index, None)
+        return robot, host
+
+    def inputs(self, step: int, index: int) -> Any:
+        """Robot `index`'s recorded inputs of `step` (`input_log.StepInputs`), None if the
+        step holds none for it."""
+        return self._inputs(step, index).get(index)
+
     def sent_at(self, index: int, step: int) -> list[bytes]:
         """The payloads robot `index` sent in recorded `step`, as its last rebuild re-executed
         them (empty when that step was not re-executed: the first keyframe's step, a reboot

@@ -39,7 +39,12 @@ from bbzide.ui.run_controller import STOP_WAIT_S, RunController, RunSettings, St
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.teaching_panel import TeachingPanel
 from bbzide.ui.viser_server import open_server, page_url
-from bbzide.ui.watches import WatchBook, WatchPanel
+from bbzide.ui.watches import (
+    STIGMERGY_ROBOTS,
+    WatchBook,
+    WatchPanel,
+    stigmergy_markdown,
+)
 from bbzide.ui.world_backend import SimulationHandle, SwarmFrame, WorldBackend
 from bbzide.ui.world_setup_panel import WorldSetupPanel
 
@@ -52,13 +57,6 @@ EDITOR_PANEL_WIDTH = 600
 OVERLAY_TICKS = 4
 #: How long an inspector refresh may wait for the current step to end before skipping a tick.
 INSPECT_LOCK_TIMEOUT = 0.2
-#: Robots whose stigmergy the Stigmergy folder reads (once a second): a table about this many
-#: robots stays readable, and reading them costs well under a millisecond.
-STIGMERGY_ROBOTS = 64
-#: Versions listed in the Stigmergy folder (newest per key first).
-STIGMERGY_ROWS = 40
-
-
 class IdeApp:
     def __init__(
         self,
@@ -437,22 +435,6 @@ class IdeApp:
         for inspector in list(self._inspectors.values()):
             if inspector.selected is not None and not step_is_long:
                 self._refresh_inspector(inspector)
-
-
-def stigmergy_markdown(rows: list[tuple[str, int, int, str, list[int]]]) -> str:
-    """The Stigmergy folder: each key's versions (Lamport timestamp, writer, value) and the
-    robots holding each, newest first."""
-    if not rows:
-        return "*no robot holds a stigmergy entry*"
-    lines = ["| key | t | by | value | held by |", "|---|---:|---:|---|---|"]
-    for key, stamp, writer, value, holders in rows[:STIGMERGY_ROWS]:
-        held = ", ".join(map(str, holders[:12])) + (f" +{len(holders) - 12}"
-                                                    if len(holders) > 12 else "")
-        lines.append(f"| `{key}` | {stamp} | {writer} | `{value}` | {held} |")
-    if len(rows) > STIGMERGY_ROWS:
-        lines.append(f"\n*{len(rows) - STIGMERGY_ROWS} older versions not shown*")
-    return (f"Versions held by the first {STIGMERGY_ROBOTS} robots (t = Lamport timestamp, "
-            "by = the robot that wrote it)\n\n" + "\n".join(lines))
 
 
 def new_recording_path(script: Path) -> Path:

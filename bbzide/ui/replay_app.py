@@ -9,7 +9,9 @@ buttons, jumps, the player thread) and does everything a step change needs, unde
 draw the recorded frame, move the slider, rewrite the status line, rebuild and show each tab's
 selected robot. Playing at `speed`× advances `speed / step_seconds` steps per second, drawn at
 most `FRAME_HZ` times a second (at 16× several steps pass per frame). The editor is replaced
-by the recorded program's source, read-only.
+by the recorded program's source, read-only. The Watches and Stigmergy folders are the live
+IDE's, read from the robots rebuilt at the shown step (`ReplaySession.watch_values`): a seek
+redraws them, and the player thread notices a watch added or cleared.
 """
 
 from __future__ import annotations
@@ -17,15 +19,25 @@ from __future__ import annotations
 import html
 import threading
 import time
+from typing import Any
 
 import viser
 
 from bbzide.ui.access import new_token
+from bbzide.ui.debug_panel import BACKWARD, FORWARD, WHY
 from bbzide.ui.inspector_panel import InspectorPanel
 from bbzide.ui.overlay_view import OverlayView
 from bbzide.ui.replay_session import JUMP_KINDS, MAX_HIT_SEARCH_STEPS, ReplaySession
 from bbzide.ui.scene import SwarmScene
 from bbzide.ui.viser_server import open_server, page_url
+from bbzide.ui.watches import (
+    STIGMERGY_ROBOTS,
+    BadWatch,
+    Watch,
+    WatchBook,
+    WatchPanel,
+    stigmergy_markdown,
+)
 
 _JUMP_LABELS = dict(JUMP_KINDS)
 
@@ -37,16 +49,26 @@ FRAME_HZ = 30.0
 SOURCE_PANEL_WIDTH = 560
 
 
-def numbered_source_html(source: str | None) -> str:
-    """The recorded program with its line numbers (grey), as the editor numbers them."""
+def numbered_source_html(source: str | None, marked: int | None = None) -> str:
+    """The recorded program with its line numbers (grey), as the editor numbers them; the
+    `marked` line (where stepping paused) on a yellow band, as the editor marks it."""
     if not source:
         return "(the recording has no source text)"
     lines = source.splitlines()
     width = len(str(len(lines)))
     return "\n".join(
-        f'<span style="color:#868e96;user-select:none">{number:>{width}} │ </span>'
-        f"{html.escape(line)}"
+        ('<span class="bbzide-paused-line" style="background:#fff3bf">' if number == marked
+         else "<span>")
+        + f'<span style="color:#868e96;user-select:none">{number:>{width}} │ </span>'
+        f"{html.escape(line)}</span>"
         for number, line in enumerate(lines, start=1))
+
+
+def source_view_html(source: str | None, marked: int | None = None) -> str:
+    """The Program tab's content: the numbered source in a scrolling block."""
+    return ("<pre class='bbzide-replay-source' style='font-size:12px;line-height:1.35;"
+            "white-space:pre;overflow:auto;max-height:calc(100vh - 160px)'>"
+            + numbered_source_html(source, marked) + "</pre>")
 
 
 #: The event list's first entry, which seeks nowhere.
@@ -78,10 +100,18 @@ class ReplayApp:
         #: two: the turn in progress at the pause, then one that saw it)
         self.player_turns = 0
         self._lock = threading.RLock()
+        #: the debugger stepping a scratch copy of the swarm from a shown step (None: none)
+        self.debugger: Any = None
+        self._source = session.source()
         self._inspectors: dict[int, InspectorPanel] = {}
         self._stop = threading.Event()
         self._player = threading.Thread(target=self._play_loop, name="bbzide-replay", daemon=True)
         self._build_gui()
+        self.watch_book = WatchBook()
+        self.watches = WatchPanel(self.server, self.watch_book, self._robot_ids)
+        self._watch_generation = self.watch_book.generation
+        with self.server.gui.add_folder("Stigmergy", order=2.6, expand_by_default=False):
+            self.stigmergy = self.server.gui.add_markdown("*no stigmergy yet*")
         self.server.on_client_connect(self._on_client_connect)
         self.server.on_client_disconnect(self._on_client_disconnect)
 
@@ -134,6 +164,15 @@ class ReplayApp:
                 hint="Robot ids, comma-separated (empty: any robot)")
             self.seek_hit = gui.add_button("Seek to the next hit",
                                            icon=viser.Icon.PLAYER_SKIP_FORWARD)
+            self.debug_forward = gui.add_button_group(
+                "Debug", tuple(FORWARD),
+                hint="Step the selected robot (else the one stopped) from the shown step: "
+                     "Continue to the breakpoint line above, Over / Into / Out of a call, one "
+                     "VM Instruction; the recorded steps are re-executed on a scratch copy")
+            self.debug_backward = gui.add_button_group(
+                "Back", tuple(BACKWARD),
+                hint="Step back one line or one control step, or to the previous hit")
+            self.debug_where = gui.add_markdown("")
             self.jumps = {}
             for kind, label in session.jump_kinds():
                 count = len(session.event_steps(kind))
@@ -166,10 +205,7 @@ class ReplayApp:
                 gui.add_markdown("**Events**: *none*")
         source = session.source()
         with panel.add_tab("Program", icon=viser.Icon.CODE):
-            gui.add_html(
-                "<pre class='bbzide-replay-source' style='font-size:12px;line-height:1.35;"
-                "white-space:pre;overflow:auto;max-height:calc(100vh - 160px)'>"
-                + numbered_source_html(source) + "</pre>")
+            self.source_view = gui.add_html(source_view_html(source))
         panel.dock_left()
         panel.set_width(SOURCE_PANEL_WIDTH)
         self.slider.on_update(lambda _: self._slider_moved())
@@ -179,6 +215,10 @@ class ReplayApp:
             lambda _: setattr(self, "speed", SPEEDS.get(str(self.speed_choice.value), 1.0)))
         self.seek_hit.on_click(lambda _: self.seek_next_hit(int(self.break_line.value),
                                                             str(self.break_robots.value)))
+        self.debug_forward.on_click(lambda event: self.debug(
+            FORWARD[event.target.value], self._selected(event.client)))
+        self.debug_backward.on_click(lambda event: self.debug(
+            BACKWARD[event.target.value], self._selected(event.client)))
         for kind, group in self.jumps.items():
             group.on_click(lambda event, kind=kind: self.jump(kind, "next" in event.target.value))
 
@@ -193,12 +233,15 @@ class ReplayApp:
         self.scene.forget_client(client.client_id)
 
     # ---- time ------------------------------------------------------------------------------------
-    def seek(self, step: int) -> None:
-        """Show `step` everywhere: scene, slider, status line, every tab's inspector."""
+    def seek(self, step: int, stepping: bool = False) -> None:
+        """Show `step` everywhere: scene, slider, status line, every tab's inspector (a seek
+        ends stepping, unless `stepping` moves the timeline along with it)."""
         session = self.session
         step = max(session.first_step, min(session.last_step, int(step)))
         started = time.perf_counter()
         with self._lock:
+            if not stepping and (self.debugger is not None or step != self.step):
+                self._end_stepping()
             self.step = step
             self.note = ""
             frame = session.frame(step)
@@ -209,6 +252,9 @@ class ReplayApp:
                 self.slider.value = step
             for inspector in list(self._inspectors.values()):
                 self._refresh_inspector(inspector)
+            self._refresh_watches()
+            if not self.playing:  # while playing, the player thread reads it once a second
+                self._refresh_stigmergy()
             self._refresh_status()
         self.last_seek_seconds = time.perf_counter() - started
 
@@ -265,6 +311,100 @@ class ReplayApp:
                 self._select(client, index)
         return step
 
+    # ---- stepping --------------------------------------------------------------------------------
+    def debug(self, command: str, robot_index: int | None = None) -> Any:
+        """One debugger command (`debug_panel.FORWARD`/`BACKWARD`'s names) on a scratch copy
+        of the swarm rebuilt at the shown step (made at the first command after a seek): the
+        robot `robot_index`, else the one stopped, else the first with a VM. Its `Stop` or
+        None; the Debug line and the Program tab show where it paused."""
+        from bbzide.debugger import Breakpoint, DebuggerError
+        from bbzide.diagnostics import UserError
+
+        self.playing = False
+        with self._lock:
+            ids = [int(i) for i in self.session.recording.meta["robot_ids"]]
+            try:
+                if self.debugger is None:
+                    self.debugger = self.session.debugger_at(self.step)
+                debugger = self.debugger
+                line = int(self.break_line.value)
+                wanted = [int(p) for p in str(self.break_robots.value).replace(" ", "")
+                          .split(",") if p]
+                debugger.breakpoints = [Breakpoint(line, robot=robot) for robot in
+                                        (wanted or [None])] if line > 0 else []
+                paused = debugger.paused_at
+                if robot_index is not None:
+                    robot = ids[robot_index]
+                elif paused is not None:
+                    robot = paused.robot
+                else:
+                    robot = next(ids[i] for i in range(len(ids)) if self.session.has_vm(i))
+                if command == "continue":
+                    stop = debugger.run(MAX_HIT_SEARCH_STEPS)
+                elif command == "step_back_line":
+                    stop = debugger.step_back(robot, "line")
+                elif command == "step_back_control_step":
+                    stop = debugger.step_back(robot, "control_step")
+                elif command == "run_back_to_previous_hit":
+                    stop = debugger.run_back_to_previous_hit()
+                else:
+                    stop = getattr(debugger, command)(robot)
+            except ValueError:
+                self.note = "robot ids are whole numbers, comma-separated"
+                self._refresh_status()
+                return None
+            except (UserError, DebuggerError) as error:
+                # e.g. the recording's end: the scratch copy is dropped (a step it failed in
+                # cannot go on) and the next command rebuilds it at the shown step
+                self.debugger = None
+                self.note = str(error).splitlines()[0]
+                self._refresh_status()
+                return None
+            self.seek(debugger.simulation.step_count, stepping=True)
+            self._show_stop(stop)
+            return stop
+
+    def _show_stop(self, stop: Any) -> None:
+        """The Debug line, the Program tab's mark and the status note for `stop`."""
+        if stop is None:
+            self.note = "stepping: the robot did not stop (or nothing earlier to go back to)"
+            text = ""
+            marked = None
+        else:
+            function = f" in `{stop.frames[0].function}`" if stop.frames else ""
+            where = f"line **{stop.line}**" if stop.line else "no source line"
+            self.note = (f"robot {stop.robot} paused at line {stop.line} "
+                         f"({WHY.get(stop.reason, stop.reason)})")
+            text = (f"**Paused:** robot **{stop.robot}** at {where}{function} "
+                    f"({WHY.get(stop.reason, stop.reason)}, in recorded step {stop.step + 1}; "
+                    "a scratch copy of the swarm)")
+            for frame in stop.frames:
+                if frame.locals:
+                    text += f"  \n`{frame.function}`: " + ", ".join(
+                        f"{name} = {html.escape(value)}" for name, value in frame.locals.items())
+            if stop.error:
+                text += f"  \n**{html.escape(stop.error)}**"
+            marked = stop.line
+        if self.debug_where.content != text:
+            self.debug_where.content = text
+        self.source_view.content = source_view_html(self._source, marked)
+        self._refresh_status()
+
+    def _end_stepping(self) -> None:
+        if self.debugger is None:
+            return
+        debugger, self.debugger = self.debugger, None
+        try:
+            debugger.close()  # a control step it holds ends (its thread with it)
+        except Exception:  # noqa: BLE001 - a scratch copy: nothing of it is kept
+            pass
+        self.debug_where.content = ""
+        self.source_view.content = source_view_html(self._source)
+
+    def _selected(self, client: viser.ClientHandle | None) -> int | None:
+        inspector = None if client is None else self._inspectors.get(client.client_id)
+        return None if inspector is None else inspector.selected
+
     def play(self) -> None:
         if self.step >= self.session.last_step:
             self.seek(self.session.first_step)
@@ -272,7 +412,9 @@ class ReplayApp:
 
     def pause(self) -> None:
         self.playing = False
-        self._refresh_status()
+        with self._lock:
+            self._refresh_stigmergy()
+            self._refresh_status()
 
     def _transport(self, value: str) -> None:
         if "Play" in value:
@@ -291,6 +433,12 @@ class ReplayApp:
         last = time.monotonic()
         while not self._stop.wait(1.0 / FRAME_HZ):
             self.player_turns += 1
+            if self.watch_book.generation != self._watch_generation:
+                with self._lock:
+                    self._refresh_watches()
+            if self.playing and self.player_turns % int(FRAME_HZ) == 0:
+                with self._lock:
+                    self._refresh_stigmergy()
             now = time.monotonic()
             if not self.playing:
                 position, last = float(self.step), now
@@ -302,6 +450,39 @@ class ReplayApp:
                     position = self.session.last_step
                     self.playing = False
                 self.seek(int(position))
+
+    # ---- watches and the stigmergy view ---------------------------------------------------------
+    def _robot_ids(self) -> list[int]:
+        return [int(i) for i in self.session.recording.meta["robot_ids"]]
+
+    def _refresh_watches(self) -> None:
+        """Every watch's series up to the shown step, from the robots rebuilt at each step."""
+        book, session = self.watch_book, self.session
+        self._watch_generation = book.generation
+        watches = book.watches
+        session.forget_watches(watches)
+        book.clear_samples()
+        if watches:
+            for step in session.watch_steps(self.step):
+                book.sample(step, lambda watch, step=step: self._watch_values(watch, step))
+        self.watches.refresh()
+
+    def _watch_values(self, watch: Watch, step: int) -> list[float]:
+        try:
+            return self.session.watch_values(watch, step)
+        except BadWatch:
+            raise
+        except Exception as error:  # noqa: BLE001 - a damaged keyframe must not stop the replay
+            raise BadWatch(f"cannot rebuild the robots at step {step}: {error}") from None
+
+    def _refresh_stigmergy(self) -> None:
+        try:
+            rows = self.session.stigmergy_versions(self.step, STIGMERGY_ROBOTS)
+            text = stigmergy_markdown(rows)
+        except Exception as error:  # noqa: BLE001 - a damaged keyframe must not stop the replay
+            text = f"*cannot rebuild the robots at step {self.step}: {html.escape(str(error))}*"
+        if self.stigmergy.content != text:
+            self.stigmergy.content = text
 
     # ---- inspector -----------------------------------------------------------------------------
     def _on_robot_click(self, client: viser.ClientHandle, index: int) -> None:

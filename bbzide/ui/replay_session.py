@@ -12,6 +12,11 @@ after the current one, robot by robot, with the debugger's tracer on the rebuilt
 reference mode, which leaves the same bytes), until a robot runs a statement of the line; the
 seek then shows the step in which it did. A rebuild is exact, so a hit found here is the hit
 the live run had.
+
+Watches and the stigmergy view read the robots rebuilt at a recorded step with the live IDE's
+readers (`bbzide.ui.watches`), so a recorded run's series and versions are the live run's.
+A watch's value at a step is kept once read (a recording never changes); reading steps in
+order re-executes one step per robot each (the rebuilder goes on from its last robot).
 """
 
 from __future__ import annotations
@@ -28,6 +33,13 @@ from bbzide.recording import layout
 from bbzide.recording.reader import Recording
 from bbzide.recording.rebuild import RobotRebuilder
 from bbzide.ui.inspection import RobotInspection
+from bbzide.ui.watches import (
+    MAX_SAMPLES,
+    Watch,
+    WatchedRobot,
+    read_watch,
+    stigmergy_versions,
+)
 from bbzide.ui.world_adapter import inspect_robot, world_geometry
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 from bbzide.worlds.registry import WORLDS
@@ -35,6 +47,14 @@ from bbzide.worlds.registry import WORLDS
 #: Recorded steps a "next hit" search re-executes at most: every robot of a step is replayed
 #: instruction by instruction (a 25-Kilobot step in ~0.1 s), so 500 steps is under a minute.
 MAX_HIT_SEARCH_STEPS = 500
+
+#: Recorded steps a watch's series reaches back from the shown step: the live IDE keeps this
+#: many (`watches.MAX_SAMPLES`), so a replay's chart is the live one at the same step. The work
+#: is bounded by it: a seek reads only the steps not read before (values are kept), and reading
+#: a span in order re-executes each robot once per step (the rebuilder goes on from its last
+#: robot), so a jump far ahead costs at most this many recorded steps of every robot, about
+#: what a seek to a step that far past its keyframe costs; playing on costs one step a frame.
+WATCH_STEPS = MAX_SAMPLES
 
 #: The jump buttons, in the order shown: (event kind, button label).
 JUMP_KINDS = (
@@ -52,6 +72,8 @@ class ReplaySession:
         self._compiled_programs: dict[int, Any] = {}  # program id -> with call sites (inspect)
         self._warmed: set[int] = set()  # robots `warm_up` has done
         self._source_maps: dict[int, SourceMap | None] = {}  # program id -> statement lines
+        #: (watch, step) -> its values there, one per robot (`watch_values`)
+        self._watch_values: dict[tuple[Watch, int], list[float]] = {}
         self._event_steps = {
             kind: sorted({e.step for e in recording.events if e.kind == kind})
             for kind, _ in JUMP_KINDS
@@ -158,8 +180,13 @@ class ReplaySession:
         """Whether robot `index` runs a statement of `line` in recorded `step` (re-executed
         from its state before it, traced)."""
         with self._lock:
-            if self.rebuilder.keyframe(index, step).step == step:
-                return False  # its state before this step is another keyframe's: not replayed
+            keyframe = self.rebuilder.keyframe(index, step)
+            if keyframe.step == step and (
+                    self.recording.keyframes[index][0].step >= step
+                    or self.rebuilder.keyframe(index, step - 1).program != keyframe.program):
+                return False  # no recorded state before this step (its first, a new program)
+            # at a keyframe's own step too: `robot_at(step)` re-executes it from the state
+            # before (the robot rebuilt here, traced) when that gives the keyframe's bytes
             robot = self.rebuilder.robot_at(index, step - 1)
             program_id = self.rebuilder.keyframe(index, step).program
             program = self._source_map(program_id, index, step)
@@ -181,6 +208,26 @@ class ReplaySession:
                 vm.tracer, vm.stress_gc = None, stress
             return bool(seen)
 
+    def debugger_at(self, step: int) -> Any:
+        """The debugger room's `SwarmDebugger` on the swarm rebuilt at recorded `step` (after
+        it): scratch copies of the robots, driven through the recorded steps after it
+        (`bbzide.recording.recorded_swarm`); the recording and this session's rebuilds are
+        left as they are."""
+        from bbzide.debugger import SwarmDebugger
+        from bbzide.recording.recorded_swarm import RecordedSwarm
+
+        world = WORLDS.get(str(self.recording.meta.get("world", "")))
+        host_names = world.host_names if world else ()
+
+        def program_for(program_id: int, program: Any) -> Any:
+            recorded = self.recording.programs.get(program_id) or {}
+            return self._with_call_sites(program_id, program, recorded.get("source"),
+                                         host_names)
+
+        with self._lock:
+            swarm = RecordedSwarm(self.recording, step, program_for)
+        return SwarmDebugger(swarm)
+
     def _source_map(self, program_id: int, index: int, step: int) -> SourceMap | None:
         """The debugger's statement map of a recorded program (None without its source)."""
         maps = self._source_maps
@@ -192,6 +239,47 @@ class ReplaySession:
                                             world.host_names if world else ())
             maps[program_id] = SourceMap(program) if program.source_text else None
         return maps[program_id]
+
+    # ---- watches and the stigmergy view ---------------------------------------------------------
+    def _watched_robots(self, step: int, count: int | None = None) -> list[WatchedRobot]:
+        """The robots (the first `count`) rebuilt at `step`, as watches read them (call with
+        the lock held; a robot's VM is valid until its next rebuild)."""
+        ids = [int(i) for i in self.recording.meta["robot_ids"]]
+        robots = []
+        for index in range(len(ids) if count is None else min(count, len(ids))):
+            if not self.has_vm(index):
+                robots.append(WatchedRobot(ids[index], None, ()))
+                continue
+            robot = self.rebuilder.robot_at(index, step)
+            robots.append(WatchedRobot(ids[index], robot.vm,
+                                       tuple(self.rebuilder.program_at(index, step).strings)))
+        return robots
+
+    def watch_values(self, watch: Watch, step: int) -> list[float]:
+        """`watch` read from every robot rebuilt at recorded `step` (after it), as the live
+        IDE read it after that step; `BadWatch` for an expression that cannot be read."""
+        key = (watch, step)
+        found = self._watch_values.get(key)
+        if found is None:
+            with self._lock:
+                found = read_watch(watch, self._watched_robots(step))
+            self._watch_values[key] = found
+        return found
+
+    def watch_steps(self, step: int) -> range:
+        """The recorded steps a watch's series shows at `step` (the last `WATCH_STEPS`)."""
+        return range(max(self.first_step, step - WATCH_STEPS + 1), step + 1)
+
+    def forget_watches(self, keep: list[Watch]) -> None:
+        """Drop the values read for watches not in `keep` (cleared from the panel)."""
+        self._watch_values = {key: values for key, values in self._watch_values.items()
+                              if key[0] in keep}
+
+    def stigmergy_versions(self, step: int, count: int
+                           ) -> list[tuple[str, int, int, str, list[int]]]:
+        """The stigmergy versions the first `count` robots hold at recorded `step`."""
+        with self._lock:
+            return stigmergy_versions(self._watched_robots(step, count))
 
     def warm_up(self, stop: threading.Event | None = None, count: int | None = None) -> None:
         """Get every robot's rebuild ready ahead of its first click (call from a background

@@ -15,12 +15,13 @@ the new world is built only when the program compiled for it arrives.
 
 The debugger (the debugger room's `SwarmDebugger`, reached through the simulation handle's
 `debug`) runs the steps only while it is needed: while breakpoints are set, or while it has
-the swarm paused inside a control step. Otherwise a step is the plain `step()` and costs
-nothing extra. Stepping commands (`debug`) apply on this thread like every other command; a
-stop pauses the run and lands in `status.paused_at`. With `pause_on_error`, a robot whose VM
-fails pauses the run too: inside the step at the failing instruction when the debugger drives
-the step, at the end of that step otherwise (the failed robot's state is the same: it runs no
-further).
+the swarm paused inside a control step. Otherwise a step is the plain `step()`, which keeps
+a checkpoint of the swarm once every `world_adapter.PAST_EVERY` steps (so Back works from any
+pause) and costs nothing else. Stepping commands (`debug`) apply on this thread like every
+other command; a stop pauses the run and lands in `status.paused_at`. With `pause_on_error`,
+a robot whose VM fails pauses the run too: inside the step at the failing instruction when
+the debugger drives the step, at the end of that step otherwise (the failed robot's state is
+the same: it runs no further).
 """
 
 from __future__ import annotations
@@ -95,10 +96,10 @@ class RunStatus:
 
 #: What the Debug folder says when a command ended without a stop.
 NOTHING_THERE = {
-    "step_back_line": "nothing to step back to: the debugger keeps the swarm's past from its "
-                      "first breakpoint or pause on",
-    "step_back_control_step": "nothing to step back to: the debugger keeps the swarm's past "
-                              "from its first breakpoint or pause on",
+    "step_back_line": "nothing to step back to: the swarm's past starts at the run's start "
+                      "or the last program load",
+    "step_back_control_step": "nothing to step back to: the swarm's past starts at the run's "
+                              "start or the last program load",
     "run_back_to_previous_hit": "no earlier breakpoint hit",
 }
 

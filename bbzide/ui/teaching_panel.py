@@ -7,7 +7,8 @@ time; `bbzide.lessons.catalog`), runs the lesson's scenario, and shows its text;
 the lesson's automatic check headless on the saved work (`bbzide.lessons.checks.run_check`,
 the same as `bbzide lesson N --check`) and shows PASS, or FAIL and what to look at; **Reset
 lesson** puts the starter back once the tab that clicked it confirms. **Scenario** says what
-the running scenario pins (its title, the step it pauses at, the globals it watches) and saves
+the running scenario pins (its title, the step it pauses at, the globals it watches, which
+opening it adds to the Watches folder's plots) and saves
 the current set-up as a scenario file (`RunController.save_setup`). A link `/?scenario=NAME`
 goes through `open_link`, which opens only what `bbzide.ui.scenario_links` allows and shows a
 refusal or a schema error as one line here. Every action that compiles or runs the swarm runs
@@ -28,6 +29,7 @@ import viser
 
 from bbzide.diagnostics import UserError
 from bbzide.ui.scenario_links import LinkError, resolve_link, scratch_copy
+from bbzide.ui.watches import Watch
 
 if TYPE_CHECKING:
     from bbzide.lessons.catalog import Lesson
@@ -180,6 +182,9 @@ class TeachingPanel:
         controls.seed.value = scenario.seed
         self.app.edit_file(script)
         controller.reset()
+        panel = getattr(self.app, "watches", None)
+        for name in controller.watches if panel is not None else ():
+            panel.add_watch(Watch("expression", name))  # the scenario's globals, from step 0
         controller.play()
         self.refresh()
 
@@ -292,3 +297,4 @@ def verdict_markdown(verdict: Verdict) -> str:
 
 def failure_line(text: str) -> str:
     return f"<span style='color:{FAIL_COLOUR}'>**{html.escape(text)}**</span>"
+

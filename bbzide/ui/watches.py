@@ -1,13 +1,16 @@
 """Watches across the swarm: a value read from every robot after every step, kept as a series.
 
 Design: a `Watch` names what to read: a Buzz expression (a global, `size(x)`, arithmetic;
-evaluated by the debugger room in each robot's context, a plain global read directly), a
-virtual-stigmergy key, or the heap in use (bytes between the two heap pointers, as the
-inspector counts them). `WatchBook` samples every watch after each control step on the
-simulation thread (the run controller's step listeners, registered only while a watch exists,
-so a run without watches pays nothing) and keeps the last `MAX_SAMPLES` steps as arrays, one
-column per robot. The panel (`WatchPanel`) draws each watch with viser's uPlot: every robot's
-line, or the swarm's min, mean and max, redrawn by the app's ticker.
+evaluated with the debugger room's expression evaluator on the robot's globals, a plain global
+read directly), a virtual-stigmergy key, or the heap in use (bytes between the two heap
+pointers, as the inspector counts them). `read_watch` and `stigmergy_versions` read a list of
+`WatchedRobot`s (id, VM, string table): the live swarm's robots after a step, or a replay's
+robots rebuilt at a recorded step, so both read the very same way. `WatchBook` samples every
+watch after each control step on the simulation thread (the run controller's step
+listeners, registered only while a watch exists, so a run without watches pays nothing) and
+keeps the last `MAX_SAMPLES` steps as arrays, one column per robot. The panel (`WatchPanel`)
+draws each watch with viser's uPlot: every robot's line, or the swarm's min, mean and max,
+redrawn by the app's ticker.
 """
 
 from __future__ import annotations
@@ -29,6 +32,11 @@ MAX_SAMPLES = 2_500
 MAX_WATCHES = 4
 #: Above this many robots a per-robot chart is unreadable: it shows min, mean and max instead.
 MAX_ROBOT_LINES = 32
+#: Robots whose stigmergy the Stigmergy folder reads: a table about this many robots stays
+#: readable, and reading them costs well under a millisecond.
+STIGMERGY_ROBOTS = 64
+#: Versions listed in the Stigmergy folder (newest per key first).
+STIGMERGY_ROWS = 40
 #: What a watch reads (the dropdown's labels).
 KINDS = {"Buzz expression": "expression", "stigmergy key": "stigmergy", "heap in use (B)": "heap"}
 SHOWS = ("every robot", "min · mean · max")
@@ -59,6 +67,139 @@ def number(value: Any) -> float:
     if isinstance(value, int | float) and math.isfinite(value):
         return float(value)
     return math.nan
+
+
+@dataclass(frozen=True)
+class WatchedRobot:
+    """One robot as a watch reads it: its Buzz id, its VM (None: a passive body) and the
+    string table of the program it runs."""
+
+    robot_id: int
+    vm: Any
+    strings: Sequence[str]
+
+
+def read_watch(watch: Watch, robots: Sequence[WatchedRobot]) -> list[float]:
+    """`watch` read from every robot (between two control steps): one number per robot, NaN
+    where there is none (no VM, no such global or key, not a number). `BadWatch` when the
+    expression does not parse or cannot be evaluated."""
+    from bbzide.debugger.values import EvaluationError, parse_expression
+    from bbzide.worlds.engine import read_global
+
+    expression = None
+    if watch.kind == "expression" and not watch.text.isidentifier():
+        try:
+            expression = parse_expression(watch.text)
+        except EvaluationError as error:
+            raise BadWatch(f"{watch.text}: {error}") from None
+    values = []
+    for robot in robots:
+        vm = robot.vm
+        if vm is None:
+            values.append(math.nan)
+        elif watch.kind == "heap":
+            values.append(float(vm.heap.size - (vm.heap.ltseg - vm.heap.rtobj)))
+        elif watch.kind == "stigmergy":
+            values.append(number(_stigmergy_value(vm, robot.strings, watch.text)))
+        elif expression is None:
+            values.append(number(read_global(vm, list(robot.strings), watch.text)))
+        else:
+            try:
+                values.append(number(expression.evaluate(_globals_lookup(vm, robot.strings))))
+            except EvaluationError as error:
+                raise BadWatch(f"{watch.text}: {error}") from None
+    return values
+
+
+def _globals_lookup(vm: Any, strings: Sequence[str]) -> Callable[[str], Any]:
+    """name -> the robot's global of that name, decoded (`KeyError` when none)."""
+    from bbzide.debugger.values import decode
+    from bbzide.vm.inspector import globals_by_name
+
+    table = list(strings)
+    by_name = globals_by_name(vm, table)
+
+    def lookup(name: str) -> Any:
+        where = by_name.get(name)
+        if where is None:
+            raise KeyError(name)
+        return decode(vm, where, table)
+
+    return lookup
+
+
+def stigmergy_versions(robots: Sequence[WatchedRobot]
+                       ) -> list[tuple[str, int, int, str, list[int]]]:
+    """Every virtual-stigmergy version the robots hold: (key, Lamport timestamp, writer
+    robot id, value, ids of the robots holding that version), by key and newest first."""
+    holders: dict[tuple[str, int, int, str], list[int]] = {}
+    for robot in robots:
+        vm = robot.vm
+        if vm is None:
+            continue
+        strings = list(robot.strings)
+        for entry in getattr(vm.vstig, "entries", []):
+            key = strings[entry.key] if 0 <= entry.key < len(strings) else f"#{entry.key}"
+            value = heap_text(vm, strings, entry.value)
+            holders.setdefault((key, int(entry.timestamp), int(entry.robot), value),
+                               []).append(robot.robot_id)
+    rows = [(key, stamp, writer, value, ids)
+            for (key, stamp, writer, value), ids in holders.items()]
+    return sorted(rows, key=lambda row: (row[0], -row[1], row[2]))
+
+
+def stigmergy_markdown(rows: list[tuple[str, int, int, str, list[int]]]) -> str:
+    """The Stigmergy folder: each key's versions (Lamport timestamp, writer, value) and the
+    robots holding each, newest first."""
+    if not rows:
+        return "*no robot holds a stigmergy entry*"
+    lines = ["| key | t | by | value | held by |", "|---|---:|---:|---|---|"]
+    for key, stamp, writer, value, holders in rows[:STIGMERGY_ROWS]:
+        held = ", ".join(map(str, holders[:12])) + (f" +{len(holders) - 12}"
+                                                    if len(holders) > 12 else "")
+        lines.append(f"| `{key}` | {stamp} | {writer} | `{value}` | {held} |")
+    if len(rows) > STIGMERGY_ROWS:
+        lines.append(f"\n*{len(rows) - STIGMERGY_ROWS} older versions not shown*")
+    return (f"Versions held by the first {STIGMERGY_ROBOTS} robots (t = Lamport timestamp, "
+            "by = the robot that wrote it)\n\n" + "\n".join(lines))
+
+
+def heap_value(vm: Any, strings: Sequence[str], index: int) -> Any:
+    """The heap object `index` as a Python value (int, float, string; None otherwise)."""
+    from bbzide.compiler.bbzfloat import to_float
+    from bbzide.vm import heap as heap_room
+
+    heap = vm.heap
+    if not 0 <= index < heap.object_count:
+        return None
+    kind = heap.obj_type(index)
+    if kind == heap_room.INT:
+        return heap.int_value(index)
+    if kind == heap_room.FLOAT:
+        return to_float(heap.u16(index))
+    if kind == heap_room.STRING:
+        sid = heap.u16(index)
+        return strings[sid] if sid < len(strings) else f"#{sid}"
+    return None
+
+
+def heap_text(vm: Any, strings: Sequence[str], index: int) -> str:
+    """The heap object `index` as the stigmergy view prints it (a kind name for a table)."""
+    value = heap_value(vm, strings, index)
+    if value is None:
+        kind = vm.heap.obj_type(index) if 0 <= index < vm.heap.object_count else -1
+        names = ("nil", "int", "float", "string", "table", "closure", "userdata")
+        return names[kind] if 0 <= kind < len(names) else "?"
+    return f"{value:.4g}" if isinstance(value, float) else repr(value) \
+        if isinstance(value, str) else str(value)
+
+
+def _stigmergy_value(vm: Any, strings: Sequence[str], key: str) -> Any:
+    """The value the robot's stigmergy holds for `key` (None when it holds none)."""
+    for entry in getattr(vm.vstig, "entries", []):
+        if 0 <= entry.key < len(strings) and strings[entry.key] == key:
+            return heap_value(vm, strings, entry.value)
+    return None
 
 
 class WatchBook:
@@ -101,6 +242,13 @@ class WatchBook:
             self.generation += 1
         if had:
             self._on_empty()
+
+    def clear_samples(self) -> None:
+        """Forget every series, keep the watches (a replay shows the series anew at a seek)."""
+        with self._lock:
+            for series in self._samples.values():
+                series.clear()
+            self.errors = {}
 
     def sample(self, step: int, read: Callable[[Watch], Sequence[float]]) -> None:
         """Read every watch at `step` (after it) with `read(watch) -> one number per robot`;

@@ -33,7 +33,7 @@ import numpy as np
 from bbzide.diagnostics import UserError
 from bbzide.ui.heap_decode import HeapGeometry, HeapReader, HeapRoots
 from bbzide.ui.inspection import FrameView, PausedAt, RobotInspection
-from bbzide.ui.watches import BadWatch, number
+from bbzide.ui.watches import WatchedRobot, read_watch, stigmergy_versions
 from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -49,6 +49,12 @@ DEFAULT_ROBOTS = 25
 #: on a loaded machine, so a script stuck in a loop costs each robot 0.5 s, not the 10 s of
 #: the Robot's default budget: the swarm reloads in seconds after the fix.
 IDE_INSTRUCTION_BUDGET = 5_000
+#: Plain steps (no breakpoint set) keep the swarm's state for reverse stepping once every this
+#: many control steps, so Back works from any pause (a Pause, a single step, an error): a
+#: Kilobot swarm's checkpoint costs about five of its control steps of CPU (the debugger room's
+#: CHECKPOINT_EVERY), so one in 1,000 costs ~0.5 %, within a run's noise; a step back from
+#: such a pause re-executes at most 999 plain steps (well under a second for 25 Kilobots).
+PAST_EVERY = 1_000
 
 class MissingRoomError(UserError):
     """A room the IDE needs (compiler, VM, worlds) is not in this build."""
@@ -168,6 +174,7 @@ class WorldsSimulation:
         self.source_text: str | None = None
         self._overlays: tuple[str, dict[str, Any]] | None = None
         self._debugger: Any = None
+        self._keeps_past = True  # False once a checkpoint failed (robots without snapshots)
         self.pause_on_error = True  # what a debugger made later starts with
 
     # ---- debugger ------------------------------------------------------------------------------
@@ -273,50 +280,22 @@ class WorldsSimulation:
         raise KeyError(key)
 
     # ---- watches and the stigmergy view -----------------------------------------------------
+    def watched_robots(self, max_robots: int | None = None) -> list[WatchedRobot]:
+        """The robots (the first `max_robots`) as watches and the stigmergy view read them."""
+        return [WatchedRobot(int(state.robot_id), getattr(state.robot, "vm", None),
+                             tuple(getattr(state.program or self.program, "strings", ())
+                                   or ()))
+                for state in self.sim.robots[:max_robots]]
+
     def watch_values(self, watch: Any) -> list[float]:
         """`watch` (`bbzide.ui.watches.Watch`) read from every robot: one number per robot,
         NaN where there is none (no VM, no such global or key, not a number)."""
-        values = []
-        simple_global = watch.kind == "expression" and watch.text.isidentifier()
-        for state in self.sim.robots:
-            robot = state.robot
-            vm = getattr(robot, "vm", None)
-            if vm is None:
-                values.append(float("nan"))
-            elif watch.kind == "heap":
-                values.append(float(vm.heap.size - (vm.heap.ltseg - vm.heap.rtobj)))
-            elif watch.kind == "stigmergy":
-                values.append(number(_stigmergy_value(vm, state.program or self.program,
-                                                              watch.text)))
-            elif simple_global:
-                values.append(number(state.global_value(watch.text)))
-            else:
-                try:
-                    value = self.debugger().evaluate(int(state.robot_id), watch.text)
-                except Exception as error:  # noqa: BLE001 - a bad expression is the user's
-                    raise BadWatch(str(error).splitlines()[0] if str(error)
-                                           else type(error).__name__) from None
-                values.append(number(value))
-        return values
+        return read_watch(watch, self.watched_robots())
 
     def stigmergy_versions(self, max_robots: int) -> list[tuple[str, int, int, str, list[int]]]:
-        """Every virtual-stigmergy version the first `max_robots` robots hold: (key, Lamport
-        timestamp, writer robot id, value, ids of the robots holding that version), by key
-        and newest first."""
-        holders: dict[tuple[str, int, int, str], list[int]] = {}
-        for state in self.sim.robots[:max_robots]:
-            vm = getattr(state.robot, "vm", None)
-            if vm is None:
-                continue
-            strings = list(getattr(state.program or self.program, "strings", []) or [])
-            for entry in getattr(vm.vstig, "entries", []):
-                key = strings[entry.key] if 0 <= entry.key < len(strings) else f"#{entry.key}"
-                value = _heap_text(vm, strings, entry.value)
-                holders.setdefault((key, int(entry.timestamp), int(entry.robot), value),
-                                   []).append(int(state.robot_id))
-        rows = [(key, stamp, writer, value, ids)
-                for (key, stamp, writer, value), ids in holders.items()]
-        return sorted(rows, key=lambda row: (row[0], -row[1], row[2]))
+        """Every virtual-stigmergy version the first `max_robots` robots hold
+        (`bbzide.ui.watches.stigmergy_versions`)."""
+        return stigmergy_versions(self.watched_robots(max_robots))
 
     def close_debugger(self) -> None:
         """Finish a control step the debugger holds (as the old program would) and drop the
@@ -339,6 +318,14 @@ class WorldsSimulation:
         return int(self.sim.step_count)
 
     def step(self) -> None:
+        """One plain control step; now and then the debugger keeps the state before it
+        (`PAST_EVERY`), so a pause after plain steps can be stepped back from."""
+        if self._keeps_past and (self._debugger is None
+                                 or self.sim.step_count % PAST_EVERY == 0):
+            try:
+                self.debugger().checkpoint()
+            except Exception:  # noqa: BLE001 - firmware without snapshots: no past to keep
+                self._keeps_past = False
         self.sim.step()
         if self.recorder is not None:
             self.recorder.record_step()
@@ -424,42 +411,6 @@ class WorldsSimulation:
             text = f"{getattr(state.failure, 'reason', 'error')}: {message}"
             counts[(where, text)] = counts.get((where, text), 0) + 1
         return [(where, text, count) for (where, text), count in counts.items()]
-
-
-def _heap_value(vm: Any, strings: Sequence[str], index: int) -> Any:
-    """The heap object `index` as a Python value (int, float, string; None otherwise)."""
-    heap_room = _import("bbzide.vm.heap")
-    heap = vm.heap
-    if not 0 <= index < heap.object_count:
-        return None
-    kind = heap.obj_type(index)
-    if kind == heap_room.INT:
-        return heap.int_value(index)
-    if kind == heap_room.FLOAT:
-        return _import("bbzide.compiler.bbzfloat").to_float(heap.u16(index))
-    if kind == heap_room.STRING:
-        sid = heap.u16(index)
-        return strings[sid] if sid < len(strings) else f"#{sid}"
-    return None
-
-
-def _heap_text(vm: Any, strings: Sequence[str], index: int) -> str:
-    value = _heap_value(vm, strings, index)
-    if value is None:
-        kind = vm.heap.obj_type(index) if 0 <= index < vm.heap.object_count else -1
-        names = ("nil", "int", "float", "string", "table", "closure", "userdata")
-        return names[kind] if 0 <= kind < len(names) else "?"
-    return f"{value:.4g}" if isinstance(value, float) else repr(value) \
-        if isinstance(value, str) else str(value)
-
-
-def _stigmergy_value(vm: Any, program: Any, key: str) -> Any:
-    """The value robot's stigmergy holds for `key` (None when it holds none)."""
-    strings = list(getattr(program, "strings", []) or [])
-    for entry in getattr(vm.vstig, "entries", []):
-        if 0 <= entry.key < len(strings) and strings[entry.key] == key:
-            return _heap_value(vm, strings, entry.value)
-    return None
 
 
 def _optional_int(value: Any) -> int | None:

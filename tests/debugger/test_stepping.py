@@ -132,6 +132,29 @@ def test_step_over_through_a_listener(tmp_path: Path) -> None:
     assert functions(stop) == [("step", 13)] and stop.step == 1
 
 
+def test_step_out_of_a_listener_and_of_a_foreach_closure(tmp_path: Path) -> None:
+    """Out of a listener (the firmware calls it for each message): its other calls run
+    through, then `step` starts; out of a `foreach` closure: the line after the `foreach`
+    call; out of `step`: the next function the firmware calls, in the next control step."""
+    debugger = SwarmDebugger(swarm(tmp_path, STEPPING_SCRIPT))
+    debugger.breakpoints = [Breakpoint(9, robot=4)]
+    heard = debugger.run(5)
+    assert functions(heard) == [("lambda at line 8", 9)] and heard.locals["rid"] == "0"
+    debugger.breakpoints = []
+    out = debugger.step_out(4)
+    assert functions(out) == [("step", 13)] and out.step == heard.step
+    assert debugger.evaluate(4, "seen") == 0 + 1 + 2 + 3  # every message was heard
+    debugger.breakpoints = [Breakpoint(15, robot=4)]
+    inside = debugger.run(5)
+    assert functions(inside)[0] == ("lambda at line 14", 15) and inside.step == out.step
+    debugger.breakpoints = []
+    after = debugger.step_out(4)
+    assert functions(after) == [("step", 17)] and after.step == inside.step
+    next_step = debugger.step_out(4)
+    assert functions(next_step) == [("lambda at line 8", 9)]
+    assert next_step.step == after.step + 1
+
+
 def test_step_instruction_moves_one_pc(tmp_path: Path) -> None:
     debugger = SwarmDebugger(swarm(tmp_path, STEPPING_SCRIPT))
     debugger.breakpoints = [Breakpoint(17, robot=0)]

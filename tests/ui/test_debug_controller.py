@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from browser import wait_until
 
+from bbzide.ui.inspection import PausedAt
 from bbzide.ui.run_controller import RunController, RunSettings
 from bbzide.ui.watches import BadWatch, Watch, WatchBook, chart_data
 from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
@@ -187,12 +188,54 @@ def test_breakpoint_steps_and_back_through_the_controller(tmp_path: Path) -> Non
         # over the end of `step`: the robot's next line is the listener's, next control step
         assert command("step_over") == (1, 4, "step")
         assert controller.status.paused_at.frames[0].function == "lambda at line 3"  # type: ignore
-        assert command("step_out") == (1, 9, "breakpoint")  # out of the lambda: to the hit
+        # out of the lambda: its calls for the other messages run through, then `step` starts
+        assert command("step_out") == (1, 8, "step")
         assert command("step_back_control_step")[1] == 8
         assert command("step_over")[:2] == (1, 9)  # (a breakpoint's line: reason "breakpoint")
         assert robot_bytes(controller, 1) == at_nine  # the same state, byte for byte
         controller.set_breakpoints([])
         controller.play()  # finishes the held step through the debugger, then runs plain
         wait_until(lambda: controller.status.step >= 4, WAIT_S, message="running on")
+    finally:
+        controller.stop()
+
+
+def back_line(controller: RunController) -> PausedAt:
+    """Step back one line of robot 2 (the robot the error scripts fail) and wait for it."""
+    stops = controller.status.stops
+    controller.debug("step_back_line", 2)
+    wait_until(lambda: controller.status.stops > stops or controller.status.debug_note,
+               WAIT_S, message="the step back")
+    paused = controller.status.paused_at
+    assert paused is not None, controller.status.debug_note
+    return paused
+
+
+def test_step_back_from_a_pause_the_debugger_did_not_make(tmp_path: Path) -> None:
+    """Plain steps (no breakpoint) then Pause: Back goes to robot 2's last line of the step
+    before, inside that step; the same from the pause on an error at the end of a plain step,
+    where it lands on the failing line."""
+    controller = controller_for(FAILING, tmp_path)
+    try:
+        for _ in range(2):
+            controller.single_step()
+        wait_until(lambda: controller.status.step == 2, WAIT_S, message="two plain steps")
+        controller.pause()
+        assert controller.flush(WAIT_S) and controller.status.paused_at is None
+        paused = back_line(controller)
+        # the last line robot 2 ran in step 1 (its count was 2: the `if` is false)
+        assert (paused.robot_id, paused.line, paused.reason, paused.step) == (2, 5, "step", 1)
+        assert paused.mid_step
+        controller.play()  # on to the error, which pauses the run at the end of its step
+        wait_until(lambda: controller.status.paused_at is not None
+                   and controller.status.paused_at.reason == "error", WAIT_S,
+                   message="the error pause")
+        error = controller.status.paused_at
+        assert error is not None and (error.robot_id, error.line) == (2, FAILING_LINE)
+        paused = back_line(controller)
+        assert (paused.robot_id, paused.line, paused.reason) == (2, FAILING_LINE, "step")
+        assert paused.step == error.step - 1  # inside the step that failed (an error pause
+        back_again = back_line(controller)  # after a plain step names the step count after it)
+        assert (back_again.line, back_again.step) == (5, error.step - 1)  # the `if` before
     finally:
         controller.stop()

@@ -15,6 +15,7 @@ from bbzide.lessons import catalog
 from bbzide.ui.app import IdeApp
 from bbzide.ui.run_controller import RunSettings
 from bbzide.ui.scenario_links import EXAMPLES_FOLDER
+from bbzide.ui.watches import Watch
 from bbzide.ui.world_adapter import WorldsBackend
 from bbzide.worlds.scenario import load_scenario
 from tests.ui.browser import UI_WAIT_S, free_port, wait_until
@@ -93,6 +94,10 @@ def test_a_scenario_pauses_at_its_steps_and_says_so(ide: IdeApp) -> None:
     assert "pauses at step 30" in ide.teaching.about.content
     assert "`hops`" in ide.teaching.about.content           # the scenario's watches
     assert ide.controller.watches == ("hops",)
+    # the Watches folder plots it from the scenario's first step on
+    assert ide.watch_book.watches == [Watch("expression", "hops")]
+    steps, _values = ide.watch_book.series(Watch("expression", "hops"))
+    assert steps[0] == 1 and steps[-1] == 30
     ide.controller.play()                                    # Play runs on past it
     wait_until(lambda: ide.controller.status.step > 30, UI_WAIT_S, message="steps past 30")
     assert ide.controller.status.notice is None
