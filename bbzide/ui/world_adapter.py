@@ -14,16 +14,15 @@ Swarms are built through the recording room's `Recordable` factory, so the IDE's
 can start recording any running swarm (robots pass their inputs through untouched until then).
 `inspect_robot` builds the inspector view from any robot, live or rebuilt from a recording.
 
-Lower rooms are imported lazily, so `bbzide --help` never needs them, and a missing room is a
-`UserError` that says which one, never a traceback.
+Lower rooms are imported lazily, so `bbzide --help` never waits for them.
 """
 
 from __future__ import annotations
 
 import functools
-import importlib
 import json
 from collections.abc import Sequence
+from importlib import import_module
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -56,28 +55,16 @@ IDE_INSTRUCTION_BUDGET = 5_000
 #: such a pause re-executes at most 999 plain steps (well under a second for 25 Kilobots).
 PAST_EVERY = 1_000
 
-class MissingRoomError(UserError):
-    """A room the IDE needs (compiler, VM, worlds) is not in this build."""
-
-
-def _import(module: str) -> ModuleType:
-    try:
-        return importlib.import_module(module)
-    except ModuleNotFoundError as missing:
-        raise MissingRoomError(
-            f"the IDE needs {module}, which is not in this build ({missing.name} is missing)"
-        ) from None
-
 
 class WorldsBackend:
     """The real worlds (bbzide.worlds), compiled with the real compiler for each platform."""
 
     def __init__(self) -> None:
-        self._compiler = _import("bbzide.compiler")
-        self._engine = _import("bbzide.worlds.engine")
-        _import("bbzide.vm.robot")  # the firmware loop every world drives
-        self._profiles = _import("bbzide.vm.profiles").PROFILES
-        self._recording = _import("bbzide.recording.recorder")
+        self._compiler = import_module("bbzide.compiler")
+        self._engine = import_module("bbzide.worlds.engine")
+        import_module("bbzide.vm.robot")  # the firmware loop every world drives
+        self._profiles = import_module("bbzide.vm.profiles").PROFILES
+        self._recording = import_module("bbzide.recording.recorder")
         self._worlds: dict[str, Any] = dict(self._engine.WORLDS)
 
     # ---- what exists ---------------------------------------------------------------------------
@@ -104,7 +91,7 @@ class WorldsBackend:
     def flash_budget(self, world: str) -> int | None:
         """Bytes of flash left for the `.bbo` (the compiler room's `FLASH_BUDGETS`: flash less
         the boot section and the BBZVM), not the whole flash."""
-        budgets = _import("bbzide.compiler.footprint").FLASH_BUDGETS
+        budgets = import_module("bbzide.compiler.footprint").FLASH_BUDGETS
         budget = budgets.get(self.platform(world).name)
         return None if budget is None else int(budget.bytes_for_bytecode)
 
@@ -146,7 +133,7 @@ class WorldsBackend:
         opened with (same world and robot count) with `script` as every group's script, else
         one group of `robots` running `script`; with `simulation`, the robots' positions and
         headings now are pinned in it."""
-        module = _import("bbzide.worlds.scenario")
+        module = import_module("bbzide.worlds.scenario")
         if scenario is not None and scenario.world == world and scenario.robots == robots:
             current = scenario.with_seed(seed).with_script(script)
         else:
@@ -157,7 +144,7 @@ class WorldsBackend:
 
     def save_scenario(self, scenario: Any, path: Path) -> Path:
         """Write `scenario` to `path` (read back and checked before this returns)."""
-        return _import("bbzide.worlds.scenario").save_scenario(scenario, path)
+        return import_module("bbzide.worlds.scenario").save_scenario(scenario, path)
 
 
 class WorldsSimulation:
@@ -166,7 +153,7 @@ class WorldsSimulation:
     def __init__(self, simulation: Any, program: Any, profile: Any, recordable: Any = None,
                  recording: ModuleType | None = None) -> None:
         self.sim = simulation
-        self._recording = recording or _import("bbzide.recording.recorder")
+        self._recording = recording or import_module("bbzide.recording.recorder")
         self.program = program
         self.profile = profile
         self.recordable = recordable
@@ -182,7 +169,7 @@ class WorldsSimulation:
         """The debugger room's `SwarmDebugger` on this swarm (made on first use: a run without
         breakpoints never builds one)."""
         if self._debugger is None:
-            self._debugger = _import("bbzide.debugger").SwarmDebugger(self.sim)
+            self._debugger = import_module("bbzide.debugger").SwarmDebugger(self.sim)
             self._debugger.pause_on_error = self.pause_on_error
         return self._debugger
 
@@ -190,7 +177,7 @@ class WorldsSimulation:
         """The IDE's breakpoints (`bbzide.ui.breakpoints.LineBreakpoint`) in the main script;
         the ones the debugger refuses (a robot id not in the swarm, a condition that does not
         parse) are left out, each with its one-line reason in the list returned."""
-        room = _import("bbzide.debugger")
+        room = import_module("bbzide.debugger")
         debugger = self.debugger()
         kept, refused = [], []
         for line in lines:
@@ -436,7 +423,7 @@ def explain_robot_failure(failure: Any, program: Any, host_names: Sequence[str],
     when the compiler knows the failing call (`bbzide.compiler.call_sites`), else the debug
     map's location and the VM's message."""
     reason = getattr(failure, "reason", "error")
-    call_sites = _import("bbzide.compiler.call_sites")
+    call_sites = import_module("bbzide.compiler.call_sites")
     explained = call_sites.explain_failure(program, reason, int(getattr(failure, "pc", -1)),
                                            host_names, call_sites.robot_phrase(world_name))
     if explained is not None:
@@ -502,7 +489,7 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
         free_bytes=decoded.free_bytes,
         peak_bytes=int(heap.peak_used),
         gc_runs=int(heap.gc_runs),
-        ram_bytes=_import("bbzide.compiler.footprint").RAM_BYTES.get(profile.name),
+        ram_bytes=import_module("bbzide.compiler.footprint").RAM_BYTES.get(profile.name),
         objects=decoded.objects,
         frames=frames + _stack_rows(vm, reader),
         globals=globals_,
@@ -520,9 +507,9 @@ def inspect_robot(robot: Any, profile: Any, program: Any, index: int, step: int,
 
 @functools.lru_cache(maxsize=16)  # a few programs at a time (a reload, a replay's revisions)
 def _named_functions(bbo: bytes, strings: tuple[str, ...]) -> dict[int, str]:
-    bytecode = _import("bbzide.compiler.bytecode")
+    bytecode = import_module("bbzide.compiler.bytecode")
     try:
-        return _import("bbzide.compiler.disassembler").function_names(
+        return import_module("bbzide.compiler.disassembler").function_names(
             bytecode.read_bbo(bbo), strings)
     except bytecode.BytecodeError:
         return {}
@@ -569,7 +556,7 @@ def _stigmergy_rows(vm: Any, reader: HeapReader, strings: list[str]) -> list[tup
 def _frame_rows(vm: Any, program: Any) -> list[str]:
     """Call frames, innermost first, with the source line each returns to (the VM room's
     `stack_frames`); empty between two steps, when no Buzz function is running."""
-    frames = _import("bbzide.vm.inspector").stack_frames(vm)
+    frames = import_module("bbzide.vm.inspector").stack_frames(vm)
     rows = []
     for depth, frame in enumerate(frames):
         where = program.location_of(frame.return_pc) if hasattr(program, "location_of") else None
@@ -582,7 +569,7 @@ def _neighbor_rows(vm: Any) -> list[tuple[str, str]]:
     """Neighbor data as the robot's VM holds it (the VM room's `neighbor_entries`: XTREME ring
     buffer or heap sub-table): id, distance, azimuth, elevation."""
     rows = []
-    for n in _import("bbzide.vm.inspector").neighbor_entries(vm):
+    for n in import_module("bbzide.vm.inspector").neighbor_entries(vm):
         rows.append((f"robot {n.robot}", f"distance {_number(n.distance)}, azimuth "
                      f"{_number(n.azimuth)}, elevation {_number(n.elevation)}"))
     return rows
@@ -594,7 +581,7 @@ def _number(value: Any) -> str:
 
 def _swarm_rows(vm: Any) -> list[str]:
     """Swarm memberships (`my_swarmlist`, 8 bits) and the swarm stack (`swarm.id()`)."""
-    view = _import("bbzide.vm.inspector").swarm_view(vm)
+    view = import_module("bbzide.vm.inspector").swarm_view(vm)
     member = ", ".join(map(str, view.member_of)) or "none"
     rows = [f"member of: {member} (bits {view.membership_bits:08b})"]
     if view.executing:
@@ -617,7 +604,7 @@ def _runtime_warnings(vm: Any, last_sent: Sequence[bytes]) -> list[str]:
     * The outgoing queue full: one more message hits the firmware's overflow bug (stale bytes
       sent instead of the new message).
     """
-    messages = _import("bbzide.vm.messages")
+    messages = import_module("bbzide.vm.messages")
     valued = (messages.BROADCAST, messages.VSTIG_PUT, messages.VSTIG_QUERY)
     warnings = []
     queues = vm.queues

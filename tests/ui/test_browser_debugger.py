@@ -15,14 +15,9 @@ import pytest
 from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from ide_harness import IdeSession, running_ide
 
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 ROBOTS = 4
 SCRIPT = """\
@@ -54,7 +49,6 @@ PAUSED_LINE_JS = """() => {
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     script = tmp_path_factory.mktemp("debugger") / "bump.bzz"
     script.write_text(SCRIPT)
     with running_ide(script, BACKEND, "kilobot", ROBOTS) as session:

@@ -15,16 +15,10 @@ from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from ide_harness import SCREENSHOT_DIR, IdeSession, editor_text, running_ide
 
 from bbzide.compiler.reference import BUILTINS
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 from bbzide.worlds.reference import HOST_FUNCTIONS
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-    MISSING = ""
-except MissingRoomError as error:
-    BACKEND, MISSING = None, error.message
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason=f"lower rooms not merged: {MISSING}")
+BACKEND = WorldsBackend()
 
 SCRIPT = (
     "# teaching the editor\n"
@@ -43,7 +37,6 @@ SCRIPT = (
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     script = tmp_path_factory.mktemp("editor") / "teach.bzz"
     script.write_text(SCRIPT)
     with running_ide(script, BACKEND, "kilobot", 4) as session:

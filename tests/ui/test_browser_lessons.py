@@ -14,23 +14,16 @@ from ide_harness import IdeSession, editor_text, running_ide
 
 from bbzide.lessons import catalog
 from bbzide.ui.teaching_panel import lesson_label
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 from bbzide.worlds.scenario import load_scenario
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-    MISSING = ""
-except MissingRoomError as error:
-    BACKEND, MISSING = None, error.message
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason=f"lower rooms not merged: {MISSING}")
+BACKEND = WorldsBackend()
 
 LESSON = catalog.lesson(2)
 
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     folder = tmp_path_factory.mktemp("lessons")
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv(catalog.HOME_VARIABLE, str(folder / "work"))

@@ -16,14 +16,9 @@ import pytest
 from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
 from ide_harness import IdeSession, running_ide
 
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 REPO = Path(__file__).resolve().parents[2]
 DRONES = 6
@@ -31,7 +26,6 @@ DRONES = 6
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     script = tmp_path_factory.mktemp("m300") / "flocking.bzz"
     shutil.copy(REPO / "examples" / "m300" / "flocking.bzz", script)
     with running_ide(script, BACKEND, "m300", DRONES) as session:

@@ -11,21 +11,15 @@ import pytest
 from browser import UI_WAIT_S, wait_until
 from ide_harness import IdeSession, running_ide
 
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     script = tmp_path_factory.mktemp("record") / "gradient.bzz"
     shutil.copy(REPO / "examples" / "kilobot" / "gradient.bzz", script)
     with running_ide(script, BACKEND, "kilobot", 9) as session:

@@ -14,22 +14,16 @@ from bbzide.recording.recorder import MissionRecorder
 from bbzide.ui.replay_app import ReplayApp
 from bbzide.ui.replay_session import ReplaySession
 from bbzide.ui.watches import Watch
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 from tests.debugger.swarms import ROBOTS, STEPPING_SCRIPT, TABLE
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 RECORDED_STEPS = 6
 
 
 @pytest.fixture(scope="module")
 def replay(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ReplayApp, object]]:
-    assert BACKEND is not None
     folder = tmp_path_factory.mktemp("replay-debug")
     script = folder / "swarm.bzz"
     script.write_text(STEPPING_SCRIPT)

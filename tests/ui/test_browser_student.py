@@ -14,14 +14,9 @@ import pytest
 from browser import UI_WAIT_MS
 from ide_harness import IdeSession, running_ide
 
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 ROBOTS = 6
 SCRIPT = (
@@ -41,7 +36,6 @@ CALL_LINE = 9
 
 @pytest.fixture(scope="module")
 def ide(tmp_path_factory: pytest.TempPathFactory) -> Iterator[IdeSession]:
-    assert BACKEND is not None
     script = tmp_path_factory.mktemp("student") / "first.bzz"
     script.write_text(SCRIPT)
     with running_ide(script, BACKEND, "kilobot", ROBOTS) as session:

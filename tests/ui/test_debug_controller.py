@@ -14,14 +14,9 @@ from browser import wait_until
 from bbzide.ui.inspection import PausedAt
 from bbzide.ui.run_controller import RunController, RunSettings
 from bbzide.ui.watches import BadWatch, Watch, WatchBook, chart_data
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 #: How long the simulation thread may take to apply a command on a loaded machine (liveness).
 WAIT_S = 60.0
@@ -52,7 +47,6 @@ function step() {
 
 
 def controller_for(text: str, tmp_path: Path, robots: int = 4) -> RunController:
-    assert BACKEND is not None
     path = tmp_path / "script.bzz"
     path.write_text(text)
     _compiled, program = BACKEND.compile(text, path, "kilobot")

@@ -14,16 +14,11 @@ from bbzide.debugger import Breakpoint, SwarmDebugger
 from bbzide.recording.reader import read_recording
 from bbzide.recording.recorder import MissionRecorder, RecordingError
 from bbzide.ui.replay_session import ReplaySession
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 from bbzide.vm.robot import Robot
 from tests.debugger.swarms import ROBOTS, STEPPING_SCRIPT, TABLE
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 RECORDED_STEPS = 8
 #: The step the replay and the live run start stepping from (every robot hears the others).
@@ -31,13 +26,11 @@ START = 3
 
 
 def live_swarm(script: Path, program: Any) -> Any:
-    assert BACKEND is not None
     return BACKEND.create("kilobot", program, ROBOTS, 1, world_options=TABLE)
 
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[ReplaySession, Path, Any]:
-    assert BACKEND is not None
     folder = tmp_path_factory.mktemp("replay-stepping")
     script = folder / "swarm.bzz"
     script.write_text(STEPPING_SCRIPT)

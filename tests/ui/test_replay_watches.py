@@ -12,14 +12,9 @@ import pytest
 from bbzide.recording.reader import read_recording
 from bbzide.ui.replay_session import ReplaySession
 from bbzide.ui.watches import BadWatch, Watch, WatchBook
-from bbzide.ui.world_adapter import MissingRoomError, WorldsBackend
+from bbzide.ui.world_adapter import WorldsBackend
 
-try:
-    BACKEND: WorldsBackend | None = WorldsBackend()
-except MissingRoomError:
-    BACKEND = None
-
-pytestmark = pytest.mark.skipif(BACKEND is None, reason="lower rooms not merged")
+BACKEND = WorldsBackend()
 
 #: Robots write the stigmergy key `k` now and then (versions move between them by radio),
 #: grow a table (the heap changes) and count by their id.
@@ -51,7 +46,6 @@ def same(a: list[float], b: list[float]) -> bool:
 def recorded(tmp_path_factory: pytest.TempPathFactory
              ) -> tuple[ReplaySession, WatchBook, dict[int, list]]:
     """A live run's watch book and stigmergy versions after every step, and its replay."""
-    assert BACKEND is not None
     folder = tmp_path_factory.mktemp("replay-watches")
     script = folder / "stig.bzz"
     script.write_text(SCRIPT)
