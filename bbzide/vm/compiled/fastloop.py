@@ -18,11 +18,11 @@ routine then runs it from the start, so errors, their pcs and every quirk stay i
 (``darray_size``'s unlinking write, done by ``lstore``'s check, is idempotent: Python redoing
 it writes the same bytes.) Covered, on their happy path: nop, calls, pushnil, dup, pop,
 int add/sub/mul/div/mod/pow/unm, the logical ops, lnot, bnot, the six comparisons
-(``bbztype_cmp``), gload, gstore, tget, tput (no method binding), pushf, pushi, pushs
-(string dedupe), pushcn, pushcc, lload, lstore (existing local), jump, jumpz, jumpnz.
-callc and ret0/ret1 of bytecode closures (Python only calls the host function of a C closure,
-status HOST_CALL). Python keeps: done, pusht, pushl, lremove of several locals, floats
-arithmetic, every error.
+(``bbztype_cmp``), gload, gstore, pusht (when the heap holds the table and its segment),
+tget, tput (no method binding), pushf, pushi, pushs (string dedupe), pushcn, pushcc, lload,
+lstore (existing local), jump, jumpz, jumpnz. callc and ret0/ret1 of bytecode closures
+(Python only calls the host function of a C closure, status HOST_CALL). Python keeps: done,
+pushl, lremove of several locals, floats arithmetic, every error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
 compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
@@ -133,6 +133,35 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
     if typ == _CLOSURE:
         d[o + 2] = _NO_ACTREC
     return found
+
+
+@_compile
+def _room(d: Any, regs: Any, s: int, reserved: int, elems: int, objects: int,
+          segments: int) -> bool:
+    """Would ``objects`` object allocations, then ``segments`` segment allocations, all
+    succeed? Each takes a free slot (first fit) or grows its end of the heap; the objects
+    come first, so their growth is what the segments' growth must leave room for."""
+    size = len(d)
+    g = 4 * elems + 2
+    rtobj = regs[R_RTOBJ]
+    ltseg = regs[R_LTSEG]
+    free = 0
+    for i in range(reserved, rtobj // s):
+        if free == objects:
+            break
+        if not _i(d[i * s]) & _VALID:
+            free += 1
+    rtobj += (objects - free) * s
+    if rtobj > ltseg:
+        return False
+    free = 0
+    mo = 4 * elems
+    for j in range((size - ltseg) // g):
+        if free == segments:
+            break
+        if not _i(d[size - (j + 1) * g + mo + 1]) & 0x80:  # SEG_VALID, high byte
+            free += 1
+    return ltseg - (segments - free) * g >= rtobj
 
 
 @_compile
@@ -837,6 +866,15 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 regs[R_EXECUTED] += 1
                 status = HOST_CALL
                 break
+        elif op == 30:  # pusht: a table and its first segment
+            if sp + 1 >= stack_size or not _room(d, regs, s, reserved, elems, 1, 1):
+                break
+            idx = _obj_alloc(d, regs, s, reserved, _TABLE, 0)
+            seg = _seg_alloc(d, regs, elems)
+            d[idx * s + 1] = seg & 0xFF
+            d[idx * s + 2] = (seg >> 8) & 0xFF
+            sp += 1
+            stack[sp] = idx
         elif op == 41:  # lload
             if sp + 1 >= stack_size:
                 break
