@@ -151,7 +151,7 @@ def test_literals_and_lambdas_identical_in_chunks(name: str, profile: Profile) -
 
 
 @pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
-@pytest.mark.parametrize("opcode", [30])
+@pytest.mark.parametrize("opcode", [30, 40])
 def test_the_kernel_runs_the_happy_path(opcode: int) -> None:
     """On a roomy heap the model's own ``op_pusht``/``op_pushl`` are not called in the
     fast mode: the kernel ran those instructions (the scripts above test its bytes)."""

@@ -19,10 +19,11 @@ routine then runs it from the start, so errors, their pcs and every quirk stay i
 it writes the same bytes.) Covered, on their happy path: nop, calls, pushnil, dup, pop,
 int add/sub/mul/div/mod/pow/unm, the logical ops, lnot, bnot, the six comparisons
 (``bbztype_cmp``), gload, gstore, pusht (when the heap holds the table and its segment),
-tget, tput (no method binding), pushf, pushi, pushs (string dedupe), pushcn, pushcc, lload,
-lstore (existing local), jump, jumpz, jumpnz. callc and ret0/ret1 of bytecode closures
-(Python only calls the host function of a C closure, status HOST_CALL). Python keeps: done,
-pushl, lremove of several locals, floats arithmetic, every error.
+tget, tput (no method binding), pushf, pushi, pushs (string dedupe), pushcn, pushcc, pushl
+(when the heap holds its objects and segments and, with lsyms set, a reserved slot is free
+for the activation record), lload, lstore (existing local), jump, jumpz, jumpnz. callc and
+ret0/ret1 of bytecode closures (Python only calls the host function of a C closure, status
+HOST_CALL). Python keeps: done, lremove of several locals, floats arithmetic, every error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
 compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
@@ -390,8 +391,10 @@ def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
 
 
 @_compile
-def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> None:
-    """``tables.darray_push`` on a well-formed darray whose room the caller checked."""
+def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> bool:
+    """``tables.darray_push`` on a well-formed darray. A push that needs a segment and
+    finds no room writes nothing and returns False, as ``darray_push``'s ``HeapFull``
+    (callers check the room first, or ignore the failure where ``lambda_alloc`` does)."""
     seg = _last_segment(d, a, s, elems)
     g = 4 * elems + 2
     n = 2 * elems
@@ -400,11 +403,14 @@ def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> None:
         p += 1
     if p == n:
         new = _seg_alloc(d, regs, elems)
+        if new < 0:
+            return False
         lm = _word(d, seg, n, g)
         _set_word(d, seg, n, g, (lm & ~_NO_NEXT) | (new & _NO_NEXT))
         seg = new
         p = 0
     _set_word(d, seg, p, g, v | 0x8000)
+    return True
 
 
 @_compile
@@ -429,6 +435,110 @@ def _darray_valid_count(d: Any, a: int, s: int, elems: int) -> int:
         if seg == _NO_NEXT:
             return count
     return -1
+
+
+@_compile
+def _darray_tail(d: Any, a: int, s: int, elems: int) -> int:
+    """Darray ``a`` read as ``darray_find``/``darray_size``/``darray_push`` read it, with no
+    write: ``2 * count + 1`` when a push would need a new segment (every element of the
+    chain valid), ``2 * count`` when it would fill the slot of the first invalid element
+    (``darray_size`` unlinks what follows it); -1 when ``a`` is not a valid object in the
+    heap, its chain leaves the heap, holds an invalid segment or is longer than the heap,
+    or an element indexes past the heap (``darray_find`` reads each one's metadata)."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    if not 0 <= a < nobj or not _i(d[a * s]) & _VALID:
+        return -1
+    seg = _u16(d, a, s)
+    count = 0
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size or not _word(d, seg, n, g) & 0x8000:
+            return -1
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if not w & 0x8000:
+                return 2 * count
+            if (w & 0x7FFF) >= nobj:
+                return -1
+            count += 1
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return 2 * count + 1
+    return -1
+
+
+@_compile
+def _darray_find(d: Any, a: int, x: int, count: int, s: int, elems: int) -> int:
+    """``tables.darray_find`` of object ``x`` in darray ``a`` of ``count`` elements (its
+    chain checked by :func:`_darray_tail`): the first valid element comparing equal to
+    ``x``, else ``count``."""
+    g = 4 * elems + 2
+    n = 2 * elems
+    seg = _u16(d, a, s)
+    for pos in range(count):
+        if pos > 0 and pos % n == 0:
+            seg = _word(d, seg, n, g) & _NO_NEXT
+        e = _word(d, seg, pos % n, g) & 0x7FFF
+        if _i(d[e * s]) & _VALID and _compare(d, e, x, s) == 0:
+            return pos
+    return count
+
+
+@_compile
+def _pushl(d: Any, regs: Any, lsyms: int, addr: int, s: int, elems: int,
+           reserved: int) -> int:
+    """``VM.op_pushl`` but the push: the lambda closure for bytecode address ``addr``, its
+    index returned; -1, with nothing written, when Python must run it (a full heap, no
+    free reserved slot for the activation record, a malformed function list or lsyms).
+
+    The closure takes a slot, then the int holding ``addr``; the function list keeps the
+    int unless an equal one is listed (then the int is freed); with ``lsyms`` set, a
+    reserved slot becomes a darray copy of it (``lambda_alloc``), the closure's byte 2."""
+    tail = _darray_tail(d, regs[R_FLIST], s, elems)
+    if tail < 0:
+        return -1
+    slot = -1
+    if lsyms != 0:
+        if _darray_valid_count(d, lsyms, s, elems) < 0:
+            return -1
+        for i in range(reserved):
+            if not _i(d[i * s]) & _VALID:
+                slot = i
+                break
+        if slot < 0:
+            return -1  # no reserved slot: MEM
+    # the function list may need a segment (room asked even when the int will be found:
+    # a too cautious refusal is only a step in Python); the record needs its first one,
+    # its other pushes ignore a full heap as lambda_alloc does
+    if not _room(d, regs, s, reserved, elems, 2, (tail & 1) + (1 if lsyms != 0 else 0)):
+        return -1
+    # ---- commit, in the order of VM.op_pushl
+    flist = regs[R_FLIST]
+    o = _obj_alloc(d, regs, s, reserved, _CLOSURE, 0)
+    d[o * s] = _i(d[o * s]) | _FLAG1 | _FLAG2
+    x = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[x * s + 1] = addr & 0xFF
+    d[x * s + 2] = (addr >> 8) & 0xFF
+    pos = _darray_find(d, flist, x, tail >> 1, s, elems)
+    if pos == darray_size(d, flist, s, elems):
+        _darray_push(d, regs, flist, x, s, elems)
+    else:
+        d[x * s] = _i(d[x * s]) & (0xFF ^ _VALID)
+    d[o * s + 1] = pos & 0xFF
+    if lsyms != 0:  # lambda_alloc(lsyms)
+        m = _i(d[slot * s])
+        d[slot * s] = ((m | _VALID) & (0xFF ^ 7) & (0xFF ^ _FLAG2)) | _TABLE | _FLAG1
+        seg = _seg_alloc(d, regs, elems)
+        d[slot * s + 1] = seg & 0xFF
+        d[slot * s + 2] = (seg >> 8) & 0xFF
+        count = darray_size(d, lsyms, s, elems)
+        for k in range(count):
+            e = darray_get(d, lsyms, k, s, elems)
+            _darray_push(d, regs, slot, e if e >= 0 else 0, s, elems)
+        d[o * s + 2] = slot
+    return o
 
 
 @_compile
@@ -873,6 +983,14 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             seg = _seg_alloc(d, regs, elems)
             d[idx * s + 1] = seg & 0xFF
             d[idx * s + 2] = (seg >> 8) & 0xFF
+            sp += 1
+            stack[sp] = idx
+        elif op == 40:  # pushl
+            if sp + 1 >= stack_size:
+                break
+            idx = _pushl(d, regs, lsyms, arg, s, elems, reserved)
+            if idx < 0:
+                break
             sp += 1
             stack[sp] = idx
         elif op == 41:  # lload
