@@ -17,13 +17,16 @@ returns :data:`NEED_PYTHON` *before touching anything* of that instruction: the 
 routine then runs it from the start, so errors, their pcs and every quirk stay in one place.
 (``darray_size``'s unlinking write, done by ``lstore``'s check, is idempotent: Python redoing
 it writes the same bytes.) Covered, on their happy path: nop, calls, pushnil, dup, pop,
-int add/sub/mul/div/mod/pow/unm, the logical ops, lnot, bnot, the six comparisons
+int add/sub/mul/div/mod/pow/unm, float add/sub/mul/div/mod/unm (operands INT or FLOAT, one
+FLOAT: the model's double operations and its float32 encoding, bit for bit, by test:
+``tests/vm/test_fast_floats.py``), the logical ops, lnot, bnot, the six comparisons
 (``bbztype_cmp``), gload, gstore, pusht (when the heap holds the table and its segment),
 tget, tput (no method binding), pushf, pushi, pushs (string dedupe), pushcn, pushcc, pushl
 (when the heap holds its objects and segments and, with lsyms set, a reserved slot is free
 for the activation record), lload, lstore (existing local), jump, jumpz, jumpnz. callc and
 ret0/ret1 of bytecode closures (Python only calls the host function of a C closure, status
-HOST_CALL). Python keeps: done, lremove of several locals, floats arithmetic, every error.
+HOST_CALL). Python keeps: done, lremove of several locals, float pow (a MATH error), every
+error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
 compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
@@ -34,6 +37,7 @@ dispatch. Equality with the reference is by test: ``tests/vm/test_fast_vm_equiva
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -171,6 +175,84 @@ def _can_alloc(d: Any, regs: Any, s: int, reserved: int) -> bool:
     if regs[R_RTOBJ] + s <= regs[R_LTSEG]:
         return True
     return first_free(d, regs[R_RTOBJ], s, reserved, _INT, 0) >= 0
+
+
+@_compile
+def _float_value(bits: int) -> float:
+    """``bbzfloat.to_float``: sign, 6-bit exponent (bias 31), 9-bit fraction; exponent 0
+    is (1 + f/512) * 2**-31 unless f is 0, exponents 62 and 63 are infinities. Exact: every
+    step multiplies by a power of two."""
+    sign = -1.0 if bits & 0x8000 else 1.0
+    exponent = (bits >> 9) & 0x3F
+    fraction = bits & 0x1FF
+    if exponent == 0:
+        if fraction == 0:
+            return sign * 0.0
+        return sign * math.ldexp(1.0 + fraction / 512.0, -31)
+    if exponent >= 62:
+        return sign * math.inf
+    return sign * math.ldexp(1.0 + fraction / 512.0, exponent - 31)
+
+
+@_compile
+def _float_bits(value: float) -> int:
+    """``bbzfloat.from_float``: the double rounded to the nearest float32 (past its range
+    an infinity, as ``to_float32`` makes it), whose bits are then cut to a bbzfloat: float32
+    exponent 0 (zero, denormals) gives a signed zero, 255 (infinity, NaN) an infinity that
+    keeps the low 9 mantissa bits, any other outside 97..157 an infinity (tiny values
+    included, as the model's encoder does); the mantissa is truncated, not rounded."""
+    bits = _i(np.float32(value).view(np.uint32))
+    sign = ((bits >> 31) & 1) << 15
+    exponent = (bits >> 23) & 0xFF
+    mantissa = bits & 0x7FFFFF
+    if exponent == 0:
+        return sign
+    if exponent == 0xFF:
+        return sign | 0x7E00 | (mantissa & 0x1FF)
+    if 96 < exponent < 158:
+        return sign | ((exponent - 96) << 9) | (mantissa >> 14)
+    return sign | 0x7E00
+
+
+@_compile
+def _float_arith(op: int, tl: int, ul: int, tr: int, ur: int) -> int:
+    """``VM._arith``'s float branch for add, sub, mul, div, mod (opcodes 7-11) of two
+    operands, INT or FLOAT, one of them FLOAT (``ul``/``ur``: their u16 payloads): the
+    result's bbzfloat bits; -1 when Python must run it. The same double operations as
+    the model, in the same order (no fused multiply-add: numba's default, no fastmath)."""
+    a = float(_s16(ul)) if tl == _INT else _float_value(ul)
+    b = float(_s16(ur)) if tr == _INT else _float_value(ur)
+    if op == 7:
+        r = a + b
+    elif op == 8:
+        r = a - b
+    elif op == 9:
+        r = a * b
+    elif op == 10:
+        if b != 0:
+            r = a / b
+        elif a != 0:
+            r = math.copysign(math.inf, a) * math.copysign(1.0, b)
+        else:
+            r = math.nan
+    elif op == 11:
+        if tl == _INT:
+            a = float(ul)  # the model's modulo reads an int dividend unsigned
+        if b == 0:
+            r = math.nan
+        else:
+            q = a / b
+            if not math.isfinite(q):
+                r = math.nan
+            elif abs(q) >= 9.2e18:
+                # int(q) must stay in int64 to wrap as Python's int does (it does: the
+                # operands keep |a| < 2**31 and |b| >= 2**-31, so |q| < 2**62)
+                return -1
+            else:
+                r = a - float(_s16(int(q))) * b
+    else:
+        return -1
+    return _float_bits(r)
 
 
 @_compile
@@ -794,40 +876,47 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 break
             tl = _i(d[lhs * s]) & 7
             tr = _i(d[rhs * s]) & 7
-            if float_ops:
-                if tl != _INT or tr != _INT:
+            result_type = _INT
+            if float_ops and (tl != _INT or tr != _INT):
+                # float arithmetic; Python keeps pow and operands of other types (MATH)
+                if op == 12 or (tl != _INT and tl != _FLOAT) or (tr != _INT and tr != _FLOAT):
                     break
-            elif tl == _FLOAT or tr == _FLOAT:
-                break
-            a = _s16(_u16(d, lhs, s))
-            b = _s16(_u16(d, rhs, s))
-            if op == 7:
-                res = a + b
-            elif op == 8:
-                res = a - b
-            elif op == 9:
-                res = a * b
-            elif op == 10 or op == 11:
-                if b == 0:
+                res = _float_arith(op, tl, _u16(d, lhs, s), tr, _u16(d, rhs, s))
+                if res < 0:
                     break
-                q = abs(a) // abs(b)
-                if (a < 0) != (b < 0):
-                    q = -q
-                res = q if op == 10 else a - q * b
+                result_type = _FLOAT
             else:
-                if b >= 0:
-                    res = 1
-                    for _ in range(b):
-                        res = (res * a) & 0xFFFFFFFF
-                        if res & 0x80000000:
-                            res -= 0x100000000
-                elif a == 1:
-                    res = 1
-                elif a == -1:
-                    res = -1
-                else:
+                if tl == _FLOAT or tr == _FLOAT:  # a build without float operations: TYPE
                     break
-            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+                a = _s16(_u16(d, lhs, s))
+                b = _s16(_u16(d, rhs, s))
+                if op == 7:
+                    res = a + b
+                elif op == 8:
+                    res = a - b
+                elif op == 9:
+                    res = a * b
+                elif op == 10 or op == 11:
+                    if b == 0:
+                        break
+                    q = abs(a) // abs(b)
+                    if (a < 0) != (b < 0):
+                        q = -q
+                    res = q if op == 10 else a - q * b
+                else:
+                    if b >= 0:
+                        res = 1
+                        for _ in range(b):
+                            res = (res * a) & 0xFFFFFFFF
+                            if res & 0x80000000:
+                                res -= 0x100000000
+                    elif a == 1:
+                        res = 1
+                    elif a == -1:
+                        res = -1
+                    else:
+                        break
+            idx = _obj_alloc(d, regs, s, reserved, result_type, 0)
             if idx < 0:
                 break
             d[idx * s + 1] = res & 0xFF
@@ -842,17 +931,22 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 break
             t = _i(d[o * s]) & 7
             u = _u16(d, o, s)
+            result_type = _INT
             if op == 13:
-                if t != _INT:
+                if t == _FLOAT:  # bbzfloat.negate, whatever the build
+                    res = u ^ 0x8000
+                    result_type = _FLOAT
+                elif t != _INT:
                     break
-                res = -_s16(u)
+                else:
+                    res = -_s16(u)
             elif t != _NIL and t != _INT:
                 break
             elif op == 16:
                 res = 1 if u != 0 else 0
             else:
                 res = ~u
-            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+            idx = _obj_alloc(d, regs, s, reserved, result_type, 0)
             if idx < 0:
                 break
             d[idx * s + 1] = res & 0xFF
