@@ -17,12 +17,16 @@ returns :data:`NEED_PYTHON` *before touching anything* of that instruction: the 
 routine then runs it from the start, so errors, their pcs and every quirk stay in one place.
 (``darray_size``'s unlinking write, done by ``lstore``'s check, is idempotent: Python redoing
 it writes the same bytes.) Covered, on their happy path: nop, calls, pushnil, dup, pop,
-int add/sub/mul/div/mod/pow/unm, the logical ops, lnot, bnot, the six comparisons
-(``bbztype_cmp``), gload, gstore, tget, tput (no method binding), pushf, pushi, pushs
-(string dedupe), pushcn, pushcc, lload, lstore (existing local), jump, jumpz, jumpnz.
-callc and ret0/ret1 of bytecode closures (Python only calls the host function of a C closure,
-status HOST_CALL). Python keeps: done, pusht, pushl, lremove of several locals, floats
-arithmetic, every error.
+int add/sub/mul/div/mod/pow/unm, float add/sub/mul/div/mod/unm (operands INT or FLOAT, one
+FLOAT: the model's double operations and its float32 encoding, bit for bit, by test:
+``tests/vm/test_fast_floats.py``), the logical ops, lnot, bnot, the six comparisons
+(``bbztype_cmp``), gload, gstore, pusht (when the heap holds the table and its segment),
+tget, tput (no method binding), pushf, pushi, pushs (string dedupe), pushcn, pushcc, pushl
+(when the heap holds its objects and segments and, with lsyms set, a reserved slot is free
+for the activation record), lload, lstore (existing local), jump, jumpz, jumpnz. callc and
+ret0/ret1 of bytecode closures (Python only calls the host function of a C closure, status
+HOST_CALL). Python keeps: done, lremove of several locals, float pow (a MATH error), every
+error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
 compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
@@ -33,6 +37,7 @@ dispatch. Equality with the reference is by test: ``tests/vm/test_fast_vm_equiva
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -136,11 +141,118 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
 
 
 @_compile
+def _room(d: Any, regs: Any, s: int, reserved: int, elems: int, objects: int,
+          segments: int) -> bool:
+    """Would ``objects`` object allocations, then ``segments`` segment allocations, all
+    succeed? Each takes a free slot (first fit) or grows its end of the heap; the objects
+    come first, so their growth is what the segments' growth must leave room for."""
+    size = len(d)
+    g = 4 * elems + 2
+    rtobj = regs[R_RTOBJ]
+    ltseg = regs[R_LTSEG]
+    free = 0
+    for i in range(reserved, rtobj // s):
+        if free == objects:
+            break
+        if not _i(d[i * s]) & _VALID:
+            free += 1
+    rtobj += (objects - free) * s
+    if rtobj > ltseg:
+        return False
+    free = 0
+    mo = 4 * elems
+    for j in range((size - ltseg) // g):
+        if free == segments:
+            break
+        if not _i(d[size - (j + 1) * g + mo + 1]) & 0x80:  # SEG_VALID, high byte
+            free += 1
+    return ltseg - (segments - free) * g >= rtobj
+
+
+@_compile
 def _can_alloc(d: Any, regs: Any, s: int, reserved: int) -> bool:
     """Would an object allocation succeed (a free slot below rtobj, or room to grow)?"""
     if regs[R_RTOBJ] + s <= regs[R_LTSEG]:
         return True
     return first_free(d, regs[R_RTOBJ], s, reserved, _INT, 0) >= 0
+
+
+@_compile
+def _float_value(bits: int) -> float:
+    """``bbzfloat.to_float``: sign, 6-bit exponent (bias 31), 9-bit fraction; exponent 0
+    is (1 + f/512) * 2**-31 unless f is 0, exponents 62 and 63 are infinities. Exact: every
+    step multiplies by a power of two."""
+    sign = -1.0 if bits & 0x8000 else 1.0
+    exponent = (bits >> 9) & 0x3F
+    fraction = bits & 0x1FF
+    if exponent == 0:
+        if fraction == 0:
+            return sign * 0.0
+        return sign * math.ldexp(1.0 + fraction / 512.0, -31)
+    if exponent >= 62:
+        return sign * math.inf
+    return sign * math.ldexp(1.0 + fraction / 512.0, exponent - 31)
+
+
+@_compile
+def _float_bits(value: float) -> int:
+    """``bbzfloat.from_float``: the double rounded to the nearest float32 (past its range
+    an infinity, as ``to_float32`` makes it), whose bits are then cut to a bbzfloat: float32
+    exponent 0 (zero, denormals) gives a signed zero, 255 (infinity, NaN) an infinity that
+    keeps the low 9 mantissa bits, any other outside 97..157 an infinity (tiny values
+    included, as the model's encoder does); the mantissa is truncated, not rounded."""
+    bits = _i(np.float32(value).view(np.uint32))
+    sign = ((bits >> 31) & 1) << 15
+    exponent = (bits >> 23) & 0xFF
+    mantissa = bits & 0x7FFFFF
+    if exponent == 0:
+        return sign
+    if exponent == 0xFF:
+        return sign | 0x7E00 | (mantissa & 0x1FF)
+    if 96 < exponent < 158:
+        return sign | ((exponent - 96) << 9) | (mantissa >> 14)
+    return sign | 0x7E00
+
+
+@_compile
+def _float_arith(op: int, tl: int, ul: int, tr: int, ur: int) -> int:
+    """``VM._arith``'s float branch for add, sub, mul, div, mod (opcodes 7-11) of two
+    operands, INT or FLOAT, one of them FLOAT (``ul``/``ur``: their u16 payloads): the
+    result's bbzfloat bits; -1 when Python must run it. The same double operations as
+    the model, in the same order (no fused multiply-add: numba's default, no fastmath)."""
+    a = float(_s16(ul)) if tl == _INT else _float_value(ul)
+    b = float(_s16(ur)) if tr == _INT else _float_value(ur)
+    if op == 7:
+        r = a + b
+    elif op == 8:
+        r = a - b
+    elif op == 9:
+        r = a * b
+    elif op == 10:
+        if b != 0:
+            r = a / b
+        elif a != 0:
+            r = math.copysign(math.inf, a) * math.copysign(1.0, b)
+        else:
+            r = math.nan
+    elif op == 11:
+        if tl == _INT:
+            a = float(ul)  # the model's modulo reads an int dividend unsigned
+        if b == 0:
+            r = math.nan
+        else:
+            q = a / b
+            if not math.isfinite(q):
+                r = math.nan
+            elif abs(q) >= 9.2e18:
+                # int(q) must stay in int64 to wrap as Python's int does (it does: the
+                # operands keep |a| < 2**31 and |b| >= 2**-31, so |q| < 2**62)
+                return -1
+            else:
+                r = a - float(_s16(int(q))) * b
+    else:
+        return -1
+    return _float_bits(r)
 
 
 @_compile
@@ -361,8 +473,10 @@ def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
 
 
 @_compile
-def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> None:
-    """``tables.darray_push`` on a well-formed darray whose room the caller checked."""
+def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> bool:
+    """``tables.darray_push`` on a well-formed darray. A push that needs a segment and
+    finds no room writes nothing and returns False, as ``darray_push``'s ``HeapFull``
+    (callers check the room first, or ignore the failure where ``lambda_alloc`` does)."""
     seg = _last_segment(d, a, s, elems)
     g = 4 * elems + 2
     n = 2 * elems
@@ -371,11 +485,14 @@ def _darray_push(d: Any, regs: Any, a: int, v: int, s: int, elems: int) -> None:
         p += 1
     if p == n:
         new = _seg_alloc(d, regs, elems)
+        if new < 0:
+            return False
         lm = _word(d, seg, n, g)
         _set_word(d, seg, n, g, (lm & ~_NO_NEXT) | (new & _NO_NEXT))
         seg = new
         p = 0
     _set_word(d, seg, p, g, v | 0x8000)
+    return True
 
 
 @_compile
@@ -400,6 +517,110 @@ def _darray_valid_count(d: Any, a: int, s: int, elems: int) -> int:
         if seg == _NO_NEXT:
             return count
     return -1
+
+
+@_compile
+def _darray_tail(d: Any, a: int, s: int, elems: int) -> int:
+    """Darray ``a`` read as ``darray_find``/``darray_size``/``darray_push`` read it, with no
+    write: ``2 * count + 1`` when a push would need a new segment (every element of the
+    chain valid), ``2 * count`` when it would fill the slot of the first invalid element
+    (``darray_size`` unlinks what follows it); -1 when ``a`` is not a valid object in the
+    heap, its chain leaves the heap, holds an invalid segment or is longer than the heap,
+    or an element indexes past the heap (``darray_find`` reads each one's metadata)."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    if not 0 <= a < nobj or not _i(d[a * s]) & _VALID:
+        return -1
+    seg = _u16(d, a, s)
+    count = 0
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size or not _word(d, seg, n, g) & 0x8000:
+            return -1
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if not w & 0x8000:
+                return 2 * count
+            if (w & 0x7FFF) >= nobj:
+                return -1
+            count += 1
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return 2 * count + 1
+    return -1
+
+
+@_compile
+def _darray_find(d: Any, a: int, x: int, count: int, s: int, elems: int) -> int:
+    """``tables.darray_find`` of object ``x`` in darray ``a`` of ``count`` elements (its
+    chain checked by :func:`_darray_tail`): the first valid element comparing equal to
+    ``x``, else ``count``."""
+    g = 4 * elems + 2
+    n = 2 * elems
+    seg = _u16(d, a, s)
+    for pos in range(count):
+        if pos > 0 and pos % n == 0:
+            seg = _word(d, seg, n, g) & _NO_NEXT
+        e = _word(d, seg, pos % n, g) & 0x7FFF
+        if _i(d[e * s]) & _VALID and _compare(d, e, x, s) == 0:
+            return pos
+    return count
+
+
+@_compile
+def _pushl(d: Any, regs: Any, lsyms: int, addr: int, s: int, elems: int,
+           reserved: int) -> int:
+    """``VM.op_pushl`` but the push: the lambda closure for bytecode address ``addr``, its
+    index returned; -1, with nothing written, when Python must run it (a full heap, no
+    free reserved slot for the activation record, a malformed function list or lsyms).
+
+    The closure takes a slot, then the int holding ``addr``; the function list keeps the
+    int unless an equal one is listed (then the int is freed); with ``lsyms`` set, a
+    reserved slot becomes a darray copy of it (``lambda_alloc``), the closure's byte 2."""
+    tail = _darray_tail(d, regs[R_FLIST], s, elems)
+    if tail < 0:
+        return -1
+    slot = -1
+    if lsyms != 0:
+        if _darray_valid_count(d, lsyms, s, elems) < 0:
+            return -1
+        for i in range(reserved):
+            if not _i(d[i * s]) & _VALID:
+                slot = i
+                break
+        if slot < 0:
+            return -1  # no reserved slot: MEM
+    # the function list may need a segment (room asked even when the int will be found:
+    # a too cautious refusal is only a step in Python); the record needs its first one,
+    # its other pushes ignore a full heap as lambda_alloc does
+    if not _room(d, regs, s, reserved, elems, 2, (tail & 1) + (1 if lsyms != 0 else 0)):
+        return -1
+    # ---- commit, in the order of VM.op_pushl
+    flist = regs[R_FLIST]
+    o = _obj_alloc(d, regs, s, reserved, _CLOSURE, 0)
+    d[o * s] = _i(d[o * s]) | _FLAG1 | _FLAG2
+    x = _obj_alloc(d, regs, s, reserved, _INT, 0)
+    d[x * s + 1] = addr & 0xFF
+    d[x * s + 2] = (addr >> 8) & 0xFF
+    pos = _darray_find(d, flist, x, tail >> 1, s, elems)
+    if pos == darray_size(d, flist, s, elems):
+        _darray_push(d, regs, flist, x, s, elems)
+    else:
+        d[x * s] = _i(d[x * s]) & (0xFF ^ _VALID)
+    d[o * s + 1] = pos & 0xFF
+    if lsyms != 0:  # lambda_alloc(lsyms)
+        m = _i(d[slot * s])
+        d[slot * s] = ((m | _VALID) & (0xFF ^ 7) & (0xFF ^ _FLAG2)) | _TABLE | _FLAG1
+        seg = _seg_alloc(d, regs, elems)
+        d[slot * s + 1] = seg & 0xFF
+        d[slot * s + 2] = (seg >> 8) & 0xFF
+        count = darray_size(d, lsyms, s, elems)
+        for k in range(count):
+            e = darray_get(d, lsyms, k, s, elems)
+            _darray_push(d, regs, slot, e if e >= 0 else 0, s, elems)
+        d[o * s + 2] = slot
+    return o
 
 
 @_compile
@@ -655,40 +876,47 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 break
             tl = _i(d[lhs * s]) & 7
             tr = _i(d[rhs * s]) & 7
-            if float_ops:
-                if tl != _INT or tr != _INT:
+            result_type = _INT
+            if float_ops and (tl != _INT or tr != _INT):
+                # float arithmetic; Python keeps pow and operands of other types (MATH)
+                if op == 12 or (tl != _INT and tl != _FLOAT) or (tr != _INT and tr != _FLOAT):
                     break
-            elif tl == _FLOAT or tr == _FLOAT:
-                break
-            a = _s16(_u16(d, lhs, s))
-            b = _s16(_u16(d, rhs, s))
-            if op == 7:
-                res = a + b
-            elif op == 8:
-                res = a - b
-            elif op == 9:
-                res = a * b
-            elif op == 10 or op == 11:
-                if b == 0:
+                res = _float_arith(op, tl, _u16(d, lhs, s), tr, _u16(d, rhs, s))
+                if res < 0:
                     break
-                q = abs(a) // abs(b)
-                if (a < 0) != (b < 0):
-                    q = -q
-                res = q if op == 10 else a - q * b
+                result_type = _FLOAT
             else:
-                if b >= 0:
-                    res = 1
-                    for _ in range(b):
-                        res = (res * a) & 0xFFFFFFFF
-                        if res & 0x80000000:
-                            res -= 0x100000000
-                elif a == 1:
-                    res = 1
-                elif a == -1:
-                    res = -1
-                else:
+                if tl == _FLOAT or tr == _FLOAT:  # a build without float operations: TYPE
                     break
-            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+                a = _s16(_u16(d, lhs, s))
+                b = _s16(_u16(d, rhs, s))
+                if op == 7:
+                    res = a + b
+                elif op == 8:
+                    res = a - b
+                elif op == 9:
+                    res = a * b
+                elif op == 10 or op == 11:
+                    if b == 0:
+                        break
+                    q = abs(a) // abs(b)
+                    if (a < 0) != (b < 0):
+                        q = -q
+                    res = q if op == 10 else a - q * b
+                else:
+                    if b >= 0:
+                        res = 1
+                        for _ in range(b):
+                            res = (res * a) & 0xFFFFFFFF
+                            if res & 0x80000000:
+                                res -= 0x100000000
+                    elif a == 1:
+                        res = 1
+                    elif a == -1:
+                        res = -1
+                    else:
+                        break
+            idx = _obj_alloc(d, regs, s, reserved, result_type, 0)
             if idx < 0:
                 break
             d[idx * s + 1] = res & 0xFF
@@ -703,17 +931,22 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 break
             t = _i(d[o * s]) & 7
             u = _u16(d, o, s)
+            result_type = _INT
             if op == 13:
-                if t != _INT:
+                if t == _FLOAT:  # bbzfloat.negate, whatever the build
+                    res = u ^ 0x8000
+                    result_type = _FLOAT
+                elif t != _INT:
                     break
-                res = -_s16(u)
+                else:
+                    res = -_s16(u)
             elif t != _NIL and t != _INT:
                 break
             elif op == 16:
                 res = 1 if u != 0 else 0
             else:
                 res = ~u
-            idx = _obj_alloc(d, regs, s, reserved, _INT, 0)
+            idx = _obj_alloc(d, regs, s, reserved, result_type, 0)
             if idx < 0:
                 break
             d[idx * s + 1] = res & 0xFF
@@ -837,6 +1070,23 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 regs[R_EXECUTED] += 1
                 status = HOST_CALL
                 break
+        elif op == 30:  # pusht: a table and its first segment
+            if sp + 1 >= stack_size or not _room(d, regs, s, reserved, elems, 1, 1):
+                break
+            idx = _obj_alloc(d, regs, s, reserved, _TABLE, 0)
+            seg = _seg_alloc(d, regs, elems)
+            d[idx * s + 1] = seg & 0xFF
+            d[idx * s + 2] = (seg >> 8) & 0xFF
+            sp += 1
+            stack[sp] = idx
+        elif op == 40:  # pushl
+            if sp + 1 >= stack_size:
+                break
+            idx = _pushl(d, regs, lsyms, arg, s, elems, reserved)
+            if idx < 0:
+                break
+            sp += 1
+            stack[sp] = idx
         elif op == 41:  # lload
             if sp + 1 >= stack_size:
                 break
