@@ -1,7 +1,8 @@
 """Compile the VM's machine code once, at set-up, so the first swarm a user opens starts at once.
 
-The fast VM mode runs its hot loops as numba kernels cached on disk (`cache=True`, next to
-their sources in bbzide/vm/compiled/__pycache__). Without a cache, the first control step of the
+The fast VM mode runs its hot loops as numba kernels cached on disk (`cache=True`, in
+bbzide/vm/compiled/__pycache__/kernels-DIGEST, one folder per version of the kernels' sources:
+see fastgc._kernel_sources_digest). Without a cache, the first control step of the
 first swarm compiles them all: ~30 s on an idle 2-core machine, ~65 s under load (measured on a
 2-core machine) — long enough for a student running `make run` to think the IDE is broken. `make
 setup` runs this once after installing: a few steps of each world's default example, which

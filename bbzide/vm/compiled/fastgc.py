@@ -23,13 +23,40 @@ the heap can hold (a cyclic chain would hang the firmware).
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+#: What the kernels' machine code is made of: their own sources and the model's layouts and
+#: constants they import (numba freezes module-level constants into the code it compiles).
+_MODEL_LAYOUTS = ("heap_layout.py", "message_layout.py", "packed_messages.py", "states.py")
+
+
+def _kernel_sources_digest() -> str:
+    """A digest of every source the kernels are compiled from. numba's disk cache checks
+    only the source file of each function it loads: a kernel that calls one from another file
+    (every kernel calls into fastgc, most into fastloop) or reads another module's constant
+    would keep its old machine code after that file changed. So the cache lives in a folder
+    named by this digest: any change to those sources starts a new cache, and every kernel is
+    compiled again, once."""
+    here = Path(__file__).parent
+    sources = sorted(here.glob("*.py")) + [here.parent / name for name in _MODEL_LAYOUTS]
+    digest = hashlib.sha256()
+    for source in sources:
+        digest.update(source.name.encode() + b"\0" + source.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 try:  # numba is optional: the kernels are plain Python that numba compiles when present
+    from numba import config as _numba_config
     from numba import njit as _njit
+
+    # read by each kernel's cache when `_compile` creates it, below and in the other kernels
+    _numba_config.CACHE_DIR = str(Path(__file__).parent / "__pycache__"
+                                  / f"kernels-{_kernel_sources_digest()}")
 
     def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
         return _njit(cache=True, nogil=True)(fn)
