@@ -24,8 +24,8 @@ from bbzide.vm import vm as vm_module
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import FLOAT, INT
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
-from bbzide.vm.states import Error
 from bbzide.vm.vm import VM, State
+from tests.vm.chunked_runs import run_in_chunks, run_whole
 
 
 def _double_bits(x: float) -> bytes:
@@ -180,40 +180,6 @@ while (i < 30) {
 """,
 }
 
-#: chunk sizes (instructions) the runs are observed after, cycled
-CHUNKS = (1, 2, 3, 5, 8, 13, 40)
-
-
-def _observe(vm: VM) -> tuple:
-    return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
-            vm.lsyms, vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data),
-            list(vm.error_events), vm.heap.gc_runs, vm.instructions_executed,
-            vm.heap.peak_used)
-
-
-def _run_in_chunks(bbo: bytes, profile: Profile, stress: bool) -> list[tuple]:
-    vm = VM(profile, stress_gc=stress)
-    vm.construct()
-    vm.set_bcode(bbo)
-    states = [_observe(vm)]
-    for n in range(600):
-        if vm.state != State.READY:
-            break
-        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
-        states.append(_observe(vm))
-        if vm.state == State.ERROR and vm.error == Error.BUDGET:
-            vm.state = State.READY
-    return states
-
-
-def _run_whole(bbo: bytes, profile: Profile, stress: bool) -> tuple:
-    vm = VM(profile, stress_gc=stress)
-    vm.construct()
-    vm.set_bcode(bbo)
-    vm.run(max_instructions=200_000)
-    return _observe(vm)
-
-
 def _bbo(name: str) -> bytes:
     return compile_source(SCRIPTS[name], "floats.bzz").to_bbo().bbo
 
@@ -226,9 +192,9 @@ PROFILES = [PC, CRAZYFLIE, KILOBOT,  # Kilobot: no float operations (TYPE errors
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
 def test_float_scripts_identical(name: str, profile: Profile) -> None:
     bbo = _bbo(name)
-    assert _run_whole(bbo, profile, True) == _run_whole(bbo, profile, False)
-    stress = _run_in_chunks(bbo, profile, True)
-    fast = _run_in_chunks(bbo, profile, False)
+    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
+    stress = run_in_chunks(bbo, profile, True, 600)
+    fast = run_in_chunks(bbo, profile, False, 600)
     assert len(stress) == len(fast)
     for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
         assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"
@@ -254,10 +220,10 @@ def test_the_kernel_runs_float_arithmetic() -> None:
         vm_module._SIMPLE_OPS[op] = counting(op)
     try:
         bbo = _bbo("mixed arithmetic")
-        stress = _run_whole(bbo, PC, True)
+        stress = run_whole(bbo, PC, True)
         assert float_calls  # the reference mode runs them in Python
         float_calls.clear()
-        fast = _run_whole(bbo, PC, False)
+        fast = run_whole(bbo, PC, False)
     finally:
         for op, routine in originals.items():
             vm_module._SIMPLE_OPS[op] = routine

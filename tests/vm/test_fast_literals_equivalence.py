@@ -20,8 +20,7 @@ from bbzide.compiler import compile_source
 from bbzide.vm import vm as vm_module
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
-from bbzide.vm.states import Error
-from bbzide.vm.vm import VM, State
+from tests.vm.chunked_runs import run_in_chunks, run_whole
 
 SCRIPTS = {
     "lambdas kept in tables": """
@@ -84,42 +83,6 @@ while (i < 20) {
 """,
 }
 
-#: chunk sizes (instructions) the runs are observed after, cycled
-CHUNKS = (1, 2, 3, 5, 8, 13, 40)
-
-
-def _observe(vm: VM) -> tuple:
-    return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
-            vm.lsyms, vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data),
-            list(vm.error_events), vm.heap.gc_runs, vm.instructions_executed,
-            vm.heap.peak_used)
-
-
-def _run_in_chunks(bbo: bytes, profile: Profile, stress: bool, limit: int) -> list[tuple]:
-    """The top-level code in chunks of CHUNKS instructions (each run stopped by its budget
-    and resumed), observed after each chunk, until it ends or ``limit`` chunks."""
-    vm = VM(profile, stress_gc=stress)
-    vm.construct()
-    vm.set_bcode(bbo)
-    states = [_observe(vm)]
-    for n in range(limit):
-        if vm.state != State.READY:
-            break
-        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
-        states.append(_observe(vm))
-        if vm.state == State.ERROR and vm.error == Error.BUDGET:
-            vm.state = State.READY
-    return states
-
-
-def _run_whole(bbo: bytes, profile: Profile, stress: bool) -> tuple:
-    vm = VM(profile, stress_gc=stress)
-    vm.construct()
-    vm.set_bcode(bbo)
-    vm.run(max_instructions=200_000)
-    return _observe(vm)
-
-
 def _bbo(name: str) -> bytes:
     return compile_source(SCRIPTS[name], "literals.bzz").to_bbo().bbo
 
@@ -136,15 +99,15 @@ PROFILES = [PC, KILOBOT, CRAZYFLIE,
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
 def test_literals_and_lambdas_identical_whole(name: str, profile: Profile) -> None:
     bbo = _bbo(name)
-    assert _run_whole(bbo, profile, True) == _run_whole(bbo, profile, False)
+    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
 
 
 @pytest.mark.parametrize("name", sorted(SCRIPTS))
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
 def test_literals_and_lambdas_identical_in_chunks(name: str, profile: Profile) -> None:
     bbo = _bbo(name)
-    stress = _run_in_chunks(bbo, profile, True, 400)
-    fast = _run_in_chunks(bbo, profile, False, 400)
+    stress = run_in_chunks(bbo, profile, True, 400)
+    fast = run_in_chunks(bbo, profile, False, 400)
     assert len(stress) == len(fast)
     for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
         assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"
@@ -169,10 +132,10 @@ def test_the_kernel_runs_the_happy_path(opcode: int) -> None:
     table[index] = counted  # type: ignore[assignment]
     try:
         bbo = _bbo("lambdas kept in tables")
-        stress = _run_whole(bbo, PC, True)
+        stress = run_whole(bbo, PC, True)
         assert calls  # the reference mode runs every instruction in Python
         calls.clear()
-        fast = _run_whole(bbo, PC, False)
+        fast = run_whole(bbo, PC, False)
     finally:
         table[index] = original
     assert fast == stress

@@ -1,0 +1,44 @@
+"""A VM's top-level code run in both modes for comparison: whole, or in small chunks of
+instructions with the VM observed after each (every register, the heap bytes, the errors),
+so that a kernel that differs from the model is caught at the instruction where it does."""
+
+from __future__ import annotations
+
+from bbzide.vm.profiles import Profile
+from bbzide.vm.states import Error
+from bbzide.vm.vm import VM, State
+
+#: chunk sizes (instructions) the runs are observed after, cycled
+CHUNKS = (1, 2, 3, 5, 8, 13, 40)
+
+
+def observe(vm: VM) -> tuple:
+    return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
+            vm.lsyms, vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data),
+            list(vm.error_events), vm.heap.gc_runs, vm.instructions_executed,
+            vm.heap.peak_used)
+
+
+def run_in_chunks(bbo: bytes, profile: Profile, stress: bool, limit: int) -> list[tuple]:
+    """The top-level code in chunks of CHUNKS instructions (each run stopped by its budget
+    and resumed), observed after each chunk, until it ends or ``limit`` chunks."""
+    vm = VM(profile, stress_gc=stress)
+    vm.construct()
+    vm.set_bcode(bbo)
+    states = [observe(vm)]
+    for n in range(limit):
+        if vm.state != State.READY:
+            break
+        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
+        states.append(observe(vm))
+        if vm.state == State.ERROR and vm.error == Error.BUDGET:
+            vm.state = State.READY
+    return states
+
+
+def run_whole(bbo: bytes, profile: Profile, stress: bool) -> tuple:
+    vm = VM(profile, stress_gc=stress)
+    vm.construct()
+    vm.set_bcode(bbo)
+    vm.run(max_instructions=200_000)
+    return observe(vm)
