@@ -42,3 +42,12 @@ def run_whole(bbo: bytes, profile: Profile, stress: bool) -> tuple:
     vm.set_bcode(bbo)
     vm.run(max_instructions=200_000)
     return observe(vm)
+
+
+def assert_modes_agree_in_chunks(bbo: bytes, profile: Profile, limit: int, name: str) -> None:
+    """The reference and the fast mode observed equal after every chunk."""
+    stress = run_in_chunks(bbo, profile, True, limit)
+    fast = run_in_chunks(bbo, profile, False, limit)
+    assert len(stress) == len(fast)
+    for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
+        assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"

@@ -25,7 +25,7 @@ from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import FLOAT, INT
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
 from bbzide.vm.vm import VM, State
-from tests.vm.chunked_runs import run_in_chunks, run_whole
+from tests.vm.chunked_runs import assert_modes_agree_in_chunks, run_whole
 
 
 def _double_bits(x: float) -> bytes:
@@ -193,11 +193,7 @@ PROFILES = [PC, CRAZYFLIE, KILOBOT,  # Kilobot: no float operations (TYPE errors
 def test_float_scripts_identical(name: str, profile: Profile) -> None:
     bbo = _bbo(name)
     assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
-    stress = run_in_chunks(bbo, profile, True, 600)
-    fast = run_in_chunks(bbo, profile, False, 600)
-    assert len(stress) == len(fast)
-    for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
-        assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"
+    assert_modes_agree_in_chunks(bbo, profile, 600, name)
 
 
 @pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")

@@ -20,7 +20,7 @@ from bbzide.compiler import compile_source
 from bbzide.vm import vm as vm_module
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
-from tests.vm.chunked_runs import run_in_chunks, run_whole
+from tests.vm.chunked_runs import assert_modes_agree_in_chunks, run_whole
 
 SCRIPTS = {
     "lambdas kept in tables": """
@@ -106,11 +106,7 @@ def test_literals_and_lambdas_identical_whole(name: str, profile: Profile) -> No
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
 def test_literals_and_lambdas_identical_in_chunks(name: str, profile: Profile) -> None:
     bbo = _bbo(name)
-    stress = run_in_chunks(bbo, profile, True, 400)
-    fast = run_in_chunks(bbo, profile, False, 400)
-    assert len(stress) == len(fast)
-    for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
-        assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"
+    assert_modes_agree_in_chunks(bbo, profile, 400, name)
 
 
 @pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
