@@ -49,13 +49,23 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(UV) pip sync $(UV_QUIET) --require-hashes $(LOCK)
 	$(UV) pip install $(UV_QUIET) --no-deps --no-build-isolation -e .
 	$(PY) scripts/check_lock.py
-	$(PY) scripts/warm_kernels.py
 	touch $(STAMP)
+
+# The kernels' machine code (scripts/warm_kernels.py): compiled again whenever a source it is
+# built from changes (a pull, an edit), not only with a new venv, so the first swarm after a
+# pull does not stall 30-60 s compiling. These are the files fastgc._kernel_sources_digest reads.
+KERNEL_SOURCES := $(wildcard bbzide/vm/compiled/*.py) $(addprefix bbzide/vm/,heap_layout.py \
+	message_layout.py packed_messages.py states.py)
+KERNELS_WARM := $(VENV)/.kernels-warm-stamp
+
+$(KERNELS_WARM): $(STAMP) $(KERNEL_SOURCES) scripts/warm_kernels.py
+	$(PY) scripts/warm_kernels.py
+	touch $(KERNELS_WARM)
 
 $(BUNDLE): $(EDITOR_SOURCES)
 	cd editor && npm ci --no-audit --no-fund --loglevel=error && node build.mjs
 
-setup: $(STAMP) $(BUNDLE)
+setup: $(STAMP) $(KERNELS_WARM) $(BUNDLE)
 
 # Debian's Chromium drives the browser tests (Playwright never downloads a browser here).
 browser:

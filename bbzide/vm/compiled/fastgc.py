@@ -35,6 +35,13 @@ import numpy as np
 _MODEL_LAYOUTS = ("heap_layout.py", "message_layout.py", "packed_messages.py", "states.py")
 
 
+def kernel_sources() -> list[Path]:
+    """Every source the kernels are compiled from: this folder's modules and the model's
+    layouts they read (the Makefile's KERNEL_SOURCES lists the same files)."""
+    here = Path(__file__).parent
+    return sorted(here.glob("*.py")) + [here.parent / name for name in _MODEL_LAYOUTS]
+
+
 def _kernel_sources_digest() -> str:
     """A digest of every source the kernels are compiled from. numba's disk cache checks
     only the source file of each function it loads: a kernel that calls one from another file
@@ -42,10 +49,8 @@ def _kernel_sources_digest() -> str:
     would keep its old machine code after that file changed. So the cache lives in a folder
     named by this digest: any change to those sources starts a new cache, and every kernel is
     compiled again, once."""
-    here = Path(__file__).parent
-    sources = sorted(here.glob("*.py")) + [here.parent / name for name in _MODEL_LAYOUTS]
     digest = hashlib.sha256()
-    for source in sources:
+    for source in kernel_sources():
         digest.update(source.name.encode() + b"\0" + source.read_bytes())
     return digest.hexdigest()[:16]
 
