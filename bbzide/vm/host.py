@@ -83,6 +83,13 @@ class HostRegistry:
             address = self._next_free
             self._next_free += 0x40
         address &= self.mask
+        known = self.by_address.get(address)
+        if known is not None and known.symbol == symbol and known.function is function \
+                and self.by_symbol.get(symbol) is known:
+            # the same registration again (every neighbors.map/filter adds the library's
+            # closures to the table it returns): nothing changes, so the caches built on
+            # `version` and the compiled swarm step's tables stay valid
+            return address
         call = RegisteredHostFunction(symbol, address, function)
         self.by_address[address] = call
         self.by_symbol[symbol] = call

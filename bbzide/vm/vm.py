@@ -1440,15 +1440,23 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 # None of these changes how non-leaves are traversed, so ``gc_info`` stays true. Every
 # other instruction (pops, stores, calls, tables, lambdas) is followed by a collection.
 #
-# Two more rules only the compiled kernel applies (fastloop.run; this loop, running an
+# More rules only the compiled kernel applies (fastloop.run; this loop, running an
 # instruction the kernel handed back, collects after them — always exact):
 # * _REPLACED_TOP: gload replaced the top root (a name string) by a global's value; the
 #   dropped root was first marked from the permanent roots (``gc_info``, exact for every
 #   object a skipped step did not allocate: those have no fastgc.PERMANENT_PHASE), so as a stack
 #   root it marked nothing, and the pushed value is accepted as by _PUSHED_OLD;
 # * _POPPED_TWO_NEW: a two-operand operation dropped two such roots and pushed its new
-#   result, a leaf accepted as by _PUSHED_NEW (pending mark included).
+#   result, a leaf accepted as by _PUSHED_NEW (pending mark included);
+# * _POPPED_ONE (pop, jumpz, jumpnz), _POPPED_ONE_NEW (unm, lnot, bnot: their new result as
+#   by _PUSHED_NEW), _POPPED_TWO_OLD (tget: the value as by _PUSHED_OLD): they dropped one or
+#   two such roots.
+# The kernel also accepts, for every dropped root of these rules, a *fresh* leaf
+# (fastloop.FRESH: a non-string leaf a skipped step allocated in a slot the last collection
+# did not reach, so its one reference was that stack slot): the skipped collection would free it,
+# and the kernel does just that at the start of the next step (fastloop._free_dropped).
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
+_POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD = 6, 7, 8
 _SKIP_RULES: list[int] = [0] * 256
 for _op in _PC_ONLY_OPCODES:
     _SKIP_RULES[_op] = _PC_ONLY
@@ -1459,6 +1467,11 @@ for _op in (3, 35, 36, 37, 38, 39):
 _SKIP_RULES[28] = _REPLACED_TOP  # gload
 for _op in (7, 8, 9, 10, 11, 12, 14, 15, 17, 18, 22, 23, 24, 25, 26, 27):
     _SKIP_RULES[_op] = _POPPED_TWO_NEW
+for _op in (4, 45, 46):
+    _SKIP_RULES[_op] = _POPPED_ONE
+for _op in (13, 16, 19):
+    _SKIP_RULES[_op] = _POPPED_ONE_NEW
+_SKIP_RULES[32] = _POPPED_TWO_OLD
 
 #: the compiled instruction kernel, when numba is installed (else the Python loop alone)
 _KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None

@@ -31,6 +31,10 @@ error.
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
 compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
 the collector (``_SKIP_RULES``, repeated here as :data:`RULES`), then counts ``gc_runs``.
+A skipped collection may owe more than a mark bit: the *fresh* leaves (:data:`FRESH`) the
+last instruction dropped, which it frees as that collection would (:func:`_free_dropped`);
+in a real swarm script most temporaries (``pushi 33`` of ``d / 33``, a comparison's result
+popped by ``jumpz``) die that way, a collection saved each.
 The VM registers travel in one int64 array (``R_*`` below) so that a call costs one
 dispatch. Equality with the reference is by test: ``tests/vm/test_fast_vm_equivalence.py``.
 """
@@ -86,8 +90,10 @@ _NO_ACTREC = 0xFF
 _NO_NEXT = 0x3FFF
 
 #: skip rules by opcode — the same table as ``vm._SKIP_RULES`` (checked equal by a test;
-#: the last two, _REPLACED_TOP and _POPPED_TWO_NEW, only this kernel applies: see there)
+#: the rules from _REPLACED_TOP on, those of instructions that drop stack roots, only this
+#: kernel applies: see there)
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
+_POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD = 6, 7, 8
 RULES = np.zeros(256, np.int64)
 for _op in (0, 34, 44):
     RULES[_op] = _PC_ONLY
@@ -98,6 +104,16 @@ for _op in (3, 35, 36, 37, 38, 39):
 RULES[28] = _REPLACED_TOP  # gload
 for _op in (7, 8, 9, 10, 11, 12, 14, 15, 17, 18, 22, 23, 24, 25, 26, 27):
     RULES[_op] = _POPPED_TWO_NEW  # arithmetic, logic and comparisons of two operands
+for _op in (4, 45, 46):
+    RULES[_op] = _POPPED_ONE  # pop, jumpz, jumpnz
+for _op in (13, 16, 19):
+    RULES[_op] = _POPPED_ONE_NEW  # unm, lnot, bnot
+RULES[32] = _POPPED_TWO_OLD  # tget
+#: ``info`` value of a *fresh* leaf: one a skipped step allocated (in a slot the last
+#: collection did not reach; not a string, which a later ``pushs`` may deduplicate to), so
+#: its one reference is its own stack slot. The collector never writes it (its depths start
+#: at 2); a collection clears it.
+FRESH = 1
 
 
 @_compile
@@ -777,6 +793,57 @@ def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsym
 
 
 @_compile
+def _new_leaf_kept(d: Any, regs: Any, info: Any, x: int, s: int) -> bool:
+    """After an instruction that pushed object ``x`` it allocated (``regs[R_PRIOR]``: the
+    slot's mdata before): is the heap still a fixed point, but for the mark bit the next
+    step sets (``pending``)? Yes for a leaf in a slot the last collection did not reach, or
+    a deduplicated string (an old, marked object). Such a new leaf, unless a string, is also
+    marked :data:`FRESH`."""
+    m = _i(d[x * s])
+    t = m & 7
+    prior = regs[R_PRIOR]
+    if t == _TABLE or (t == _CLOSURE and m & _FLAG2):
+        return False
+    if prior & _VALID:
+        return True
+    if prior & _GC_MARK:
+        return False
+    if t != _STRING:  # a later pushs may return a string again (deduplication): not fresh
+        info[x] = FRESH
+    return True
+
+
+@_compile
+def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
+    """After an instruction that pushed the existing object ``x``: is the heap still a fixed
+    point? Yes for a marked leaf (the marker never looks inside it), or a non-leaf the last
+    collection first marked from the permanent roots (its stack root finds it marked)."""
+    m = _i(d[x * s])
+    t = m & 7
+    if t != _TABLE and (t != _CLOSURE or not m & _FLAG2):
+        return (m & _GC_MARK) != 0
+    return (_i(info[x]) & PERMANENT_PHASE) != 0
+
+
+@_compile
+def _free_dropped(d: Any, regs: Any, info: Any, a: int, b: int, s: int,
+                  reserved: int) -> None:
+    """A skipped collection's effect on the fresh leaves ``a`` and ``b`` (-1: none) the
+    last instruction dropped: unreached, they lose their mark and validity, and the object
+    end retreats over invalid slots (``fastgc.collect_with``'s steps 1, 4 and 5 for them)."""
+    d[a * s] = _i(d[a * s]) & (0xFF ^ (_VALID | _GC_MARK))
+    info[a] = 0
+    if b >= 0:
+        d[b * s] = _i(d[b * s]) & (0xFF ^ (_VALID | _GC_MARK))
+        info[b] = 0
+    rtobj = regs[R_RTOBJ]
+    low = reserved * s
+    while rtobj > low and not _i(d[rtobj - s]) & _VALID:
+        rtobj -= s
+    regs[R_RTOBJ] = rtobj
+
+
+@_compile
 def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         rules: Any, s: int, elems: int, reserved: int) -> int:
     """Run steps (collection or skip, then one instruction) from ``regs[R_PC]``.
@@ -814,12 +881,17 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         pc = regs[R_PC]
     status = EXIT
     slice_left = SLICE_STEPS
+    # fresh leaves the last instruction dropped (-1: none): the skipped collection frees them
+    free_a = -1
+    free_b = -1
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
         regs[R_GC_RUNS] += 1
         if fixed:
             if pending >= 0:
                 d[pending] |= _GC_MARK
+            if free_a >= 0:
+                _free_dropped(d, regs, info, free_a, free_b, s, reserved)
         else:
             r = collect_with(d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
                              frames, size, s, g, elems, reserved, limit)
@@ -827,6 +899,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             regs[R_LTSEG] = r & 0xFFFF
         fixed = False
         pending = -1
+        free_a = -1
+        free_b = -1
         # ---- one instruction, or back to Python (nothing of it done yet)
         status = NEED_PYTHON
         if pc >= bsize:
@@ -1132,29 +1206,46 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         pc = nxt_pc
         regs[R_EXECUTED] += 1
         rule = rules[op]
-        if rule >= _PUSHED_OLD and _i(stack[sp]) >= nobj:
-            fixed = False
-        elif rule == _REPLACED_TOP and not (
-                top_before < nobj and _i(info[top_before]) & PERMANENT_PHASE):
-            fixed = False  # gload dropped a root the permanent roots may not keep
-        elif rule == _POPPED_TWO_NEW and not (
-                top_before < nobj and _i(info[top_before]) & PERMANENT_PHASE
-                and below_before < nobj and _i(info[below_before]) & PERMANENT_PHASE):
-            fixed = False  # an operand the permanent roots may not keep was dropped
-        elif rule == _PUSHED_NEW or rule == _POPPED_TWO_NEW:
-            pending = _i(stack[sp]) * s
-            t = _i(d[pending]) & 7
-            prior = regs[R_PRIOR]
-            fixed = t != _TABLE and (t != _CLOSURE or not _i(d[pending]) & _FLAG2) and \
-                ((prior & _VALID) != 0 or (prior & _GC_MARK) == 0)
-        elif rule == _PUSHED_OLD or rule == _REPLACED_TOP:
-            top = _i(stack[sp])
-            m = _i(d[top * s])
-            t = m & 7
-            if t != _TABLE and (t != _CLOSURE or not m & _FLAG2):
-                fixed = (m & _GC_MARK) != 0
+        fixed = True
+        if rule >= _REPLACED_TOP:
+            # it dropped roots (the top, and the one below for two): each must be kept by
+            # the permanent roots (so it marked nothing as a stack root), or be a fresh leaf,
+            # which the skipped collection frees (nothing else reaches it)
+            if top_before >= nobj:
+                fixed = False
+            elif _i(info[top_before]) == FRESH:
+                free_a = top_before
+            elif not _i(info[top_before]) & PERMANENT_PHASE:
+                fixed = False
+            if fixed and (rule == _POPPED_TWO_NEW or rule == _POPPED_TWO_OLD):
+                if below_before >= nobj or below_before == free_a:
+                    fixed = False
+                elif _i(info[below_before]) == FRESH:
+                    if free_a < 0:
+                        free_a = below_before
+                    else:
+                        free_b = below_before
+                elif not _i(info[below_before]) & PERMANENT_PHASE:
+                    fixed = False
+            if not fixed or rule == _POPPED_ONE:
+                pass
+            elif sp < 0 or _i(stack[sp]) >= nobj:
+                fixed = False
+            elif rule == _POPPED_TWO_NEW or rule == _POPPED_ONE_NEW:
+                pending = _i(stack[sp]) * s
+                fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
             else:
-                fixed = (_i(info[top]) & PERMANENT_PHASE) != 0
+                fixed = _old_kept(d, info, _i(stack[sp]), s)
+            if not fixed:
+                free_a = -1
+                free_b = -1
+        elif rule >= _PUSHED_OLD and _i(stack[sp]) >= nobj:
+            fixed = False
+        elif rule == _PUSHED_NEW:
+            pending = _i(stack[sp]) * s
+            fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
+        elif rule == _PUSHED_OLD:
+            fixed = _old_kept(d, info, _i(stack[sp]), s)
         else:
             fixed = rule == _PC_ONLY
         n += 1
@@ -1176,7 +1267,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     regs[R_BP] = bp
     regs[R_LSYMS] = lsyms
     regs[R_N] = n
-    regs[R_FIXED] = 1 if fixed else 0
+    # frees a skipped collection owes stay the kernel's: whoever runs the next step (Python,
+    # another kernel) collects instead, which frees them too
+    regs[R_FIXED] = 1 if fixed and free_a < 0 else 0
     regs[R_PENDING] = pending
     return status
 
