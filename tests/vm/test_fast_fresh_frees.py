@@ -1,0 +1,113 @@
+"""Fresh temporaries freed without a collection, in the fast mode against the reference.
+
+The compiled kernel skips the collection after an instruction that drops stack roots (pop,
+jumpz/jumpnz, unary and binary operations, tget, gload) when each dropped root is either
+kept by the permanent roots or a *fresh* leaf (``fastloop.FRESH``: allocated by a skipped
+step in a slot the last collection did not reach, so referenced by its stack slot alone),
+and frees those leaves itself at the start of the next step, as the skipped collection
+would. These scripts are made of such temporaries — literals in arithmetic, comparisons
+tested by ``if``/``while``, expression statements, unary operators, tables read with
+literal keys — on roomy heaps and on heaps small enough that freed slots are reused at once
+and the object end retreats. Every observable byte must be the reference's, after each
+chunk of a few instructions (a budget stop may fall between a drop and its free) and at
+the end.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from bbzide.compiler import compile_source
+from bbzide.vm.compiled import fastloop
+from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
+from bbzide.vm.states import Error
+from bbzide.vm.vm import VM, State
+from tests.vm.chunked_runs import CHUNKS, assert_modes_agree_in_chunks, run_whole
+
+SCRIPTS = {
+    "arithmetic with literals": """
+g = 255
+i = 0
+while (i < 40) {
+  hops = (i * 7) / 33 + 1
+  if (hops < g) { g = hops }
+  x = -(i % 5) + (i % 3) * 2 - 1
+  y = ((not (i > 20)) or (i == 3))
+  i = i + 1
+}
+""",
+    "tables read with literal keys": """
+t = {.a = 1, .b = 2}
+t[1] = 10
+t[2] = 20
+s = 0
+i = 0
+while (i < 30) {
+  s = s + t.a * t[1] + t[2] / (t.b + 1)
+  if (t[i % 3] == nil) { s = s + 1 }
+  t[3] = i
+  i = i + 1
+}
+""",
+    "temporaries in functions": """
+function dist(x, y) {
+  var d = x * x + y * y
+  if (d > 100 and x != y) { return d / 10 }
+  return -d
+}
+acc = {}
+i = 0
+while (i < 25) {
+  acc[i % 4] = dist(i, 25 - i) + dist(i % 3, 2)
+  dist(1, i)
+  i = i + 1
+}
+""",
+}
+
+
+def _bbo(name: str) -> bytes:
+    return compile_source(SCRIPTS[name], "fresh.bzz").to_bbo().bbo
+
+
+PROFILES = [PC, KILOBOT, CRAZYFLIE,
+            # freed slots reused by the next allocation; the object end retreating
+            dataclasses.replace(KILOBOT, name="small heap", heap_size=600),
+            dataclasses.replace(PC, name="small pc heap", heap_size=1100)]
+
+
+@pytest.mark.parametrize("name", sorted(SCRIPTS))
+@pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
+def test_fresh_frees_identical_whole(name: str, profile: Profile) -> None:
+    bbo = _bbo(name)
+    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
+
+
+@pytest.mark.parametrize("name", sorted(SCRIPTS))
+@pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
+def test_fresh_frees_identical_in_chunks(name: str, profile: Profile) -> None:
+    assert_modes_agree_in_chunks(_bbo(name), profile, 500, name)
+
+
+@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
+def test_the_kernel_marks_fresh_temporaries() -> None:
+    """Stopped after each chunk, the fast VM's stack top is at times a fresh temporary (the
+    kernel flagged it), and a flagged object is never on the stack twice."""
+    vm = VM(PC, stress_gc=False)
+    vm.construct()
+    vm.set_bcode(_bbo("arithmetic with literals"))
+    flagged_tops = 0
+    for n in range(600):
+        if vm.state != State.READY:
+            break
+        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
+        stack = list(vm.stack[:vm.stackptr + 1])
+        fresh = [x for x in stack if vm.heap.gc_info[x] == fastloop.FRESH]
+        assert len(fresh) == len(set(fresh))
+        flagged_tops += bool(stack) and vm.heap.gc_info[stack[-1]] == fastloop.FRESH
+        if vm.state == State.ERROR and vm.error == Error.BUDGET:
+            vm.state = State.READY
+    assert vm.state == State.DONE
+    assert flagged_tops > 10
