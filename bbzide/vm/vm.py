@@ -1450,13 +1450,15 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 #   result, a leaf accepted as by _PUSHED_NEW (pending mark included);
 # * _POPPED_ONE (pop, jumpz, jumpnz), _POPPED_ONE_NEW (unm, lnot, bnot: their new result as
 #   by _PUSHED_NEW), _POPPED_TWO_OLD (tget: the value as by _PUSHED_OLD): they dropped one or
-#   two such roots.
+#   two such roots;
+# * _STORED_NEW_LOCAL: lstore moved a leaf from the stack into a new local of an activation
+#   record the permanent roots reach (fastloop._stored_leaf_kept).
 # The kernel also accepts, for every dropped root of these rules, a *fresh* leaf
 # (fastloop.FRESH: a non-string leaf a skipped step allocated in a slot the last collection
 # did not reach, so its one reference was that stack slot): the skipped collection would free it,
 # and the kernel does just that at the start of the next step (fastloop._free_dropped).
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
-_POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD = 6, 7, 8
+_POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9
 _SKIP_RULES: list[int] = [0] * 256
 for _op in _PC_ONLY_OPCODES:
     _SKIP_RULES[_op] = _PC_ONLY
@@ -1472,6 +1474,7 @@ for _op in (4, 45, 46):
 for _op in (13, 16, 19):
     _SKIP_RULES[_op] = _POPPED_ONE_NEW
 _SKIP_RULES[32] = _POPPED_TWO_OLD
+_SKIP_RULES[42] = _STORED_NEW_LOCAL
 
 #: the compiled instruction kernel, when numba is installed (else the Python loop alone)
 _KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None

@@ -93,7 +93,7 @@ _NO_NEXT = 0x3FFF
 #: the rules from _REPLACED_TOP on, those of instructions that drop stack roots, only this
 #: kernel applies: see there)
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
-_POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD = 6, 7, 8
+_POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9
 RULES = np.zeros(256, np.int64)
 for _op in (0, 34, 44):
     RULES[_op] = _PC_ONLY
@@ -109,6 +109,7 @@ for _op in (4, 45, 46):
 for _op in (13, 16, 19):
     RULES[_op] = _POPPED_ONE_NEW  # unm, lnot, bnot
 RULES[32] = _POPPED_TWO_OLD  # tget
+RULES[42] = _STORED_NEW_LOCAL  # lstore
 #: ``info`` value of a *fresh* leaf: one a skipped step allocated (in a slot the last
 #: collection did not reach; not a string, which a later ``pushs`` may deduplicate to), so
 #: its one reference is its own stack slot. The collector never writes it (its depths start
@@ -826,6 +827,29 @@ def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
 
 
 @_compile
+def _stored_leaf_kept(d: Any, info: Any, v: int, lsyms: int, nobj: int, s: int,
+                      limit: int) -> bool:
+    """After an ``lstore`` that moved the stack top ``v`` into a new local (no old value
+    dropped): is the heap still a fixed point? Yes when ``v`` is a leaf and the activation
+    record was first marked from the permanent roots at a depth whose words the marker
+    visits: ``v``, marked already, is then marked from the permanent roots instead of its
+    stack slot, one level below the record — which ``info`` now says (a fresh leaf is
+    fresh no more)."""
+    if v >= nobj or lsyms >= nobj:
+        return False
+    m = _i(d[v * s])
+    t = m & 7
+    if t == _TABLE or (t == _CLOSURE and m & _FLAG2) or not m & _GC_MARK:
+        return False
+    record = _i(info[lsyms])
+    if not record & PERMANENT_PHASE or (record & (PERMANENT_PHASE - 1)) >= limit:
+        return False
+    if not _i(info[v]) & PERMANENT_PHASE:
+        info[v] = (record & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
+    return True
+
+
+@_compile
 def _free_dropped(d: Any, regs: Any, info: Any, a: int, b: int, s: int,
                   reserved: int) -> None:
     """A skipped collection's effect on the fresh leaves ``a`` and ``b`` (-1: none) the
@@ -881,6 +905,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         pc = regs[R_PC]
     status = EXIT
     slice_left = SLICE_STEPS
+    new_local = False  # the last lstore made a new local (no value of it was dropped)
     # fresh leaves the last instruction dropped (-1: none): the skipped collection frees them
     free_a = -1
     free_b = -1
@@ -1179,6 +1204,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 break
             darray_set(d, lsyms, arg, _i(stack[sp]), s, elems)
             sp -= 1
+            new_local = count == arg
         elif op == 43:  # lremove of one local
             if arg > 1 or (arg == 1 and not _darray_pop(d, lsyms, s, elems)):
                 break
@@ -1207,7 +1233,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         regs[R_EXECUTED] += 1
         rule = rules[op]
         fixed = True
-        if rule >= _REPLACED_TOP:
+        if rule == _STORED_NEW_LOCAL:
+            fixed = new_local and _stored_leaf_kept(d, info, top_before, lsyms, nobj, s,
+                                                    limit)
+        elif rule >= _REPLACED_TOP:
             # it dropped roots (the top, and the one below for two): each must be kept by
             # the permanent roots (so it marked nothing as a stack root), or be a fresh leaf,
             # which the skipped collection frees (nothing else reaches it)
