@@ -110,17 +110,37 @@ def _subfield(vm: VM, sid: int) -> int:
 
 
 def _add_neighborlike_fields(vm: VM, count: int) -> None:
+    """The fields and methods of a neighbour-like table (the stack top, just made)."""
     if not vm.profile.xtreme:
         sub = vm.new_table_obj()
         _add_data(vm, STR_DATA, sub)
         cnt = vm.new_int(count)
         _add_data(vm, STR_RESET, cnt)
-    _add_function(vm, STR_FOREACH, "bbzneighbors_foreach", neighbors_foreach)
-    _add_function(vm, STR_FILTER, "bbzneighbors_filter", neighbors_filter)
-    _add_function(vm, STR_MAP, "bbzneighbors_map", neighbors_map)
-    _add_function(vm, STR_GET, "bbzneighbors_get", neighbors_get)
-    _add_function(vm, STR_REDUCE, "bbzneighbors_reduce", neighbors_reduce)
-    _add_function(vm, STR_COUNT, "bbzneighbors_count", neighbors_count)
+    methods = _neighborlike_methods()
+    addresses = [vm.host.register(symbol, fn) for _sid, symbol, fn in methods]
+    if COMPILED and not vm.stress_gc and vm.state == State.READY:
+        # the fast mode adds them in machine code when the heap has room (fasthost)
+        h = vm.heap
+        regs = vm.kernel_registers(None, None)
+        done = fasthost.add_functions(
+            h.view, vm._stack_view, regs, vm.stack[vm.stackptr],
+            np.array([sid for sid, _symbol, _fn in methods], np.int64),
+            np.array(addresses, np.int64), h.obj_size, h.elems, h.reserved)
+        if done:
+            vm.take_kernel_registers(regs)
+            return
+    for sid, symbol, fn in methods:
+        _add_function(vm, sid, symbol, fn)
+
+
+def _neighborlike_methods() -> list[tuple[int, str, Callable[[VM], None]]]:
+    """(name, symbol, function) of a neighbour-like table's methods, in the firmware's order."""
+    return [(STR_FOREACH, "bbzneighbors_foreach", neighbors_foreach),
+            (STR_FILTER, "bbzneighbors_filter", neighbors_filter),
+            (STR_MAP, "bbzneighbors_map", neighbors_map),
+            (STR_GET, "bbzneighbors_get", neighbors_get),
+            (STR_REDUCE, "bbzneighbors_reduce", neighbors_reduce),
+            (STR_COUNT, "bbzneighbors_count", neighbors_count)]
 
 
 def _is_neighbors_table(vm: VM, self_obj: int) -> bool:

@@ -58,6 +58,7 @@ from bbzide.vm.compiled.fastloop import (
     _obj_alloc,
     _ret,
     _ret_ok,
+    _room,
     _s16,
     _seg_alloc,
     _table_set,
@@ -215,6 +216,35 @@ def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     regs[R_CALL_FIRST] = 1
     return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
                       hosts, outq, ctl, latch)
+
+
+# ---- the library's methods added to a table it made (neighbors.map/filter's result) ----
+@_compile
+def add_functions(d: Any, stack: Any, regs: Any, table: int, sids: Any, addresses: Any,
+                  s: int, elems: int, reserved: int) -> bool:
+    """``bbztable_add_function`` for each (string id, C closure address) in turn — push the
+    table, ``pushs`` the name, push a (non-native) C closure of the address, ``tput`` — on its
+    happy path: False, with nothing written, unless the stack has room for the three pushes
+    and the heap for every object and segment. ``table`` is one the library made in this call
+    (its segments its own, so a ``_table_set`` with room cannot fail). The three stack slots
+    above the top keep the last pushes, as the pops leave them."""
+    sp = regs[R_SP]
+    count = len(sids)
+    if sp + 3 >= regs[R_STACK_SIZE] or not _room(d, regs, s, reserved, elems, 2 * count,
+                                                  count):
+        return False
+    for i in range(count):
+        stack[sp + 1] = table
+        key = _obj_alloc(d, regs, s, reserved, STRING, sids[i])
+        d[key * s + 1] = sids[i] & 0xFF
+        d[key * s + 2] = (sids[i] >> 8) & 0xFF
+        stack[sp + 2] = key
+        closure = _obj_alloc(d, regs, s, reserved, CLOSURE, 0)
+        for j in range(s - 1):
+            d[closure * s + 1 + j] = (addresses[i] >> (8 * j)) & 0xFF
+        stack[sp + 3] = closure
+        _table_set(d, regs, table, key, closure, s, elems)
+    return True
 
 
 # ---- the neighbors library's walks over an XTREME ring: a closure call per neighbour ----
@@ -425,7 +455,10 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
                             kind, result_table, w):
             return WALK_AFTER_CALL
-        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+        # the walk's own collection (``vm.gc()`` after ``fun``) follows the one that ended
+        # ``fun``, on the same roots: a collection of a collected heap changes nothing (its
+        # marks, ``info`` and ``traversed`` come out the same), so only its count is kept
+        regs[R_GC_RUNS] += 1
     w[W_INDEX] = len(ring)
     return WALK_DONE
 
