@@ -173,7 +173,12 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
         ring = vm.neighbors.ring
         i = ring.size()
         if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
-            i = _walk_compiled(vm, walk)
+            i, collected = _walk_compiled(vm, walk)
+            if i == 0 and collected:
+                # the walk's last act was a collection of these very roots: the one below
+                # would change nothing but the count (a collected heap is a fixed point)
+                vm.heap.gc_runs += 1
+                return
         while i:
             i -= 1
             e = ring.at(i)
@@ -216,10 +221,11 @@ def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int
         w[fasthost.W_SLOT] = slot + 1
 
 
-def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
+def _walk_compiled(vm: VM, walk: CompiledWalk) -> tuple[int, bool]:
     """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk`, re-entered
     after each neighbour it leaves to Python; returns how many (the oldest) are left for
-    the Python loop."""
+    the Python loop, and whether the last thing done was a collection (of the VM as it is
+    now: the end of a neighbour)."""
     kind, closure, result_table, after_call = walk
     ring = vm.neighbors.ring
     count = ring.size()
@@ -239,14 +245,15 @@ def _walk_compiled(vm: VM, walk: CompiledWalk) -> int:
         vm.take_kernel_registers(regs)
         index, status, depth, _segment, _slot, _visit, key, data = w.tolist()
         if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
-            return count - index
+            # the kernel ends each neighbour with a collection
+            return count - index, result == fasthost.WALK_DONE and index > start
         if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
             vm._loop(saved, budget, resume=(status, regs))
         after_call(depth, key, data)
         vm.gc()
         start = index + 1
         if vm.state != State.READY or start == count:
-            return count - start
+            return count - start, vm.state == State.READY
 
 
 # ---- library closures -------------------------------------------------------------------

@@ -25,8 +25,8 @@ tget, tput (no method binding), pushf, pushi, pushs (string dedupe), pushcn, pus
 (when the heap holds its objects and segments and, with lsyms set, a reserved slot is free
 for the activation record), lload, lstore (existing local), jump, jumpz, jumpnz. callc and
 ret0/ret1 of bytecode closures (Python only calls the host function of a C closure, status
-HOST_CALL). Python keeps: done, lremove of several locals, float pow (a MATH error), every
-error.
+HOST_CALL), lremove (of several locals when the last segment holds them). Python keeps:
+done, float pow (a MATH error), every error.
 
 Before each instruction the kernel does what ``VM._loop`` does: a collection by the
 compiled ``fastgc.collect_with`` unless the previous instruction kept the heap a fixed point of
@@ -486,6 +486,24 @@ def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
         _set_word(d, prev, n - 1, g, _word(d, prev, n - 1, g) & 0x7FFF)
         _set_word(d, seg, n, g, _word(d, seg, n, g) & 0x7FFF)  # ~SEG_VALID
         _set_word(d, prev, n, g, _word(d, prev, n, g) | _NO_NEXT)
+    return True
+
+
+@_compile
+def _darray_pop_in_place(d: Any, a: int, k: int, s: int, elems: int) -> bool:
+    """``k`` times ``tables.darray_pop`` when the last segment holds ``k`` elements or more
+    (each pop then clears its last valid word); False, with nothing written, otherwise."""
+    seg = _last_segment(d, a, s, elems)
+    if seg < 0:
+        return False
+    g = 4 * elems + 2
+    p = 0
+    while p < 2 * elems and _word(d, seg, p, g) & 0x8000:
+        p += 1
+    if p < k:
+        return False
+    for q in range(p - k, p):
+        _set_word(d, seg, q, g, _word(d, seg, q, g) & 0x7FFF)
     return True
 
 
@@ -1205,8 +1223,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             darray_set(d, lsyms, arg, _i(stack[sp]), s, elems)
             sp -= 1
             new_local = count == arg
-        elif op == 43:  # lremove of one local
-            if arg > 1 or (arg == 1 and not _darray_pop(d, lsyms, s, elems)):
+        elif op == 43:  # lremove of one local, or of several held by the last segment
+            if arg == 1 and not _darray_pop(d, lsyms, s, elems):
+                break
+            if arg > 1 and not _darray_pop_in_place(d, lsyms, arg, s, elems):
                 break
         elif op == 44:  # jump
             if arg > bsize:
