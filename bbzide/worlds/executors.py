@@ -153,8 +153,11 @@ class DaskExecutor:
                 # One task per worker at a time, as a pool process takes them: Dask's default
                 # (1.1 x threads, rounded up: 2) queues a second run on a busy worker, and at
                 # the end of a sweep a long run can wait there while the other worker idles.
+                # No statistical profiler in the workers: its thread samples every task's
+                # stack every 10 ms, CPU time the runs pay for a dashboard we do not open.
                 with dask.config.set({"distributed.scheduler.worker-saturation":
-                                      LOCAL_WORKER_SATURATION}):
+                                      LOCAL_WORKER_SATURATION,
+                                      "distributed.worker.profile.enabled": False}):
                     self._cluster = LocalCluster(
                         n_workers=self.jobs, threads_per_worker=1, processes=True,
                         host="127.0.0.1", dashboard_address=None, silence_logs=logging.ERROR)
