@@ -1454,8 +1454,9 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 # * _STORED_NEW_LOCAL: lstore moved a leaf from the stack into a new local of an activation
 #   record the permanent roots reach (fastloop._stored_leaf_kept).
 # The kernel also accepts, for every dropped root of these rules, a *fresh* leaf
-# (fastloop.FRESH: a non-string leaf a skipped step allocated in a slot the last collection
-# did not reach, so its one reference was that stack slot): the skipped collection would free it,
+# (fastloop.FRESH: a leaf a skipped step allocated in a slot the last collection did not
+# reach, so its one reference was that stack slot; or a dup's copy of a table the permanent
+# roots keep, which shares its marked segments): the skipped collection would free it,
 # and the kernel does just that at the start of the next step (fastloop._free_dropped).
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 _POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9

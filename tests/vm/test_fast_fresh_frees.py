@@ -7,10 +7,10 @@ step in a slot the last collection did not reach, so referenced by its stack slo
 and frees those leaves itself at the start of the next step, as the skipped collection
 would. These scripts are made of such temporaries — literals in arithmetic, comparisons
 tested by ``if``/``while``, expression statements, unary operators, tables read with
-literal keys — on roomy heaps and on heaps small enough that freed slots are reused at once
-and the object end retreats. Every observable byte must be the reference's, after each
-chunk of a few instructions (a budget stop may fall between a drop and its free) and at
-the end.
+literal keys, the copy of a global table a method call makes (``dup``) — on roomy heaps
+and on heaps small enough that freed slots are reused at once and the object end retreats.
+Every observable byte must be the reference's, after each chunk of a few instructions (a
+budget stop may fall between a drop and its free) and at the end.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import pytest
 
 from bbzide.compiler import compile_source
 from bbzide.vm.compiled import fastloop
+from bbzide.vm.heap import TABLE
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
 from bbzide.vm.states import Error
 from bbzide.vm.vm import VM, State
@@ -65,6 +66,17 @@ while (i < 25) {
   i = i + 1
 }
 """,
+    "method calls on global tables": """
+counter = {.n = 0, .add = function(k) { self.n = self.n + k  return self.n }}
+log = {.last = 0}
+i = 0
+while (i < 30) {
+  counter.add(i % 4)
+  log.last = counter.n + counter.add(1)
+  if (log.last > 40) { counter.n = 0 }
+  i = i + 1
+}
+""",
 }
 
 
@@ -91,23 +103,37 @@ def test_fresh_frees_identical_in_chunks(name: str, profile: Profile) -> None:
     assert_modes_agree_in_chunks(_bbo(name), profile, 500, name)
 
 
-@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
-def test_the_kernel_marks_fresh_temporaries() -> None:
-    """Stopped after each chunk, the fast VM's stack top is at times a fresh temporary (the
-    kernel flagged it), and a flagged object is never on the stack twice."""
+def _fresh_tops(name: str) -> tuple[int, int]:
+    """Stopped after each chunk of the fast VM's run of script ``name``: at how many stops the
+    stack top was a fresh temporary, and how many of those were tables (``dup``'s copies);
+    on the way, a flagged object is never on the stack twice."""
     vm = VM(PC, stress_gc=False)
     vm.construct()
-    vm.set_bcode(_bbo("arithmetic with literals"))
-    flagged_tops = 0
-    for n in range(600):
+    vm.set_bcode(_bbo(name))
+    tops = tables = 0
+    for n in range(3000):
         if vm.state != State.READY:
             break
         vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
         stack = list(vm.stack[:vm.stackptr + 1])
         fresh = [x for x in stack if vm.heap.gc_info[x] == fastloop.FRESH]
         assert len(fresh) == len(set(fresh))
-        flagged_tops += bool(stack) and vm.heap.gc_info[stack[-1]] == fastloop.FRESH
+        if stack and vm.heap.gc_info[stack[-1]] == fastloop.FRESH:
+            tops += 1
+            tables += vm.heap.obj_type(stack[-1]) == TABLE
         if vm.state == State.ERROR and vm.error == Error.BUDGET:
             vm.state = State.READY
     assert vm.state == State.DONE
-    assert flagged_tops > 10
+    return tops, tables
+
+
+@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
+def test_the_kernel_marks_fresh_temporaries() -> None:
+    tops, _tables = _fresh_tops("arithmetic with literals")
+    assert tops > 10
+
+
+@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
+def test_the_kernel_marks_method_calls_table_copies_fresh() -> None:
+    _tops, tables = _fresh_tops("method calls on global tables")
+    assert tables > 0

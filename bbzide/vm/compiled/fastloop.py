@@ -111,9 +111,9 @@ for _op in (13, 16, 19):
 RULES[32] = _POPPED_TWO_OLD  # tget
 RULES[42] = _STORED_NEW_LOCAL  # lstore
 #: ``info`` value of a *fresh* leaf: one a skipped step allocated (in a slot the last
-#: collection did not reach; not a string, which a later ``pushs`` may deduplicate to), so
-#: its one reference is its own stack slot. The collector never writes it (its depths start
-#: at 2); a collection clears it.
+#: collection did not reach), so its one reference is its own stack slot — or a ``dup``'s
+#: copy of a table the permanent roots keep (see :func:`_table_copy_kept`). The collector
+#: never writes it (its depths start at 2); a collection clears it.
 FRESH = 1
 
 
@@ -816,19 +816,42 @@ def _new_leaf_kept(d: Any, regs: Any, info: Any, x: int, s: int) -> bool:
     """After an instruction that pushed object ``x`` it allocated (``regs[R_PRIOR]``: the
     slot's mdata before): is the heap still a fixed point, but for the mark bit the next
     step sets (``pending``)? Yes for a leaf in a slot the last collection did not reach, or
-    a deduplicated string (an old, marked object). Such a new leaf, unless a string, is also
-    marked :data:`FRESH`."""
+    a deduplicated string (an old, marked object). Such a new leaf is also marked
+    :data:`FRESH`; a fresh string that ``pushs`` deduplicated to has two references now,
+    and is fresh no more."""
     m = _i(d[x * s])
     t = m & 7
     prior = regs[R_PRIOR]
     if t == _TABLE or (t == _CLOSURE and m & _FLAG2):
         return False
     if prior & _VALID:
+        if _i(info[x]) == FRESH:
+            info[x] = 0
         return True
     if prior & _GC_MARK:
         return False
-    if t != _STRING:  # a later pushs may return a string again (deduplication): not fresh
-        info[x] = FRESH
+    info[x] = FRESH
+    return True
+
+
+@_compile
+def _table_copy_kept(d: Any, regs: Any, info: Any, copy: int, source: int, nobj: int,
+                     s: int, limit: int) -> bool:
+    """After a ``dup`` of the table ``source`` into the new object ``copy``: is the heap
+    still a fixed point, but for the copy's mark bit (``pending``)? Yes when the source was
+    first marked from the permanent roots at a depth whose segments the marker walked, and
+    the copy's slot was not reached by the last collection: the copy shares the source's
+    segments, all marked, so as a stack root it marks nothing else — and unreachable, the
+    collector frees it alone (its first segment is marked), as a fresh leaf: it is marked
+    :data:`FRESH`."""
+    if source >= nobj:
+        return False
+    prior = regs[R_PRIOR]
+    origin = _i(info[source])
+    if prior & (_VALID | _GC_MARK) or not origin & PERMANENT_PHASE \
+            or (origin & (PERMANENT_PHASE - 1)) >= limit:
+        return False
+    info[copy] = FRESH
     return True
 
 
@@ -1292,7 +1315,11 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             fixed = False
         elif rule == _PUSHED_NEW:
             pending = _i(stack[sp]) * s
-            fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
+            if op == 3 and (_i(d[pending]) & 7) == _TABLE:
+                fixed = _table_copy_kept(d, regs, info, _i(stack[sp]), top_before, nobj, s,
+                                         limit)
+            else:
+                fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
         elif rule == _PUSHED_OLD:
             fixed = _old_kept(d, info, _i(stack[sp]), s)
         else:
