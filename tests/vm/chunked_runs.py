@@ -51,3 +51,11 @@ def assert_modes_agree_in_chunks(bbo: bytes, profile: Profile, limit: int, name:
     assert len(stress) == len(fast)
     for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
         assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"
+
+
+def assert_modes_agree(bbo: bytes, profile: Profile, limit: int, name: str) -> None:
+    """The reference and the fast mode equal at the end of a whole run, and after every
+    chunk of a run in chunks (``limit`` chunks at most)."""
+    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False), \
+        f"{name} on {profile.name}: differs at the end"
+    assert_modes_agree_in_chunks(bbo, profile, limit, name)

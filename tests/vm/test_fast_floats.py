@@ -25,7 +25,7 @@ from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import FLOAT, INT
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
 from bbzide.vm.vm import VM, State
-from tests.vm.chunked_runs import assert_modes_agree_in_chunks, run_whole
+from tests.vm.chunked_runs import assert_modes_agree, run_whole
 
 
 def _double_bits(x: float) -> bytes:
@@ -191,9 +191,7 @@ PROFILES = [PC, CRAZYFLIE, KILOBOT,  # Kilobot: no float operations (TYPE errors
 @pytest.mark.parametrize("name", sorted(SCRIPTS))
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
 def test_float_scripts_identical(name: str, profile: Profile) -> None:
-    bbo = _bbo(name)
-    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
-    assert_modes_agree_in_chunks(bbo, profile, 600, name)
+    assert_modes_agree(_bbo(name), profile, 600, name)
 
 
 @pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")

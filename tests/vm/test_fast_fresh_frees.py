@@ -25,7 +25,7 @@ from bbzide.vm.heap import TABLE
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
 from bbzide.vm.states import Error
 from bbzide.vm.vm import VM, State
-from tests.vm.chunked_runs import CHUNKS, assert_modes_agree_in_chunks, run_whole
+from tests.vm.chunked_runs import CHUNKS, assert_modes_agree
 
 SCRIPTS = {
     "arithmetic with literals": """
@@ -92,15 +92,8 @@ PROFILES = [PC, KILOBOT, CRAZYFLIE,
 
 @pytest.mark.parametrize("name", sorted(SCRIPTS))
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
-def test_fresh_frees_identical_whole(name: str, profile: Profile) -> None:
-    bbo = _bbo(name)
-    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
-
-
-@pytest.mark.parametrize("name", sorted(SCRIPTS))
-@pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
-def test_fresh_frees_identical_in_chunks(name: str, profile: Profile) -> None:
-    assert_modes_agree_in_chunks(_bbo(name), profile, 500, name)
+def test_fresh_frees_identical(name: str, profile: Profile) -> None:
+    assert_modes_agree(_bbo(name), profile, 500, name)
 
 
 def _fresh_tops(name: str) -> tuple[int, int]:

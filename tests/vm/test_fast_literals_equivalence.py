@@ -20,7 +20,7 @@ from bbzide.compiler import compile_source
 from bbzide.vm import vm as vm_module
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
-from tests.vm.chunked_runs import assert_modes_agree_in_chunks, run_whole
+from tests.vm.chunked_runs import assert_modes_agree, run_whole
 
 SCRIPTS = {
     "lambdas kept in tables": """
@@ -97,16 +97,8 @@ PROFILES = [PC, KILOBOT, CRAZYFLIE,
 
 @pytest.mark.parametrize("name", sorted(SCRIPTS))
 @pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
-def test_literals_and_lambdas_identical_whole(name: str, profile: Profile) -> None:
-    bbo = _bbo(name)
-    assert run_whole(bbo, profile, True) == run_whole(bbo, profile, False)
-
-
-@pytest.mark.parametrize("name", sorted(SCRIPTS))
-@pytest.mark.parametrize("profile", PROFILES, ids=lambda p: p.name)
-def test_literals_and_lambdas_identical_in_chunks(name: str, profile: Profile) -> None:
-    bbo = _bbo(name)
-    assert_modes_agree_in_chunks(bbo, profile, 400, name)
+def test_literals_and_lambdas_identical(name: str, profile: Profile) -> None:
+    assert_modes_agree(_bbo(name), profile, 400, name)
 
 
 @pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
