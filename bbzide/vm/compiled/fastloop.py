@@ -812,6 +812,41 @@ def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsym
 
 
 @_compile
+def _is_leaf(m: int) -> bool:
+    """Is an object of metadata ``m`` a leaf — anything but a table or a lambda closure —
+    whose inside the marker never looks at?"""
+    t = m & 7
+    return t != _TABLE and (t != _CLOSURE or not m & _FLAG2)
+
+
+@_compile
+def _walked_from_permanent(info: Any, x: int, limit: int) -> bool:
+    """Did the last collection first mark ``x`` from the permanent roots, at a depth whose
+    children the marker visits (below the mark depth ``limit``)?"""
+    first = _i(info[x])
+    return (first & PERMANENT_PHASE) != 0 and (first & (PERMANENT_PHASE - 1)) < limit
+
+
+#: what a root an instruction dropped leaves behind (:func:`_dropped`): kept by the
+#: permanent roots, a fresh temporary the skipped collection frees, or unknown
+_DROP_KEPT, _DROP_FRESH, _DROP_UNKNOWN = 0, 1, 2
+
+
+@_compile
+def _dropped(info: Any, x: int, nobj: int) -> int:
+    """How a dropped stack root ``x`` leaves the heap: :data:`_DROP_KEPT` when the last
+    collection first marked it from the permanent roots (as a stack root it marked
+    nothing), :data:`_DROP_FRESH` for a fresh temporary (nothing else reaches it), else
+    :data:`_DROP_UNKNOWN` (a collection must tell)."""
+    if x >= nobj:
+        return _DROP_UNKNOWN
+    first = _i(info[x])
+    if first == FRESH:
+        return _DROP_FRESH
+    return _DROP_KEPT if first & PERMANENT_PHASE else _DROP_UNKNOWN
+
+
+@_compile
 def _new_leaf_kept(d: Any, regs: Any, info: Any, x: int, s: int) -> bool:
     """After an instruction that pushed object ``x`` it allocated (``regs[R_PRIOR]``: the
     slot's mdata before): is the heap still a fixed point, but for the mark bit the next
@@ -819,10 +854,8 @@ def _new_leaf_kept(d: Any, regs: Any, info: Any, x: int, s: int) -> bool:
     a deduplicated string (an old, marked object). Such a new leaf is also marked
     :data:`FRESH`; a fresh string that ``pushs`` deduplicated to has two references now,
     and is fresh no more."""
-    m = _i(d[x * s])
-    t = m & 7
     prior = regs[R_PRIOR]
-    if t == _TABLE or (t == _CLOSURE and m & _FLAG2):
+    if not _is_leaf(_i(d[x * s])):
         return False
     if prior & _VALID:
         if _i(info[x]) == FRESH:
@@ -835,8 +868,8 @@ def _new_leaf_kept(d: Any, regs: Any, info: Any, x: int, s: int) -> bool:
 
 
 @_compile
-def _table_copy_kept(d: Any, regs: Any, info: Any, copy: int, source: int, nobj: int,
-                     s: int, limit: int) -> bool:
+def _table_copy_kept(regs: Any, info: Any, copy: int, source: int, nobj: int,
+                     limit: int) -> bool:
     """After a ``dup`` of the table ``source`` into the new object ``copy``: is the heap
     still a fixed point, but for the copy's mark bit (``pending``)? Yes when the source was
     first marked from the permanent roots at a depth whose segments the marker walked, and
@@ -844,12 +877,8 @@ def _table_copy_kept(d: Any, regs: Any, info: Any, copy: int, source: int, nobj:
     segments, all marked, so as a stack root it marks nothing else — and unreachable, the
     collector frees it alone (its first segment is marked), as a fresh leaf: it is marked
     :data:`FRESH`."""
-    if source >= nobj:
-        return False
-    prior = regs[R_PRIOR]
-    origin = _i(info[source])
-    if prior & (_VALID | _GC_MARK) or not origin & PERMANENT_PHASE \
-            or (origin & (PERMANENT_PHASE - 1)) >= limit:
+    if source >= nobj or regs[R_PRIOR] & (_VALID | _GC_MARK) \
+            or not _walked_from_permanent(info, source, limit):
         return False
     info[copy] = FRESH
     return True
@@ -861,8 +890,7 @@ def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
     point? Yes for a marked leaf (the marker never looks inside it), or a non-leaf the last
     collection first marked from the permanent roots (its stack root finds it marked)."""
     m = _i(d[x * s])
-    t = m & 7
-    if t != _TABLE and (t != _CLOSURE or not m & _FLAG2):
+    if _is_leaf(m):
         return (m & _GC_MARK) != 0
     return (_i(info[x]) & PERMANENT_PHASE) != 0
 
@@ -879,14 +907,10 @@ def _stored_leaf_kept(d: Any, info: Any, v: int, lsyms: int, nobj: int, s: int,
     if v >= nobj or lsyms >= nobj:
         return False
     m = _i(d[v * s])
-    t = m & 7
-    if t == _TABLE or (t == _CLOSURE and m & _FLAG2) or not m & _GC_MARK:
-        return False
-    record = _i(info[lsyms])
-    if not record & PERMANENT_PHASE or (record & (PERMANENT_PHASE - 1)) >= limit:
+    if not _is_leaf(m) or not m & _GC_MARK or not _walked_from_permanent(info, lsyms, limit):
         return False
     if not _i(info[v]) & PERMANENT_PHASE:
-        info[v] = (record & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
+        info[v] = (_i(info[lsyms]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
     return True
 
 
@@ -1281,24 +1305,13 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                                                     limit)
         elif rule >= _REPLACED_TOP:
             # it dropped roots (the top, and the one below for two): each must be kept by
-            # the permanent roots (so it marked nothing as a stack root), or be a fresh leaf,
-            # which the skipped collection frees (nothing else reaches it)
-            if top_before >= nobj:
-                fixed = False
-            elif _i(info[top_before]) == FRESH:
-                free_a = top_before
-            elif not _i(info[top_before]) & PERMANENT_PHASE:
-                fixed = False
-            if fixed and (rule == _POPPED_TWO_NEW or rule == _POPPED_TWO_OLD):
-                if below_before >= nobj or below_before == free_a:
-                    fixed = False
-                elif _i(info[below_before]) == FRESH:
-                    if free_a < 0:
-                        free_a = below_before
-                    else:
-                        free_b = below_before
-                elif not _i(info[below_before]) & PERMANENT_PHASE:
-                    fixed = False
+            # the permanent roots or be a fresh temporary, which the skipped collection frees
+            top = _dropped(info, top_before, nobj)
+            below = _DROP_KEPT
+            if rule == _POPPED_TWO_NEW or rule == _POPPED_TWO_OLD:
+                below = _dropped(info, below_before, nobj)
+            fixed = top != _DROP_UNKNOWN and below != _DROP_UNKNOWN and not (
+                top == below == _DROP_FRESH and top_before == below_before)
             if not fixed or rule == _POPPED_ONE:
                 pass
             elif sp < 0 or _i(stack[sp]) >= nobj:
@@ -1308,16 +1321,19 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
             else:
                 fixed = _old_kept(d, info, _i(stack[sp]), s)
-            if not fixed:
-                free_a = -1
-                free_b = -1
+            if fixed and top == _DROP_FRESH:
+                free_a = top_before
+            if fixed and below == _DROP_FRESH:
+                if free_a < 0:
+                    free_a = below_before
+                else:
+                    free_b = below_before
         elif rule >= _PUSHED_OLD and _i(stack[sp]) >= nobj:
             fixed = False
         elif rule == _PUSHED_NEW:
             pending = _i(stack[sp]) * s
             if op == 3 and (_i(d[pending]) & 7) == _TABLE:
-                fixed = _table_copy_kept(d, regs, info, _i(stack[sp]), top_before, nobj, s,
-                                         limit)
+                fixed = _table_copy_kept(regs, info, _i(stack[sp]), top_before, nobj, limit)
             else:
                 fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
         elif rule == _PUSHED_OLD:
