@@ -116,31 +116,19 @@ def _add_neighborlike_fields(vm: VM, count: int) -> None:
         _add_data(vm, STR_DATA, sub)
         cnt = vm.new_int(count)
         _add_data(vm, STR_RESET, cnt)
-    methods = _neighborlike_methods()
-    addresses = [vm.host.register(symbol, fn) for _sid, symbol, fn in methods]
+    addresses = [vm.host.register(symbol, fn) for _sid, symbol, fn in _NEIGHBORLIKE_METHODS]
     if COMPILED and not vm.stress_gc and vm.state == State.READY:
         # the fast mode adds them in machine code when the heap has room (fasthost)
         h = vm.heap
         regs = vm.kernel_registers(None, None)
         done = fasthost.add_functions(
-            h.view, vm._stack_view, regs, vm.stack[vm.stackptr],
-            np.array([sid for sid, _symbol, _fn in methods], np.int64),
+            h.view, vm._stack_view, regs, vm.stack[vm.stackptr], _NEIGHBORLIKE_METHOD_SIDS,
             np.array(addresses, np.int64), h.obj_size, h.elems, h.reserved)
         if done:
             vm.take_kernel_registers(regs)
             return
-    for sid, symbol, fn in methods:
+    for sid, symbol, fn in _NEIGHBORLIKE_METHODS:
         _add_function(vm, sid, symbol, fn)
-
-
-def _neighborlike_methods() -> list[tuple[int, str, Callable[[VM], None]]]:
-    """(name, symbol, function) of a neighbour-like table's methods, in the firmware's order."""
-    return [(STR_FOREACH, "bbzneighbors_foreach", neighbors_foreach),
-            (STR_FILTER, "bbzneighbors_filter", neighbors_filter),
-            (STR_MAP, "bbzneighbors_map", neighbors_map),
-            (STR_GET, "bbzneighbors_get", neighbors_get),
-            (STR_REDUCE, "bbzneighbors_reduce", neighbors_reduce),
-            (STR_COUNT, "bbzneighbors_count", neighbors_count)]
 
 
 def _is_neighbors_table(vm: VM, self_obj: int) -> bool:
@@ -570,3 +558,16 @@ def register(vm: VM) -> None:
     _add_function(vm, STR_IGNORE, "bbzneighbors_ignore", neighbors_ignore)
     _add_neighborlike_fields(vm, 0)
     vm.gstore()
+
+
+#: (name, symbol, function) of a neighbour-like table's methods, in the firmware's order
+_NEIGHBORLIKE_METHODS: tuple[tuple[int, str, Callable[[VM], None]], ...] = (
+    (STR_FOREACH, "bbzneighbors_foreach", neighbors_foreach),
+    (STR_FILTER, "bbzneighbors_filter", neighbors_filter),
+    (STR_MAP, "bbzneighbors_map", neighbors_map),
+    (STR_GET, "bbzneighbors_get", neighbors_get),
+    (STR_REDUCE, "bbzneighbors_reduce", neighbors_reduce),
+    (STR_COUNT, "bbzneighbors_count", neighbors_count))
+#: their names' string ids, as fasthost.add_functions takes them
+_NEIGHBORLIKE_METHOD_SIDS = np.array([sid for sid, _symbol, _fn in _NEIGHBORLIKE_METHODS],
+                                     np.int64)
