@@ -465,7 +465,7 @@ def _call_global_compiled(vm: VM, sid: int) -> bool | None:
     h = vm.heap
     status = fastinbox.call_global(h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info,
                                    h.gc_traversed, fastloop.RULES, h.obj_size, h.elems,
-                                   h.reserved, sid, *fasthost.NO_HOST_ARGS)
+                                   h.reserved, sid, *fasthost.NO_HOST_ARGS, False)
     if status == fastinbox.PYTHON_MESSAGE:
         return None
     vm.take_kernel_registers(regs)

@@ -1269,7 +1269,7 @@ class VM:
             self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
             fastloop.NONE if budget is None else budget, self.profile.float_ops,
             self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
-            0, call_first, 0), np.int64)
+            0, call_first, 0, 0, 0, -1), np.int64)
 
     def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
         """Copy a kernel's registers back into the VM and its heap; the loop's own
@@ -1452,7 +1452,8 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 #   by _PUSHED_NEW), _POPPED_TWO_OLD (tget: the value as by _PUSHED_OLD): they dropped one or
 #   two such roots;
 # * _STORED_NEW_LOCAL: lstore moved a leaf from the stack into a new local of an activation
-#   record the permanent roots reach (fastloop._stored_leaf_kept).
+#   record the permanent roots reach (fastloop._stored_leaf_kept), or into a local whose
+#   value was a permanent leaf (nil: ``var x = e`` declares x by ``pushnil; lstore``).
 # The kernel also accepts, for every dropped root of these rules, a *fresh* leaf
 # (fastloop.FRESH: a leaf a skipped step allocated in a slot the last collection did not
 # reach, so its one reference was that stack slot; or a dup's copy of a table the permanent

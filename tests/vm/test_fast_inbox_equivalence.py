@@ -18,6 +18,8 @@ import random
 import pytest
 
 from bbzide.compiler import bittybuzz_string_table, compile_source
+from bbzide.vm import inmsgs
+from bbzide.vm.compiled import fastloop
 from bbzide.vm.host import HostCall
 from bbzide.vm.profiles import KILOBOT, PC
 from bbzide.vm.robot import Robot
@@ -141,3 +143,60 @@ def test_receive_all_is_receive_after_receive() -> None:
             batch.control_step()
             single.control_step()
             assert _observe(batch) == _observe(single), step
+
+
+#: A listener that keeps nothing it makes: locals, temporaries, a string, a result.
+PLAIN_LISTENER = """
+function init() {
+  neighbors.listen("q", function(topic, value, rid) {
+    var a = value * 2 + rid
+    var b = "word"
+    return a
+  })
+}
+function step() {
+  neighbors.broadcast("q", id)
+}
+"""
+
+
+@pytest.mark.parametrize("profile", [KILOBOT, PC], ids=["kilobot", "pc"])
+def test_plain_listener_calls_end_without_a_collection(profile) -> None:
+    """The compiled in-queue begins such a call on the heap the message's collection left
+    (``fastloop.CALL_ON_FIXED_HEAP``) and ends it by returning to that heap
+    (``undo_to_fixed_point``), so no collection runs for the messages after the first:
+    the ``gc_info`` depths the test shifts beforehand (a collection would rewrite them)
+    survive, and every observable is the reference's all the same."""
+    program = compile_source(PLAIN_LISTENER, "plain.bzz",
+                             string_table=bittybuzz_string_table([])).to_bbo()
+    sender = Robot(program, profile, 7, {})
+    sender.boot()
+    robots = [Robot(program, profile, 1, {}, stress_gc=stress) for stress in (True, False)]
+    for robot in robots:
+        robot.boot()
+    reference, fast = robots
+    sender.control_step()  # its broadcast leaves with its next step
+    for _ in range(4):
+        sent = sender.control_step()
+        assert sent
+        for robot in robots:
+            for payload in sent * 3:
+                robot.receive(payload, 30.0, 1.0, 0.0)
+            robot.vm.gc()
+        info = fast.vm.heap.gc_info
+        data = fast.vm.heap.data
+        s = fast.vm.heap.obj_size
+        shifted = [x for x in range(len(info))
+                   if info[x] & fastloop.PERMANENT_PHASE and 2 <= info[x] & 63 < 60
+                   and data[x * s] & 7 in (1, 2, 3)]  # leaves: their depth is never read
+        for x in shifted:
+            info[x] += 1
+        expected = info.copy()
+        for robot in robots:
+            inmsgs.go_on_inmsgs(robot.vm, 0, True)
+        assert len(shifted) > 3 and (info[shifted] == expected[shifted]).all()
+        assert fast.vm.queues.inbox.empty()
+        assert _observe(reference) == _observe(fast)
+        for robot in robots:
+            robot.control_step()
+        assert _observe(reference) == _observe(fast)

@@ -339,6 +339,73 @@ def test_batch_hand_overs_identical(tmp_path: Path, loop: str) -> None:
     assert seen["messages"] > 300 and 0 < seen["failed"] < 14, seen
 
 
+#: Listener calls and host calls of every shape the compiled step may end without a
+#: collection (fastloop.CALL_ON_FIXED_HEAP, undo_to_fixed_point, end_host_frame) and of
+#: shapes it must not: locals, temporaries, strings and results that die with the call;
+#: arguments kept in a global (some steps only); a lambda capturing a leaf or a table; a
+#: listener returning a table; host calls given fresh temporaries, globals' values, strings
+#: and locals.
+CALL_SHORTCUTS = """
+var heard = 0
+var last = 0
+var kept = {}
+var steps = 0
+function listeners(tag, box) {
+  neighbors.listen("a", function(vid, value, rid) {
+    var twice = value * 2
+    var label = "seen"
+    var sum = twice + rid + tag
+    return sum % 5
+  })
+  neighbors.listen("b", function(vid, value, rid) {
+    if (value % 3 == 0) {
+      last = value                  # some steps keep the argument
+    }
+    var x = box.n + value           # a captured table
+    return x
+  })
+  neighbors.listen("c", function(vid, value, rid) {
+    heard = heard + 1
+    return {}                       # a table result, popped by the in-queue
+  })
+}
+function init() {
+  var box = {.n = 1}
+  listeners(id % 4, box)
+}
+function step() {
+  steps = steps + 1
+  neighbors.broadcast("a", steps * 3 + id)      # a fresh temporary
+  neighbors.broadcast("b", last)                # a global's value
+  if (steps % 4 == 1) {
+    neighbors.broadcast("c", heard)
+  }
+  led(steps % 7)
+  led(heard)
+  var twin = steps + 1
+  led(twin)                                     # a local
+  if (steps > 5) {
+    kept[steps % 3] = steps                     # old values dropped by a table
+  }
+}
+"""
+
+
+def test_batch_call_shortcuts_identical(tmp_path: Path) -> None:
+    """Listener and host calls ended without a collection when the heap allows it, with a
+    collection when it does not: the same robots as the reference after every step, on the
+    Kilobot (tiny heap: freed slots reused at once) and on the M300 profile."""
+    program = _compile(tmp_path, CALL_SHORTCUTS)
+    seen = _run_batches(program, "kilobot", 10, 30, options={"width": 0.25, "height": 0.25},
+                        every=1)
+    assert seen["messages"] > 300 and seen["failed"] == 0, seen
+    text = CALL_SHORTCUTS.replace("led(", "ledx(").replace(
+        "var steps = 0\n", "var steps = 0\nfunction ledx(a) { return a }\n", 1)
+    seen = _run_batches(_compile(tmp_path, text, "m300"), "m300", 8, 20, comm_range=30.0,
+                        unit=1.0, every=1)
+    assert seen["messages"] > 200 and seen["failed"] == 0, seen
+
+
 def test_batch_heap_filling_identical(tmp_path: Path) -> None:
     """Listeners keep what they hear until the Kilobot heap is full (MEM); the LED, a
     latched host function, is set every step."""

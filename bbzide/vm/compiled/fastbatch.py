@@ -287,7 +287,8 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     else:
         # ---- step, and the firmware loop's pop of its result
         status = call_global(d, stack, bcode, regs, info, traversed, rules, s, elems,
-                             reserved, _STR_STEP, hosts, outq, ctl, latch)
+                             reserved, _STR_STEP, hosts, outq, ctl, latch,
+                             status == DONE and q[Q_COLLECTED] == 1)
         if status == CALLED and flags & F_POP and regs[R_SP] >= 0:
             regs[R_SP] -= 1
         elif status != NOT_DEFINED and (status != CALLED or flags & F_POP):

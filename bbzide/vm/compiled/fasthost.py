@@ -37,6 +37,7 @@ import numpy as np
 
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
+    CALL,
     EXIT,
     HOST_CALL,
     NONE,
@@ -46,10 +47,12 @@ from bbzide.vm.compiled.fastloop import (
     R_FIXED,
     R_GC_RUNS,
     R_HOST,
+    R_HOST_COUNT,
     R_LSYMS,
     R_LTSEG,
     R_MARK_DEPTH,
     R_N,
+    R_OLD_CHANGED,
     R_PENDING,
     R_RTOBJ,
     R_SAVED,
@@ -62,6 +65,7 @@ from bbzide.vm.compiled.fastloop import (
     _s16,
     _seg_alloc,
     _table_set,
+    end_host_frame,
     run,
 )
 from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
@@ -137,10 +141,13 @@ def _address_matches(d: Any, c: int, s: int, address: int, ptr_size: int) -> boo
 
 
 @_compile
-def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, s: int, elems: int,
-                   hosts: Any, outq: Any, ctl: Any, latch: Any) -> bool:
+def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
+                   elems: int, reserved: int, hosts: Any, outq: Any, ctl: Any,
+                   latch: Any) -> bool:
     """The host function of the C closure ``regs[R_HOST]`` whose call ``run`` set up, and
-    ``VM._loop``'s end of that step; False with nothing done when Python must do it."""
+    ``VM._loop``'s end of that step — with the next step's collection replaced by its
+    effect when ``run`` found the call's frame droppable (``R_HOST_COUNT``); False with
+    nothing done when Python must do it."""
     saved = regs[R_SAVED]
     budget = regs[R_BUDGET]
     n = regs[R_N]
@@ -181,10 +188,16 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, s: int, elems: int
         for i in range(1, argc + 1):
             o = darray_get(d, lsyms, i, s, elems)
             latch[slot, i] = _s16(_i(d[o * s + 1]) | (_i(d[o * s + 2]) << 8))
+    return_pc = _i(stack[bp - 2])
+    block = _i(stack[bp])
     _ret(d, stack, regs, False, sp, bp, lsyms, bsize, s, elems)
     regs[R_N] = n + 1
     regs[R_FIXED] = 0
     regs[R_PENDING] = -1
+    if regs[R_HOST_COUNT] >= 0:
+        end_host_frame(d, regs, info, regs[R_HOST_COUNT], c, lsyms, return_pc, block, s,
+                       elems, reserved)
+        regs[R_FIXED] = 1
     return True
 
 
@@ -197,23 +210,24 @@ def run_hosted(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     while True:
         status = run(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved)
         if status != HOST_CALL or len(hosts) == 0 or not _host_compiled(
-                d, stack, len(bcode), regs, s, elems, hosts, outq, ctl, latch):
+                d, stack, len(bcode), regs, info, s, elems, reserved, hosts, outq, ctl,
+                latch):
             return status
 
 
 @_compile
 def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 rules: Any, s: int, elems: int, reserved: int, sp: int, hosts: Any,
-                outq: Any, ctl: Any, latch: Any) -> int:
+                outq: Any, ctl: Any, latch: Any, entry: int) -> int:
     """``closure_call``'s loop once its arguments and count are pushed (``sp``: the new
-    stack top): the registers of a fresh ``_loop`` with its ``callc`` still to make, then
-    :func:`run_hosted`."""
+    stack top): the registers of a fresh ``_loop`` with its ``callc`` still to make
+    (``entry``: ``fastloop.CALL`` or ``CALL_ON_FIXED_HEAP``), then :func:`run_hosted`."""
     regs[R_SP] = sp
     regs[R_SAVED] = regs[R_BP]
     regs[R_N] = 0
     regs[R_FIXED] = 0
     regs[R_PENDING] = -1
-    regs[R_CALL_FIRST] = 1
+    regs[R_CALL_FIRST] = entry
     return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
                       hosts, outq, ctl, latch)
 
@@ -291,6 +305,7 @@ def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: A
                      frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
     regs[R_RTOBJ] = r >> 16
     regs[R_LTSEG] = r & 0xFFFF
+    regs[R_OLD_CHANGED] = 1
 
 
 @_compile
@@ -398,7 +413,7 @@ def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
     sp += 1
     stack[sp] = count
     return call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
-                       sp, hosts, outq, ctl, latch)
+                       sp, hosts, outq, ctl, latch, CALL)
 
 
 @_compile

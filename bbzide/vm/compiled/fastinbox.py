@@ -10,6 +10,12 @@ message, nine messages per Kilobot per step. :func:`process_broadcasts` does tha
 (``bbzvm_process_inmsgs`` + ``bbzmsg_process_broadcast``) for one robot in one call, calling
 the instruction kernel's :func:`fastloop.run` for each listener.
 
+A message's listener call begins on the heap the message's collection left
+(``fastloop.CALL_ON_FIXED_HEAP``: the collection after its ``callc`` is replaced by its
+effect) and, when nothing it made outlives it, ends with ``fastloop.undo_to_fixed_point``
+instead of the collection after its return, leaving the same bytes; for a
+Kilobot's gradient listener both hold at every message.
+
 It follows :mod:`fastloop`'s rule — **handle only the happy path, give Python the rest
 before any side effect it cannot hand over** — at two points of a message:
 
@@ -45,6 +51,8 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
 from bbzide.vm.compiled.fasthost import call_pushed
 from bbzide.vm.compiled.fastloop import (
+    CALL,
+    CALL_ON_FIXED_HEAP,
     EXIT,
     NONE,
     R_GC_RUNS,
@@ -52,10 +60,14 @@ from bbzide.vm.compiled.fastloop import (
     R_LTSEG,
     R_MARK_DEPTH,
     R_NIL,
+    R_OLD_CHANGED,
+    R_PRIOR,
+    R_REACHED,
     R_RTOBJ,
     R_SP,
     R_STACK_SIZE,
     _obj_alloc,
+    undo_to_fixed_point,
 )
 from bbzide.vm.compiled.fasttables import table_lookup
 from bbzide.vm.heap_layout import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
@@ -126,6 +138,9 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
             regs[R_RTOBJ] = r >> 16
             regs[R_LTSEG] = r & 0xFFFF
         inq[Q_COLLECTED] = 0
+        # the fixed point the listener call is begun on (CALL_ON_FIXED_HEAP) and undone to
+        regs[R_REACHED] = 0
+        regs[R_OLD_CHANGED] = 0
         # ---- anything but the happy path: Python takes the message from here
         head = ((start & 0xFF) % slots) * n
         sp = regs[R_SP]
@@ -168,17 +183,21 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         d[argc * s + 2] = 0
         stack[sp + 6] = argc
         status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
-                             reserved, sp + _PUSHES, hosts, outq, ctl, latch)
+                             reserved, sp + _PUSHES, hosts, outq, ctl, latch,
+                             CALL_ON_FIXED_HEAP)
         if status != EXIT or regs[R_SP] < 0:
             inq[Q_INNER] = status
             return IN_CALL
         # ---- the end of process_broadcast: pop the result, collect
         regs[R_SP] -= 1
         regs[R_GC_RUNS] += 1
-        r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
-                         traversed, frames, size, s, g, elems, reserved, limit)
-        regs[R_RTOBJ] = r >> 16
-        regs[R_LTSEG] = r & 0xFFFF
+        if regs[R_OLD_CHANGED] == 0 and regs[R_REACHED] == 0:
+            undo_to_fixed_point(d, regs, info, s, elems, reserved)
+        else:
+            r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
+                             traversed, frames, size, s, g, elems, reserved, limit)
+            regs[R_RTOBJ] = r >> 16
+            regs[R_LTSEG] = r & 0xFFFF
         inq[Q_COLLECTED] = 1
 
 
@@ -195,18 +214,24 @@ CALL_UNDER_WAY = 8  # + fastloop.run's status (all below 8): Python goes on with
 @_compile
 def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 rules: Any, s: int, elems: int, reserved: int, sid: int, hosts: Any,
-                outq: Any, ctl: Any, latch: Any) -> int:
+                outq: Any, ctl: Any, latch: Any, fixed: bool) -> int:
     """``Robot.call_global`` of string ``sid`` with no argument (``bbzkilo_func_call``:
     pushs, pop, look the global up, push nil and the closure, ``closure_call(0)``) on the
-    happy path; the VM must be READY. Returns :data:`PYTHON_MESSAGE` with nothing done
-    (no room on the stack or in the heap: Python calls it), :data:`NOT_DEFINED`,
+    happy path; the VM must be READY. ``fixed``: the heap is a fixed point of the collector
+    (the in-queue's last message just ended with its collection), so the call may begin
+    with ``CALL_ON_FIXED_HEAP`` when the name string was an old one. Returns
+    :data:`PYTHON_MESSAGE` with nothing done (no room on the stack or in the heap: Python
+    calls it), :data:`NOT_DEFINED`,
     :data:`CALLED`, or ``CALL_UNDER_WAY + status`` where ``status`` is what
     :func:`fastloop.run` returned, for ``VM._loop``'s ``resume``."""
     sp = regs[R_SP]
     if sp + _CALL_PUSHES >= regs[R_STACK_SIZE] \
             or not _room_for_objects(d, regs, s, reserved, _CALL_OBJECTS):
         return PYTHON_MESSAGE
+    regs[R_REACHED] = 0
+    regs[R_OLD_CHANGED] = 0
     name = _obj_alloc(d, regs, s, reserved, STRING, sid)
+    entry = CALL_ON_FIXED_HEAP if fixed and regs[R_PRIOR] & VALID else CALL
     d[name * s + 1] = sid & 0xFF
     d[name * s + 2] = sid >> 8
     stack[sp + 1] = name  # push + pop: the slot above the top keeps it
@@ -220,7 +245,7 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     d[argc * s + 2] = 0
     stack[sp + 3] = argc
     status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
-                         sp + _CALL_PUSHES, hosts, outq, ctl, latch)
+                         sp + _CALL_PUSHES, hosts, outq, ctl, latch, entry)
     if status != EXIT:
         return CALL_UNDER_WAY + status
     return CALLED

@@ -35,6 +35,14 @@ A skipped collection may owe more than a mark bit: the *fresh* leaves (:data:`FR
 last instruction dropped, which it frees as that collection would (:func:`_free_dropped`);
 in a real swarm script most temporaries (``pushi 33`` of ``d / 33``, a comparison's result
 popped by ``jumpz``) die that way, a collection saved each.
+Calls have their own shortcuts, each checked before it writes anything: a listener or
+``step`` called by a compiled entry on a heap its caller vouches for
+(:data:`CALL_ON_FIXED_HEAP`) skips the collection after its ``callc``
+(:func:`_entered_on_fixed_heap`), and when nothing the call did outlives it the entry ends
+it by returning to that heap (:func:`undo_to_fixed_point`: the new objects freed, which
+``info``'s :data:`NEW` bit and :data:`FRESH` value tell); a compiled host function's
+frame whose dropped roots are all kept or fresh is freed without a collection
+(:func:`end_host_frame`).
 The VM registers travel in one int64 array (``R_*`` below) so that a call costs one
 dispatch. Equality with the reference is by test: ``tests/vm/test_fast_vm_equivalence.py``.
 """
@@ -62,8 +70,17 @@ R_PC, R_SP, R_BP, R_RTOBJ, R_LTSEG, R_LSYMS, R_GC_RUNS, R_EXECUTED = range(8)
 R_N, R_FIXED, R_PENDING, R_PEAK = 8, 9, 10, 11
 R_NIL, R_GSYMS, R_SAVED, R_BUDGET, R_FLOAT_OPS, R_STACK_SIZE, R_MARK_DEPTH = range(12, 19)
 R_FLIST, R_DFLT_ACTREC, R_HOST, R_CALL_FIRST, R_PRIOR = 19, 20, 21, 22, 23
+#: set to 1 by an allocation that took a free slot the last collection reached (its mark
+#: bit set: a stale reference leads there), which a new object changes the walk of
+R_REACHED = 24
+#: set to 1 by a collection, and by a skip rule that rewrites an old object's ``info``:
+#: the caller's fixed point is then no longer the one :func:`fastinbox`'s shortcut undoes
+R_OLD_CHANGED = 25
+#: after a ``HOST_CALL``: the argument count's index if the collection that follows the
+#: host function's return may be replaced by its effect (:func:`end_host_frame`), else -1
+R_HOST_COUNT = 26
 #: registers in the array
-REGISTERS = 24
+REGISTERS = 27
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -76,6 +93,11 @@ HOST_CALL = 3      # a callc of a C closure (index in R_HOST) is set up: Python 
 CALL_IN_PYTHON = 4  # R_CALL_FIRST: closure_call's callc is not the kernel's: Python makes it
 SLICE = 5          # SLICE_STEPS steps done: back to Python, which re-enters at once (so
 #                    that Ctrl-C reaches a VM looping forever without a budget)
+#: R_CALL_FIRST values: the call of ``closure_call`` (1), or the same on a heap its caller
+#: vouches for (2): a fixed point before the caller's pushes, which are new leaves (the
+#: argument count last) only the stack holds: the collection after the ``callc`` may then
+#: be replaced by its effect (:func:`_entered_on_fixed_heap`)
+CALL, CALL_ON_FIXED_HEAP = 1, 2
 #: steps per kernel call at most: ~0.5 s of machine code, then Python handles its signals
 SLICE_STEPS = 1 << 20
 
@@ -115,6 +137,12 @@ RULES[42] = _STORED_NEW_LOCAL  # lstore
 #: copy of a table the permanent roots keep (see :func:`_table_copy_kept`). The collector
 #: never writes it (its depths start at 2); a collection clears it.
 FRESH = 1
+#: ``info`` bit of an object allocated since the caller's fixed point that a skip rule
+#: marked as reached (:func:`_entered_on_fixed_heap`, :func:`_stored_leaf_kept`): with the
+#: fresh leaves (``info`` 0 or :data:`FRESH` on a valid object) these are the objects a
+#: return to that fixed point frees (:func:`undo_to_fixed_point`). The collector's values
+#: stay below it (depth < 64, plus ``PERMANENT_PHASE``).
+NEW = 128
 
 
 @_compile
@@ -151,6 +179,8 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
         _note_usage(regs, len(d))
     o = found * s
     regs[R_PRIOR] = d[o]  # Heap.prior_mdata
+    if _i(d[o]) & (_VALID | _GC_MARK) == _GC_MARK:
+        regs[R_REACHED] = 1
     d[o] = typ | _VALID
     if typ == _CLOSURE:
         d[o + 2] = _NO_ACTREC
@@ -335,6 +365,8 @@ def _seg_alloc(d: Any, regs: Any, elems: int) -> int:
         regs[R_LTSEG] = ltseg - g
         _note_usage(regs, size)
     o = size - (new + 1) * g
+    if _i(d[o + g - 1]) & 0xC0 == 0x40:  # SEG_MARK without SEG_VALID: reached, free
+        regs[R_REACHED] = 1
     for j in range(g - 2):
         d[o + j] = 0
     d[o + g - 2] = 0xFF
@@ -722,6 +754,8 @@ def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: i
         new = rtobj // s
         regs[R_RTOBJ] = rtobj + s
         _note_usage(regs, size)
+    if _i(d[new * s]) & (_VALID | _GC_MARK) == _GC_MARK:
+        regs[R_REACHED] = 1
     d[new * s] = _TABLE | _VALID
     seg = _seg_alloc(d, regs, elems)
     d[new * s + 1] = seg & 0xFF
@@ -820,6 +854,16 @@ def _is_leaf(m: int) -> bool:
 
 
 @_compile
+def _permanent_leaf(d: Any, x: int, nobj: int, s: int) -> bool:
+    """Is ``x`` a leaf flagged permanent (nil): a root of its own, marked at every
+    collection however many references to it are dropped?"""
+    if not 0 <= x < nobj:
+        return False
+    m = _i(d[x * s])
+    return _is_leaf(m) and (m & (_PERMANENT | _VALID)) == (_PERMANENT | _VALID)
+
+
+@_compile
 def _walked_from_permanent(info: Any, x: int, limit: int) -> bool:
     """Did the last collection first mark ``x`` from the permanent roots, at a depth whose
     children the marker visits (below the mark depth ``limit``)?"""
@@ -896,22 +940,278 @@ def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
 
 
 @_compile
-def _stored_leaf_kept(d: Any, info: Any, v: int, lsyms: int, nobj: int, s: int,
+def _stored_leaf_kept(d: Any, regs: Any, info: Any, v: int, lsyms: int, nobj: int, s: int,
                       limit: int) -> bool:
     """After an ``lstore`` that moved the stack top ``v`` into a new local (no old value
     dropped): is the heap still a fixed point? Yes when ``v`` is a leaf and the activation
     record was first marked from the permanent roots at a depth whose words the marker
     visits: ``v``, marked already, is then marked from the permanent roots instead of its
     stack slot, one level below the record — which ``info`` now says (a fresh leaf is
-    fresh no more)."""
+    fresh no more, but still :data:`NEW`; an old object's rewritten ``info`` is noted in
+    ``R_OLD_CHANGED``)."""
     if v >= nobj or lsyms >= nobj:
         return False
     m = _i(d[v * s])
     if not _is_leaf(m) or not m & _GC_MARK or not _walked_from_permanent(info, lsyms, limit):
         return False
-    if not _i(info[v]) & PERMANENT_PHASE:
-        info[v] = (_i(info[lsyms]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
+    first = _i(info[v])
+    if not first & PERMANENT_PHASE:
+        depth = (_i(info[lsyms]) & (PERMANENT_PHASE - 1)) + 1
+        if first <= FRESH or first & NEW:
+            info[v] = depth + PERMANENT_PHASE + NEW
+        else:
+            info[v] = depth + PERMANENT_PHASE
+            regs[R_OLD_CHANGED] = 1
     return True
+
+
+@_compile
+def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
+                           closure: int, self_obj: int, s: int, elems: int,
+                           limit: int) -> bool:
+    """After ``closure_call``'s ``callc`` on a heap its caller vouches for
+    (:data:`CALL_ON_FIXED_HEAP`, ``count`` the argument count it pushed): is the heap a
+    fixed point of the collector but for the frame the call made, so that the collection
+    that follows can be replaced by its effect? Yes when no allocation since took a slot the
+    last collection reached (``R_REACHED``), the dropped closure and ``self`` are kept by the
+    permanent roots (``self`` may also be the frame's first local), and every local of the
+    new activation record is a valid leaf: the record, a new permanent root marked at depth
+    2, then marks only leaves, so no other object's marking changes. The effect is then
+    done here: the record, its segments and its new locals marked (``info`` as the
+    collector would first set it, plus :data:`NEW`), the return address and block pointer
+    ints marked as stack roots; the count, unreachable, is the caller's to free
+    (``_free_dropped``). False with nothing written otherwise."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    sp = regs[R_SP]
+    frame = regs[R_LSYMS]
+    if regs[R_REACHED] or limit < 3 or sp < 2 or count >= nobj \
+            or _i(d[count * s]) & (_VALID | _GC_MARK) != _VALID:
+        return False
+    if _dropped(info, closure, nobj) != _DROP_KEPT:
+        return False
+    if _dropped(info, self_obj, nobj) != _DROP_KEPT \
+            and darray_get(d, frame, 0, s, elems) != self_obj:
+        return False
+    # ---- the checks: every local a valid leaf, every segment inside the heap
+    first = _u16(d, frame, s)
+    seg = first
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return False
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if w & 0x8000:
+                y = w & 0x7FFF
+                if y >= nobj:
+                    return False
+                m = _i(d[y * s])
+                if not m & _VALID or not _is_leaf(m):
+                    return False
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            break
+    else:
+        return False
+    for k in range(3):  # the return address, the caller's record, the block pointer
+        x = _i(stack[sp - k])
+        if x >= nobj or (k == 1 and not _i(d[x * s]) & _GC_MARK):
+            return False
+    # ---- the collection's effect
+    d[frame * s] = _i(d[frame * s]) | _GC_MARK
+    info[frame] = 2 + PERMANENT_PHASE + NEW
+    seg = first
+    while True:
+        _set_word(d, seg, n, g, _word(d, seg, n, g) | 0x4000)  # SEG_MARK
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if w & 0x8000:
+                y = w & 0x7FFF
+                m = _i(d[y * s])
+                if not m & _GC_MARK:
+                    d[y * s] = m | _GC_MARK
+                    info[y] = 3 + PERMANENT_PHASE + NEW
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            break
+    for k in (0, 2):
+        x = _i(stack[sp - k])
+        m = _i(d[x * s])
+        if not m & _GC_MARK:
+            d[x * s] = m | _GC_MARK
+            info[x] = 2 + NEW
+    return True
+
+
+@_compile
+def _host_frame_droppable(d: Any, regs: Any, info: Any, count: int, closure: int,
+                          frame: int, s: int, elems: int) -> bool:
+    """After a ``callc`` of a C closure set up on a fixed point (the step's collection or
+    its skip): once the host function has returned, will the heap be that fixed point but
+    for objects the next collection frees? Yes when every root the call dropped — the
+    closure, the argument count and the frame's locals (``self``, the arguments, the
+    default record's copies) — is kept by the permanent roots or is a fresh temporary
+    (each met once), and no allocation of the call took a slot the last collection reached
+    (``R_REACHED`` counts only the call's allocations here)."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    if regs[R_REACHED] or count >= nobj or closure >= nobj or frame >= nobj:
+        return False
+    a = _dropped(info, count, nobj)
+    b = _dropped(info, closure, nobj)
+    if a == _DROP_UNKNOWN or b == _DROP_UNKNOWN or (a == b == _DROP_FRESH and count == closure):
+        return False
+    seg = _u16(d, frame, s)
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return False
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if not w & 0x8000:
+                continue
+            y = w & 0x7FFF
+            kind = _dropped(info, y, nobj)
+            if kind == _DROP_UNKNOWN:
+                return False
+            if kind == _DROP_FRESH and (y == count or y == closure):
+                return False
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            break
+    else:
+        return False
+    # a fresh local met twice (one temporary passed as two arguments) is not fresh
+    seg = _u16(d, frame, s)
+    while True:
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if w & 0x8000 and _i(info[w & 0x7FFF]) == FRESH:
+                if _fresh_met_again(d, frame, w & 0x7FFF, seg, p, s, elems):
+                    return False
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return True
+
+
+@_compile
+def _fresh_met_again(d: Any, frame: int, y: int, at_seg: int, at_word: int, s: int,
+                     elems: int) -> bool:
+    """Does the frame hold ``y`` in a word after (segment ``at_seg``, word ``at_word``)?"""
+    g = 4 * elems + 2
+    n = 2 * elems
+    seg = at_seg
+    p = at_word + 1
+    while True:
+        while p < n:
+            w = _word(d, seg, p, g)
+            if w & 0x8000 and w & 0x7FFF == y:
+                return True
+            p += 1
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return False
+        p = 0
+
+
+@_compile
+def end_host_frame(d: Any, regs: Any, info: Any, count: int, closure: int, frame: int,
+                   return_pc: int, block: int, s: int, elems: int, reserved: int) -> None:
+    """The collection after a compiled host function's ``ret0`` when
+    :func:`_host_frame_droppable` said yes: the fresh temporaries the call dropped (count,
+    closure, locals), the return address and block pointer ints freed, the marks the
+    returned frame's segments kept cleared, both ends of the heap retreated
+    (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    seg = _u16(d, frame, s)
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            break
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if w & 0x8000 and _i(info[w & 0x7FFF]) == FRESH:
+                _free_object(d, info, w & 0x7FFF, s)
+        w = _word(d, seg, n, g)
+        _set_word(d, seg, n, g, w & (0xFFFF ^ 0x4000))
+        seg = w & _NO_NEXT
+        if seg == _NO_NEXT:
+            break
+    for x in (count, closure):
+        if _i(info[x]) == FRESH:
+            _free_object(d, info, x, s)
+    _free_object(d, info, return_pc, s)
+    _free_object(d, info, block, s)
+    _free_object(d, info, frame, s)
+    _retreat(d, regs, s, elems, reserved)
+
+
+@_compile
+def _free_object(d: Any, info: Any, x: int, s: int) -> None:
+    """The sweep's effect on an unreached object: mark and validity cleared, no ``info``."""
+    d[x * s] = _i(d[x * s]) & (0xFF ^ (_VALID | _GC_MARK))
+    info[x] = 0
+
+
+@_compile
+def _retreat(d: Any, regs: Any, s: int, elems: int, reserved: int) -> None:
+    """The collector's last steps: both heap ends retreat over invalid slots."""
+    size = len(d)
+    g = 4 * elems + 2
+    rtobj = regs[R_RTOBJ]
+    low = reserved * s
+    while rtobj > low and not _i(d[rtobj - s]) & _VALID:
+        rtobj -= s
+    regs[R_RTOBJ] = rtobj
+    ltseg = regs[R_LTSEG]
+    while ltseg < size and not _i(d[ltseg + 4 * elems + 1]) & 0x80:  # SEG_VALID
+        ltseg += g
+    regs[R_LTSEG] = ltseg
+
+
+@_compile
+def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
+                        reserved: int) -> None:
+    """The collection that ends a call begun with :data:`CALL_ON_FIXED_HEAP`, when since
+    that fixed point no collection ran, no skip rule rewrote an old object's ``info``
+    (``R_OLD_CHANGED`` clear) and no allocation took a reached slot (``R_REACHED`` clear):
+    with the call's frame returned and its stack popped, nothing reaches the objects
+    allocated since (only that frame and stack did: the skip rules store nowhere else),
+    and the old ones are reached as they were. So the collection frees exactly the new
+    ones — a valid object whose ``info`` is 0, :data:`FRESH` or has :data:`NEW` — clears
+    the marks the returned record and its segments kept, and retreats both ends of the
+    heap (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    rtobj = regs[R_RTOBJ]
+    for i in range(rtobj // s):
+        first = _i(info[i])
+        if first > FRESH and not first & NEW:
+            continue  # an old object, or a free slot the marker reached: as they were
+        o = i * s
+        m = _i(d[o])
+        if m & _VALID:
+            _free_object(d, info, i, s)
+        elif m & _GC_MARK:
+            # a returned activation record: its segments, freed by the return, keep marks
+            d[o] = m & (0xFF ^ _GC_MARK)
+            info[i] = 0
+            if m & 7 == _TABLE:
+                seg = _u16(d, i, s)
+                for _ in range(size // g + 1):
+                    if (seg + 1) * g > size:
+                        break
+                    w = _word(d, seg, n, g)
+                    _set_word(d, seg, n, g, w & (0xFFFF ^ 0x4000))
+                    seg = w & _NO_NEXT
+                    if seg == _NO_NEXT:
+                        break
+    _retreat(d, regs, s, elems, reserved)
 
 
 @_compile
@@ -959,21 +1259,36 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     fixed = regs[R_FIXED] != 0
     pending = regs[R_PENDING]
     frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
-    if regs[R_CALL_FIRST]:
+    # fresh leaves the last instruction dropped (-1: none): the skipped collection frees them
+    free_a = -1
+    free_b = -1
+    entry = regs[R_CALL_FIRST]
+    if entry:
         # closure_call: its callc (pc pushed as is, no collection, not an instruction)
         regs[R_CALL_FIRST] = 0
+        count = _i(stack[sp]) if sp >= 0 else nobj
+        closure = nobj
+        self_obj = nobj
+        if entry == CALL_ON_FIXED_HEAP and count < nobj:
+            argn = _u16(d, count, s)
+            if sp - 2 - argn >= 0:
+                closure = _i(stack[sp - 1 - argn])
+                self_obj = _i(stack[sp - 2 - argn])
         if _callc(d, stack, regs, sp, bp, lsyms, pc, bsize, s, elems, reserved, False) == 0:
             return CALL_IN_PYTHON
         sp = regs[R_SP]
         bp = regs[R_BP]
         lsyms = regs[R_LSYMS]
         pc = regs[R_PC]
+        if closure < nobj and _entered_on_fixed_heap(d, stack, regs, info, count, closure,
+                                                     self_obj, s, elems, limit):
+            fixed = True
+            free_a = count
     status = EXIT
     slice_left = SLICE_STEPS
-    new_local = False  # the last lstore made a new local (no value of it was dropped)
-    # fresh leaves the last instruction dropped (-1: none): the skipped collection frees them
-    free_a = -1
-    free_b = -1
+    # the last lstore made a new local, or replaced a permanent leaf (nil: the compiler's
+    # ``pushnil; lstore`` declares a local), so no value it dropped can become unreachable
+    new_local = False
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
         regs[R_GC_RUNS] += 1
@@ -987,6 +1302,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                              frames, size, s, g, elems, reserved, limit)
             regs[R_RTOBJ] = r >> 16
             regs[R_LTSEG] = r & 0xFFFF
+            regs[R_OLD_CHANGED] = 1
         fixed = False
         pending = -1
         free_a = -1
@@ -1218,8 +1534,15 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             stack[sp] = idx
         elif op == 5 or op == 6 or op == 33:  # ret0 ret1 callc
             if op == 33:
+                reached = regs[R_REACHED]
+                regs[R_REACHED] = 0
                 kind = _callc(d, stack, regs, sp, bp, lsyms, nxt_pc, bsize, s, elems,
                               reserved, True)
+                if kind == 2:  # the count was the top; R_HOST: the closure
+                    regs[R_HOST_COUNT] = top_before if _host_frame_droppable(
+                        d, regs, info, top_before, regs[R_HOST], regs[R_LSYMS], s,
+                        elems) else -1
+                regs[R_REACHED] = reached | regs[R_REACHED]
             else:
                 kind = 1 if _ret(d, stack, regs, op == 6, sp, bp, lsyms, bsize, s,
                                  elems) else 0
@@ -1267,9 +1590,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 break
             if count == arg and not _darray_push_in_place(d, lsyms, nil, s, elems):
                 break
+            new_local = count == arg or _permanent_leaf(
+                d, darray_get(d, lsyms, arg, s, elems), nobj, s)
             darray_set(d, lsyms, arg, _i(stack[sp]), s, elems)
             sp -= 1
-            new_local = count == arg
         elif op == 43:  # lremove of one local, or of several held by the last segment
             if arg == 1 and not _darray_pop(d, lsyms, s, elems):
                 break
@@ -1301,8 +1625,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         rule = rules[op]
         fixed = True
         if rule == _STORED_NEW_LOCAL:
-            fixed = new_local and _stored_leaf_kept(d, info, top_before, lsyms, nobj, s,
-                                                    limit)
+            fixed = new_local and _stored_leaf_kept(d, regs, info, top_before, lsyms, nobj,
+                                                    s, limit)
         elif rule >= _REPLACED_TOP:
             # it dropped roots (the top, and the one below for two): each must be kept by
             # the permanent roots or be a fresh temporary, which the skipped collection frees
