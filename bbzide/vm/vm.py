@@ -1453,7 +1453,10 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 #   two such roots;
 # * _STORED_NEW_LOCAL: lstore moved a leaf from the stack into a new local of an activation
 #   record the permanent roots reach (fastloop._stored_leaf_kept), or into a local whose
-#   value was a permanent leaf (nil: ``var x = e`` declares x by ``pushnil; lstore``).
+#   value was a permanent leaf (nil: ``var x = e`` declares x by ``pushnil; lstore``);
+# * _STORED_GLOBAL: gstore replaced a global's value by a leaf; the value it dropped was the
+#   same, a permanent leaf, or one only that global held (fastloop.OWNED: the skipped
+#   collection frees it, as the fresh leaves below; fastloop._stored_global_kept).
 # The kernel also accepts, for every dropped root of these rules, a *fresh* leaf
 # (fastloop.FRESH: a leaf a skipped step allocated in a slot the last collection did not
 # reach, so its one reference was that stack slot; or a dup's copy of a table the permanent
@@ -1461,6 +1464,7 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 # and the kernel does just that at the start of the next step (fastloop._free_dropped).
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 _POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9
+_STORED_GLOBAL = 10
 _SKIP_RULES: list[int] = [0] * 256
 for _op in _PC_ONLY_OPCODES:
     _SKIP_RULES[_op] = _PC_ONLY
@@ -1477,6 +1481,7 @@ for _op in (13, 16, 19):
     _SKIP_RULES[_op] = _POPPED_ONE_NEW
 _SKIP_RULES[32] = _POPPED_TWO_OLD
 _SKIP_RULES[42] = _STORED_NEW_LOCAL
+_SKIP_RULES[29] = _STORED_GLOBAL
 
 #: the compiled instruction kernel, when numba is installed (else the Python loop alone)
 _KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None

@@ -7,7 +7,8 @@ step in a slot the last collection did not reach, so referenced by its stack slo
 and frees those leaves itself at the start of the next step, as the skipped collection
 would. These scripts are made of such temporaries — literals in arithmetic, comparisons
 tested by ``if``/``while``, expression statements, unary operators, tables read with
-literal keys, the copy of a global table a method call makes (``dup``) — on roomy heaps
+literal keys, the copy of a global table a method call makes (``dup``), globals whose
+overwritten value only they held (``fastloop.OWNED``) — on roomy heaps
 and on heaps small enough that freed slots are reused at once and the object end retreats.
 Every observable byte must be the reference's, after each chunk of a few instructions (a
 budget stop may fall between a drop and its free) and at the end.
@@ -64,6 +65,43 @@ while (i < 25) {
   acc[i % 4] = dist(i, 25 - i) + dist(i % 3, 2)
   dist(1, i)
   i = i + 1
+}
+""",
+    "globals overwritten": """
+a = 0
+b = 1.5
+name = "x"
+function keep(v) {
+  a = 7                     # the argument, a's old value, must outlive this
+  return v + 1
+}
+function swap(k) {
+  a = k + 5                 # only a holds it, until
+  var w = a                 # pushed (no call between: no collection tells)
+  a = 9
+  return w * 2
+}
+function hold() {
+  var v = a                 # a local holds it too
+  a = 8                     # which must not free it
+  return v * 2
+}
+i = 0
+while (i < 40) {
+  a = a + 1                 # a fresh int replaces the one only a held
+  b = b * 2.0 - 1.0
+  c = a                     # now two globals hold it: overwriting a must not free it
+  a = i * 3
+  a = a
+  z = keep(a)
+  a = i + 2
+  z = hold()
+  z = swap(i)
+  name = "y"
+  name = "x"
+  d = nil                   # storing nil deletes the global
+  d = i
+  i = i + c % 5 - c % 5 + 1
 }
 """,
     "method calls on global tables": """
@@ -130,3 +168,27 @@ def test_the_kernel_marks_fresh_temporaries() -> None:
 def test_the_kernel_marks_method_calls_table_copies_fresh() -> None:
     _tops, tables = _fresh_tops("method calls on global tables")
     assert tables > 0
+
+
+@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
+def test_the_kernel_marks_values_only_a_global_holds() -> None:
+    """A fresh int or float a skipped ``gstore`` moved into a global is marked
+    ``fastloop.OWNED`` (overwriting the global frees it); a value that is on the stack is
+    never so marked."""
+    vm = VM(PC, stress_gc=False)
+    vm.construct()
+    vm.set_bcode(_bbo("globals overwritten"))
+    owned_seen = 0
+    for n in range(3000):
+        if vm.state != State.READY:
+            break
+        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
+        info = vm.heap.gc_info
+        owned = [x for x in range(vm.heap.rtobj // vm.heap.obj_size)
+                 if info[x] == fastloop.OWNED and vm.heap.data[x * vm.heap.obj_size] & 0x08]
+        owned_seen += bool(owned)
+        assert not set(owned) & set(vm.stack[:vm.stackptr + 1])
+        if vm.state == State.ERROR and vm.error == Error.BUDGET:
+            vm.state = State.READY
+    assert vm.state == State.DONE
+    assert owned_seen > 10

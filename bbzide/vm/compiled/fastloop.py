@@ -116,6 +116,7 @@ _NO_NEXT = 0x3FFF
 #: kernel applies: see there)
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 _POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9
+_STORED_GLOBAL = 10
 RULES = np.zeros(256, np.int64)
 for _op in (0, 34, 44):
     RULES[_op] = _PC_ONLY
@@ -132,6 +133,7 @@ for _op in (13, 16, 19):
     RULES[_op] = _POPPED_ONE_NEW  # unm, lnot, bnot
 RULES[32] = _POPPED_TWO_OLD  # tget
 RULES[42] = _STORED_NEW_LOCAL  # lstore
+RULES[29] = _STORED_GLOBAL  # gstore
 #: ``info`` value of a *fresh* leaf: one a skipped step allocated (in a slot the last
 #: collection did not reach), so its one reference is its own stack slot — or a ``dup``'s
 #: copy of a table the permanent roots keep (see :func:`_table_copy_kept`). The collector
@@ -143,6 +145,12 @@ FRESH = 1
 #: return to that fixed point frees (:func:`undo_to_fixed_point`). The collector's values
 #: stay below it (depth < 64, plus ``PERMANENT_PHASE``).
 NEW = 128
+#: ``info`` value of an int or float whose one reference is a global's slot: a fresh
+#: temporary a skipped ``gstore`` moved there (:func:`_stored_global_kept`). Overwriting
+#: that global frees it, as the skipped collection would; any push of it (the only way to
+#: copy a reference to it) makes it a plain permanent-reached leaf again (:func:`_old_kept`).
+#: The collector never writes it (depth 1).
+OWNED = 1 + PERMANENT_PHASE
 
 
 @_compile
@@ -934,6 +942,8 @@ def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
     point? Yes for a marked leaf (the marker never looks inside it), or a non-leaf the last
     collection first marked from the permanent roots (its stack root finds it marked)."""
     m = _i(d[x * s])
+    if _i(info[x]) == OWNED:
+        info[x] = 3 + PERMANENT_PHASE  # on the stack too now: not its global's alone
     if _is_leaf(m):
         return (m & _GC_MARK) != 0
     return (_i(info[x]) & PERMANENT_PHASE) != 0
@@ -963,6 +973,39 @@ def _stored_leaf_kept(d: Any, regs: Any, info: Any, v: int, lsyms: int, nobj: in
             info[v] = depth + PERMANENT_PHASE
             regs[R_OLD_CHANGED] = 1
     return True
+
+
+@_compile
+def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
+                        gsyms: int, nobj: int, s: int, limit: int) -> int:
+    """After a ``gstore`` that replaced global ``k``'s value ``old`` by the stack top
+    ``v`` (``old`` -1: a new global): is the heap still a fixed point, but for ``old``
+    the skipped collection frees? -2 when a collection must tell, else the object to free
+    (-1: none). Yes when the name is kept by the permanent roots, ``v`` is a marked leaf
+    (not nil: storing nil deletes the global), the globals' table is walked from the
+    permanent roots, and ``old`` is ``v``, a permanent leaf (nil) or :data:`OWNED` (then
+    unreachable now). A fresh int or float ``v`` becomes :data:`OWNED`; any other ``v``
+    not yet permanent-reached is said to be, one level below the globals. The globals
+    changed: ``R_OLD_CHANGED``."""
+    if old < 0 or old >= nobj or v >= nobj or _dropped(info, k, nobj) != _DROP_KEPT:
+        return -2
+    m = _i(d[v * s])
+    t = m & 7
+    if not _is_leaf(m) or not m & _GC_MARK or t == _NIL \
+            or not _walked_from_permanent(info, gsyms, limit):
+        return -2
+    free = -1
+    if old != v and not _permanent_leaf(d, old, nobj, s):
+        if _i(info[old]) != OWNED:
+            return -2
+        free = old
+    first = _i(info[v])
+    if first == FRESH and (t == _INT or t == _FLOAT):
+        info[v] = OWNED
+    elif first == FRESH or not first & PERMANENT_PHASE:
+        info[v] = (_i(info[gsyms]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
+    regs[R_OLD_CHANGED] = 1
+    return free
 
 
 @_compile
@@ -1289,6 +1332,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     # the last lstore made a new local, or replaced a permanent leaf (nil: the compiler's
     # ``pushnil; lstore`` declares a local), so no value it dropped can become unreachable
     new_local = False
+    replaced = -1  # the value the last gstore replaced (-1: a new global)
+    # a fresh number the last gstore moved into a global whose old value a collection must
+    # judge: that collection leaves it referenced by the global alone, so OWNED
+    owned_next = -1
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
         regs[R_GC_RUNS] += 1
@@ -1303,6 +1350,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             regs[R_RTOBJ] = r >> 16
             regs[R_LTSEG] = r & 0xFFFF
             regs[R_OLD_CHANGED] = 1
+            if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
+                info[owned_next] = OWNED  # the collection changed no reference to it
+        owned_next = -1
         fixed = False
         pending = -1
         free_a = -1
@@ -1479,6 +1529,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             v = _i(stack[sp])
             if o >= nobj or v >= nobj or (_i(d[o * s]) & 7) != _STRING:
                 break
+            replaced = table_lookup(d, gsyms, o, s, elems)
             if not _table_set(d, regs, gsyms, o, v, s, elems):
                 break
             sp -= 2
@@ -1624,7 +1675,16 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         regs[R_EXECUTED] += 1
         rule = rules[op]
         fixed = True
-        if rule == _STORED_NEW_LOCAL:
+        if rule == _STORED_GLOBAL:
+            freed = _stored_global_kept(d, regs, info, top_before, below_before, replaced,
+                                        gsyms, nobj, s, limit)
+            fixed = freed > -2
+            if freed >= 0:
+                free_a = freed
+            elif not fixed and _i(info[top_before]) == FRESH \
+                    and _i(d[top_before * s]) & 7 in (_INT, _FLOAT):
+                owned_next = top_before
+        elif rule == _STORED_NEW_LOCAL:
             fixed = new_local and _stored_leaf_kept(d, regs, info, top_before, lsyms, nobj,
                                                     s, limit)
         elif rule >= _REPLACED_TOP:
