@@ -38,6 +38,7 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
     CALL,
+    CALL_ON_FIXED_HEAP,
     EXIT,
     HOST_CALL,
     NONE,
@@ -54,6 +55,7 @@ from bbzide.vm.compiled.fastloop import (
     R_N,
     R_OLD_CHANGED,
     R_PENDING,
+    R_REACHED,
     R_RTOBJ,
     R_SAVED,
     R_SP,
@@ -384,7 +386,8 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
 def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
                       traversed: Any, rules: Any, s: int, elems: int, reserved: int,
                       sp: int, kind: int, self_obj: int, closure: int, key: int, data: int,
-                      w: Any, hosts: Any, outq: Any, ctl: Any, latch: Any) -> int:
+                      w: Any, hosts: Any, outq: Any, ctl: Any, latch: Any,
+                      entry: int) -> int:
     """A walk's call of ``fun`` on one element (``sp``: the stack top, the accumulator on
     it for ``neighbors_reduce``): the accumulator popped, then self, closure, key, data,
     (the accumulator), the argument count pushed, ``w``'s depth, key and data noted for
@@ -413,7 +416,7 @@ def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
     sp += 1
     stack[sp] = count
     return call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
-                       sp, hosts, outq, ctl, latch, CALL)
+                       sp, hosts, outq, ctl, latch, entry)
 
 
 @_compile
@@ -427,6 +430,9 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     g = 4 * elems + 2
     frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
     value_type = FLOAT if floats else INT
+    # the heap is a fixed point of the collector once a neighbour's end collected: the
+    # next neighbour's call may begin on it (fastloop.CALL_ON_FIXED_HEAP)
+    fixed = False
     for j in range(start, len(ring)):
         w[W_INDEX] = j
         sp = regs[R_SP]
@@ -437,6 +443,7 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
                 or (kind == WALK_REDUCE and sp < 0)):
             return WALK_PYTHON
         # ---- the data table (_push_data_table): table, then each field's value, its name
+        regs[R_REACHED] = 0
         t = _obj_alloc(d, regs, s, reserved, TABLE, 0)
         seg = _seg_alloc(d, regs, elems)
         d[t * s + 1] = seg & 0xFF
@@ -463,13 +470,15 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         # ---- the call, then the end of the neighbour's fun and the walk's collection
         status = _call_element_fun(d, stack, bcode, regs, info, traversed, rules, s,
                                    elems, reserved, sp, kind, self_obj, closure, key, t, w,
-                                   hosts, outq, ctl, latch)
+                                   hosts, outq, ctl, latch,
+                                   CALL_ON_FIXED_HEAP if fixed else CALL)
         if status != EXIT:
             w[W_STATUS] = status
             return WALK_IN_CALL
         if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
                             kind, result_table, w):
             return WALK_AFTER_CALL
+        fixed = True
         # the walk's own collection (``vm.gc()`` after ``fun``) follows the one that ended
         # ``fun``, on the same roots: a collection of a collected heap changes nothing (its
         # marks, ``info`` and ``traversed`` come out the same), so only its count is kept
@@ -522,7 +531,7 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                 return WALK_PYTHON
             status = _call_element_fun(d, stack, bcode, regs, info, traversed, rules,
                                        s, elems, reserved, sp, kind, self_obj, closure,
-                                       key, value, w, hosts, outq, ctl, latch)
+                                       key, value, w, hosts, outq, ctl, latch, CALL)
             if status != EXIT:
                 w[W_STATUS] = status
                 return WALK_IN_CALL

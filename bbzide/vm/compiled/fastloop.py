@@ -1009,6 +1009,66 @@ def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
 
 
 @_compile
+def _new_table_of_leaves(d: Any, t: int, s: int, elems: int) -> bool:
+    """Does table ``t`` (one its caller just made) hold valid leaves only, in segments
+    inside the heap? Marked at depth 3, it then marks only leaves."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    nobj = size // s
+    seg = _u16(d, t, s)
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return False
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if w & 0x8000:
+                y = w & 0x7FFF
+                if y >= nobj:
+                    return False
+                m = _i(d[y * s])
+                if not m & _VALID or not _is_leaf(m):
+                    return False
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return True
+    return False
+
+
+@_compile
+def _mark_as_reached(d: Any, info: Any, y: int, depth: int, s: int) -> None:
+    """Leaf ``y`` reached from a new frame at ``depth``: marked if it was not (a new
+    object, ``info`` as the collector would first set it, plus :data:`NEW`); a fresh
+    temporary the frame now holds is fresh no more."""
+    m = _i(d[y * s])
+    if not m & _GC_MARK:
+        d[y * s] = m | _GC_MARK
+        info[y] = depth + PERMANENT_PHASE + NEW
+    elif _i(info[y]) == FRESH:
+        info[y] = depth + PERMANENT_PHASE + NEW
+
+
+@_compile
+def _mark_new_table(d: Any, info: Any, t: int, s: int, elems: int) -> None:
+    """A new table of leaves (:func:`_new_table_of_leaves`) reached from a new frame:
+    marked at depth 3, its segments and its keys and values (depth 4) as well."""
+    g = 4 * elems + 2
+    n = 2 * elems
+    d[t * s] = _i(d[t * s]) | _GC_MARK
+    info[t] = 3 + PERMANENT_PHASE + NEW
+    seg = _u16(d, t, s)
+    while True:
+        _set_word(d, seg, n, g, _word(d, seg, n, g) | 0x4000)  # SEG_MARK
+        for p in range(n):
+            w = _word(d, seg, p, g)
+            if w & 0x8000:
+                _mark_as_reached(d, info, w & 0x7FFF, 4, s)
+        seg = _word(d, seg, n, g) & _NO_NEXT
+        if seg == _NO_NEXT:
+            return
+
+
+@_compile
 def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
                            closure: int, self_obj: int, s: int, elems: int,
                            limit: int) -> bool:
@@ -1019,7 +1079,9 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
     last collection reached (``R_REACHED``), the dropped closure and ``self`` are kept by the
     permanent roots (``self`` may also be the frame's first local), and every local of the
     new activation record is a valid leaf: the record, a new permanent root marked at depth
-    2, then marks only leaves, so no other object's marking changes. The effect is then
+    2, then marks only leaves, so no other object's marking changes (a local may also be
+    a table the caller just made that holds leaves only: the neighbour's data table of a
+    walk). The effect is then
     done here: the record, its segments and its new locals marked (``info`` as the
     collector would first set it, plus :data:`NEW`), the return address and block pointer
     ints marked as stack roots; the count, unreachable, is the caller's to free
@@ -1051,7 +1113,10 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
                 if y >= nobj:
                     return False
                 m = _i(d[y * s])
-                if not m & _VALID or not _is_leaf(m):
+                if not m & _VALID:
+                    return False
+                if not _is_leaf(m) and (m & 7 != _TABLE or m & _GC_MARK or limit < 4
+                                        or not _new_table_of_leaves(d, y, s, elems)):
                     return False
         seg = _word(d, seg, n, g) & _NO_NEXT
         if seg == _NO_NEXT:
@@ -1072,10 +1137,10 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
             w = _word(d, seg, p, g)
             if w & 0x8000:
                 y = w & 0x7FFF
-                m = _i(d[y * s])
-                if not m & _GC_MARK:
-                    d[y * s] = m | _GC_MARK
-                    info[y] = 3 + PERMANENT_PHASE + NEW
+                if _i(d[y * s]) & 7 == _TABLE and not _i(d[y * s]) & _GC_MARK:
+                    _mark_new_table(d, info, y, s, elems)
+                else:
+                    _mark_as_reached(d, info, y, 3, s)
         seg = _word(d, seg, n, g) & _NO_NEXT
         if seg == _NO_NEXT:
             break
