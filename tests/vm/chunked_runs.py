@@ -4,6 +4,8 @@ so that a kernel that differs from the model is caught at the instruction where 
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from bbzide.vm.profiles import Profile
 from bbzide.vm.states import Error
 from bbzide.vm.vm import VM, State
@@ -19,21 +21,27 @@ def observe(vm: VM) -> tuple:
             vm.heap.peak_used)
 
 
-def run_in_chunks(bbo: bytes, profile: Profile, stress: bool, limit: int) -> list[tuple]:
-    """The top-level code in chunks of CHUNKS instructions (each run stopped by its budget
-    and resumed), observed after each chunk, until it ends or ``limit`` chunks."""
+def chunk_stops(bbo: bytes, profile: Profile, stress: bool, limit: int) -> Iterator[VM]:
+    """The top-level code run in chunks of CHUNKS instructions (each run stopped by its
+    budget and resumed): the VM before the first chunk and after each, until the code ends
+    or ``limit`` chunks ran."""
     vm = VM(profile, stress_gc=stress)
     vm.construct()
     vm.set_bcode(bbo)
-    states = [observe(vm)]
+    yield vm
     for n in range(limit):
         if vm.state != State.READY:
             break
         vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
-        states.append(observe(vm))
+        yield vm
         if vm.state == State.ERROR and vm.error == Error.BUDGET:
             vm.state = State.READY
-    return states
+
+
+def run_in_chunks(bbo: bytes, profile: Profile, stress: bool, limit: int) -> list[tuple]:
+    """The top-level code in chunks, observed after each, until it ends or ``limit``
+    chunks."""
+    return [observe(vm) for vm in chunk_stops(bbo, profile, stress, limit)]
 
 
 def run_whole(bbo: bytes, profile: Profile, stress: bool) -> tuple:

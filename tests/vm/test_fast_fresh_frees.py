@@ -24,9 +24,8 @@ from bbzide.compiler import compile_source
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import TABLE
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
-from bbzide.vm.states import Error
-from bbzide.vm.vm import VM, State
-from tests.vm.chunked_runs import CHUNKS, assert_modes_agree
+from bbzide.vm.vm import State
+from tests.vm.chunked_runs import assert_modes_agree, chunk_stops
 
 SCRIPTS = {
     "arithmetic with literals": """
@@ -138,22 +137,14 @@ def _fresh_tops(name: str) -> tuple[int, int]:
     """Stopped after each chunk of the fast VM's run of script ``name``: at how many stops the
     stack top was a fresh temporary, and how many of those were tables (``dup``'s copies);
     on the way, a flagged object is never on the stack twice."""
-    vm = VM(PC, stress_gc=False)
-    vm.construct()
-    vm.set_bcode(_bbo(name))
     tops = tables = 0
-    for n in range(3000):
-        if vm.state != State.READY:
-            break
-        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
+    for vm in chunk_stops(_bbo(name), PC, False, 3000):
         stack = list(vm.stack[:vm.stackptr + 1])
         fresh = [x for x in stack if vm.heap.gc_info[x] == fastloop.FRESH]
         assert len(fresh) == len(set(fresh))
         if stack and vm.heap.gc_info[stack[-1]] == fastloop.FRESH:
             tops += 1
             tables += vm.heap.obj_type(stack[-1]) == TABLE
-        if vm.state == State.ERROR and vm.error == Error.BUDGET:
-            vm.state = State.READY
     assert vm.state == State.DONE
     return tops, tables
 
@@ -175,20 +166,12 @@ def test_the_kernel_marks_values_only_a_global_holds() -> None:
     """A fresh int or float a skipped ``gstore`` moved into a global is marked
     ``fastloop.OWNED`` (overwriting the global frees it); a value that is on the stack is
     never so marked."""
-    vm = VM(PC, stress_gc=False)
-    vm.construct()
-    vm.set_bcode(_bbo("globals overwritten"))
     owned_seen = 0
-    for n in range(3000):
-        if vm.state != State.READY:
-            break
-        vm.run(max_instructions=CHUNKS[n % len(CHUNKS)])
+    for vm in chunk_stops(_bbo("globals overwritten"), PC, False, 3000):
         info = vm.heap.gc_info
         owned = [x for x in range(vm.heap.rtobj // vm.heap.obj_size)
                  if info[x] == fastloop.OWNED and vm.heap.data[x * vm.heap.obj_size] & 0x08]
         owned_seen += bool(owned)
         assert not set(owned) & set(vm.stack[:vm.stackptr + 1])
-        if vm.state == State.ERROR and vm.error == Error.BUDGET:
-            vm.state = State.READY
     assert vm.state == State.DONE
     assert owned_seen > 10
