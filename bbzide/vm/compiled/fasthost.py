@@ -68,6 +68,7 @@ from bbzide.vm.compiled.fastloop import (
     _seg_alloc,
     _table_set,
     end_host_frame,
+    host_frame_droppable,
     run,
 )
 from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
@@ -148,8 +149,8 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
                    latch: Any) -> bool:
     """The host function of the C closure ``regs[R_HOST]`` whose call ``run`` set up, and
     ``VM._loop``'s end of that step — with the next step's collection replaced by its
-    effect when ``run`` found the call's frame droppable (``R_HOST_COUNT``); False with
-    nothing done when Python must do it."""
+    effect when the call's frame is droppable (``R_HOST_COUNT``,
+    ``fastloop.host_frame_droppable``); False with nothing done when Python must do it."""
     saved = regs[R_SAVED]
     budget = regs[R_BUDGET]
     n = regs[R_N]
@@ -179,6 +180,8 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
     bp = regs[R_BP]
     if not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
+    count = regs[R_HOST_COUNT]
+    droppable = count >= 0 and host_frame_droppable(d, info, count, c, lsyms, s, elems)
     # ---- commit: the host function's effect, then ret0 and the end of the step
     if kind == HOST_BROADCAST:
         size = len(outq) // (ctl[OUT_SLOTS] + 1)
@@ -196,9 +199,9 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
     regs[R_N] = n + 1
     regs[R_FIXED] = 0
     regs[R_PENDING] = -1
-    if regs[R_HOST_COUNT] >= 0:
-        end_host_frame(d, regs, info, regs[R_HOST_COUNT], c, lsyms, return_pc, block, s,
-                       elems, reserved)
+    if droppable:
+        end_host_frame(d, regs, info, count, c, lsyms, return_pc, block, s, elems,
+                       reserved)
         regs[R_FIXED] = 1
     return True
 

@@ -76,8 +76,9 @@ R_REACHED = 24
 #: set to 1 by a collection, and by a skip rule that rewrites an old object's ``info``:
 #: the caller's fixed point is then no longer the one :func:`fastinbox`'s shortcut undoes
 R_OLD_CHANGED = 25
-#: after a ``HOST_CALL``: the argument count's index if the collection that follows the
-#: host function's return may be replaced by its effect (:func:`end_host_frame`), else -1
+#: after a ``HOST_CALL``: the argument count's index, or -1 when an allocation of the call
+#: took a slot the last collection reached (then the collection after the host function's
+#: return must run; else :func:`host_frame_droppable` decides)
 R_HOST_COUNT = 26
 #: registers in the array
 REGISTERS = 27
@@ -1154,20 +1155,20 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
 
 
 @_compile
-def _host_frame_droppable(d: Any, regs: Any, info: Any, count: int, closure: int,
-                          frame: int, s: int, elems: int) -> bool:
+def host_frame_droppable(d: Any, info: Any, count: int, closure: int, frame: int, s: int,
+                         elems: int) -> bool:
     """After a ``callc`` of a C closure set up on a fixed point (the step's collection or
-    its skip): once the host function has returned, will the heap be that fixed point but
-    for objects the next collection frees? Yes when every root the call dropped — the
-    closure, the argument count and the frame's locals (``self``, the arguments, the
+    its skip) whose allocations took no slot the last collection reached
+    (``R_HOST_COUNT``): once the host function has returned, will the heap be that fixed
+    point but for objects the next collection frees? Yes when every root the call dropped
+    — the closure, the argument count and the frame's locals (``self``, the arguments, the
     default record's copies) — is kept by the permanent roots or is a fresh temporary
-    (each met once), and no allocation of the call took a slot the last collection reached
-    (``R_REACHED`` counts only the call's allocations here)."""
+    (each met once)."""
     size = len(d)
     g = 4 * elems + 2
     n = 2 * elems
     nobj = size // s
-    if regs[R_REACHED] or count >= nobj or closure >= nobj or frame >= nobj:
+    if count >= nobj or closure >= nobj or frame >= nobj:
         return False
     a = _dropped(info, count, nobj)
     b = _dropped(info, closure, nobj)
@@ -1229,7 +1230,7 @@ def _fresh_met_again(d: Any, frame: int, y: int, at_seg: int, at_word: int, s: i
 def end_host_frame(d: Any, regs: Any, info: Any, count: int, closure: int, frame: int,
                    return_pc: int, block: int, s: int, elems: int, reserved: int) -> None:
     """The collection after a compiled host function's ``ret0`` when
-    :func:`_host_frame_droppable` said yes: the fresh temporaries the call dropped (count,
+    :func:`host_frame_droppable` said yes: the fresh temporaries the call dropped (count,
     closure, locals), the return address and block pointer ints freed, the marks the
     returned frame's segments kept cleared, both ends of the heap retreated
     (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
@@ -1266,15 +1267,21 @@ def _free_object(d: Any, info: Any, x: int, s: int) -> None:
 
 
 @_compile
-def _retreat(d: Any, regs: Any, s: int, elems: int, reserved: int) -> None:
-    """The collector's last steps: both heap ends retreat over invalid slots."""
-    size = len(d)
-    g = 4 * elems + 2
+def _retreat_objects(d: Any, regs: Any, s: int, reserved: int) -> None:
+    """The collector's step 5: the object end retreats over invalid slots."""
     rtobj = regs[R_RTOBJ]
     low = reserved * s
     while rtobj > low and not _i(d[rtobj - s]) & _VALID:
         rtobj -= s
     regs[R_RTOBJ] = rtobj
+
+
+@_compile
+def _retreat(d: Any, regs: Any, s: int, elems: int, reserved: int) -> None:
+    """The collector's last steps: both heap ends retreat over invalid slots."""
+    size = len(d)
+    g = 4 * elems + 2
+    _retreat_objects(d, regs, s, reserved)
     ltseg = regs[R_LTSEG]
     while ltseg < size and not _i(d[ltseg + 4 * elems + 1]) & 0x80:  # SEG_VALID
         ltseg += g
@@ -1328,16 +1335,10 @@ def _free_dropped(d: Any, regs: Any, info: Any, a: int, b: int, s: int,
     """A skipped collection's effect on the fresh leaves ``a`` and ``b`` (-1: none) the
     last instruction dropped: unreached, they lose their mark and validity, and the object
     end retreats over invalid slots (``fastgc.collect_with``'s steps 1, 4 and 5 for them)."""
-    d[a * s] = _i(d[a * s]) & (0xFF ^ (_VALID | _GC_MARK))
-    info[a] = 0
+    _free_object(d, info, a, s)
     if b >= 0:
-        d[b * s] = _i(d[b * s]) & (0xFF ^ (_VALID | _GC_MARK))
-        info[b] = 0
-    rtobj = regs[R_RTOBJ]
-    low = reserved * s
-    while rtobj > low and not _i(d[rtobj - s]) & _VALID:
-        rtobj -= s
-    regs[R_RTOBJ] = rtobj
+        _free_object(d, info, b, s)
+    _retreat_objects(d, regs, s, reserved)
 
 
 @_compile
@@ -1655,9 +1656,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 kind = _callc(d, stack, regs, sp, bp, lsyms, nxt_pc, bsize, s, elems,
                               reserved, True)
                 if kind == 2:  # the count was the top; R_HOST: the closure
-                    regs[R_HOST_COUNT] = top_before if _host_frame_droppable(
-                        d, regs, info, top_before, regs[R_HOST], regs[R_LSYMS], s,
-                        elems) else -1
+                    regs[R_HOST_COUNT] = -1 if regs[R_REACHED] else top_before
                 regs[R_REACHED] = reached | regs[R_REACHED]
             else:
                 kind = 1 if _ret(d, stack, regs, op == 6, sp, bp, lsyms, bsize, s,
