@@ -2,8 +2,8 @@
 
 The flows of test_browser_mechanics.py, this time with real Buzz: the world's example runs,
 a real CompileError marks its line, the fix reloads every robot with the new .bbo, an external
-save reloads, `while (1) {}` in a robot leaves the controls answering, and the inspector's ROP
-and LSP for a clicked robot equal that robot's VM.
+save reloads, `while (1) {}` in a robot pauses the run at its line and the controls answer,
+and the inspector's ROP and LSP for a clicked robot equal that robot's VM.
 """
 
 from __future__ import annotations
@@ -137,25 +137,43 @@ def test_external_save_reloads(ide: IdeSession) -> None:
     print(f"external save -> recompiled in {time.monotonic() - saved:.2f} s")
 
 
-def test_infinite_loop_keeps_controls_responsive(ide: IdeSession) -> None:
+def test_infinite_loop_stops_at_its_line_and_the_controls_answer(ide: IdeSession) -> None:
+    # Every robot runs `spin()` as it boots on the new program, spends its instruction budget
+    # in the loop and fails; "Pause on error" (on by default) pauses the run at the loop's
+    # line after the first step on the new program. The run is then driven from the page.
     app = ide.app
     original = app.session.text
     source = ide.editor.locator("#source")
     status = app.controller.status
     generation = status.program_generation
-    source.fill(original + "\nfunction spin() {\n  while (1) { }\n}\nspin()\n")
+    looping = original + "\nfunction spin() {\n  while (1) { }\n}\nspin()\n"
+    loop_line = looping.splitlines().index("  while (1) { }") + 1
+    source.fill(looping)
     wait_until(lambda: "spin()" in app.session.text, UI_WAIT_S, message="loop uploaded")
     wait_until(lambda: status.program_generation > generation, UI_WAIT_S,
                message="the robots to load the loop")
+    wait_until(lambda: status.paused_at is not None and "paused" in ide.status_text(),
+               UI_WAIT_S, message="the pause on the loop's error")
+    paused = status.paused_at
+    assert paused is not None and paused.reason == "error", paused
+    assert paused.line == loop_line and paused.message is not None
+    assert "instruction budget" in paused.message, paused.message
+    assert status.robots_in_error == 25, ide.status_text()
+    ide.screenshot("real_infinite_loop")
+
     step = status.step
-    wait_until(lambda: status.step_started_at is not None or status.step > step, UI_WAIT_S,
-               message="a step of the loop")
+    ide.page.get_by_role("button", name="Play").click()  # the failed robots stay failed
+    wait_until(lambda: status.step > step + 3, UI_WAIT_S, message="running on the errors")
     clicked = time.monotonic()
     ide.page.get_by_role("button", name="Pause").click()
     wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="pause honoured")
     print(f"pause honoured after {time.monotonic() - clicked:.2f} s; status: {ide.status_text()}")
-    ide.screenshot("real_infinite_loop")
+
+    generation = status.program_generation
     source.fill(original)
+    wait_until(lambda: status.program_generation > generation, UI_WAIT_S,
+               message="the robots to load the fix")
     ide.page.get_by_role("button", name="Play").click()
-    step = app.controller.status.step
-    wait_until(lambda: app.controller.status.step > step + 3, UI_WAIT_S, message="running again")
+    step = status.step
+    wait_until(lambda: status.step > step + 3 and status.robots_in_error == 0, UI_WAIT_S,
+               message="running again with every robot rebooted on the fix")
