@@ -26,7 +26,9 @@ passes `serve` our connection class (`AnsweringConnection`, through `serve`'s ow
 ``create_connection`` parameter), which reads the request head first and answers those with a
 4xx and a one-line reason (`head_problem`); `quiet_handshake_errors` keeps `websockets`' log to
 one line. viser's start-up banner, which shows the address without the token (an address that
-answers 403), is not printed: the IDE prints its own.
+answers 403), is not printed: the IDE prints its own. Nor is viser's warning about an update
+queued for a tab that has just closed (`quiet_closed_tab_updates`): the panels of that tab may
+be mid-refresh when it goes, and dropping the update is exactly what should happen.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ import io
 import logging
 import sys
 import threading
+import warnings
 from collections.abc import Awaitable, Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from http import HTTPStatus
@@ -94,6 +97,7 @@ def open_server(
     request checked against `token` (see the module docstring)."""
     gate = Gate(AccessPolicy.for_bind(token, host), routes or Routes())
     quiet_handshake_errors()
+    quiet_closed_tab_updates()
     with _STARTING, _serve_through(gate), contextlib.redirect_stdout(io.StringIO()):
         server = viser.ViserServer(host=host, port=port, verbose=False)
     if not gate.installed:
@@ -308,6 +312,15 @@ class _OneLineRecords(logging.Filter):
             record.exc_info = None
             record.exc_text = None
         return True
+
+
+#: The start of viser's warning for a message to a disconnected client (viser 1.1.1), a regex.
+CLOSED_TAB_UPDATE = r"Queued a \w+ on a closed connection"
+
+
+def quiet_closed_tab_updates() -> None:
+    """Drop viser's warning for a panel update that reached a tab after it closed."""
+    warnings.filterwarnings("ignore", message=CLOSED_TAB_UPDATE, category=UserWarning)
 
 
 def quiet_handshake_errors() -> None:

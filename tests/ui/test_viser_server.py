@@ -3,9 +3,11 @@ gives a browser is one the browser can open (never the wildcard 0.0.0.0)."""
 
 from __future__ import annotations
 
+import warnings
+
 from browser import free_port
 
-from bbzide.ui.viser_server import open_server, page_url
+from bbzide.ui.viser_server import open_server, page_url, quiet_closed_tab_updates
 
 
 def test_open_server_binds_loopback_and_gives_its_url() -> None:
@@ -34,3 +36,16 @@ class _WildcardBound:
 def test_page_url_of_a_wildcard_bind_is_loopback() -> None:
     url = page_url(_WildcardBound(), "t0ken-123")  # type: ignore[arg-type]
     assert url == "http://127.0.0.1:8123/?token=t0ken-123"
+
+
+def test_an_update_to_a_closed_tab_warns_nobody_but_other_warnings_stay() -> None:
+    # viser 1.1.1's words (infra/_async_message_buffer.py) for a message to a closed tab.
+    closed_tab = ("Queued a GuiUpdateMessage on a closed connection (e.g. via a handle owned by a "
+                  "disconnected client, or after the server stopped); it will never be delivered.")
+    with warnings.catch_warnings(record=True) as shown:
+        warnings.simplefilter("always")
+        quiet_closed_tab_updates()
+        warnings.warn(closed_tab, UserWarning, stacklevel=1)
+        warnings.warn("Queued a GuiUpdateMessage on a fine connection", UserWarning, stacklevel=1)
+    assert [str(each.message) for each in shown] == [
+        "Queued a GuiUpdateMessage on a fine connection"]
