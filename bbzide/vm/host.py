@@ -20,6 +20,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from bbzide.compiler import bbzfloat
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
@@ -74,6 +76,9 @@ class HostRegistry:
         self._next_free = _FIRST_FREE_ADDRESS
         #: bumped by every registration (``Robot.compiled_hosts`` caches on it)
         self.version = 0
+        #: `register_all`'s last answer per tuple of functions, with the version it was for
+        self._registered_all: dict[tuple[tuple[str, HostFunction], ...],
+                                  tuple[int, np.ndarray]] = {}
 
     def register(self, symbol: str, function: HostFunction, address: int | None = None) -> int:
         """Register ``function`` under ``symbol``; returns the address to store in the heap."""
@@ -96,6 +101,19 @@ class HostRegistry:
         self.version += 1
         packed_queues.arrays_changed()
         return address
+
+    def register_all(self, functions: tuple[tuple[str, HostFunction], ...]) -> np.ndarray:
+        """`register` each (symbol, function) in turn; their addresses as int64. Registering
+        the same functions again changes nothing, so while `version` holds (no registration
+        since) the last answer for the same tuple is the answer (a library that adds its
+        methods to every table it returns asks for it on every call)."""
+        known = self._registered_all.get(functions)
+        if known is not None and known[0] == self.version:
+            return known[1]
+        addresses = np.array([self.register(symbol, function) for symbol, function in functions],
+                             np.int64)
+        self._registered_all[functions] = (self.version, addresses)
+        return addresses
 
     def lookup(self, address: int) -> RegisteredHostFunction | None:
         return self.by_address.get(address & self.mask)

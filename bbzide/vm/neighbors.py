@@ -20,6 +20,7 @@ The data GC is run by ``bbzvm_process_outmsgs`` every ``neighbors_clr_period + 1
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
@@ -116,14 +117,14 @@ def _add_neighborlike_fields(vm: VM, count: int) -> None:
         _add_data(vm, STR_DATA, sub)
         cnt = vm.new_int(count)
         _add_data(vm, STR_RESET, cnt)
-    addresses = [vm.host.register(symbol, fn) for _sid, symbol, fn in _NEIGHBORLIKE_METHODS]
     if COMPILED and not vm.stress_gc and vm.state == State.READY:
         # the fast mode adds them in machine code when the heap has room (fasthost)
+        addresses = vm.host.register_all(_NEIGHBORLIKE_FUNCTIONS)
         h = vm.heap
         regs = vm.kernel_registers(None, None)
         done = fasthost.add_functions(
             h.view, vm._stack_view, regs, vm.stack[vm.stackptr], _NEIGHBORLIKE_METHOD_SIDS,
-            np.array(addresses, np.int64), h.obj_size, h.elems, h.reserved)
+            addresses, h.obj_size, h.elems, h.reserved)
         if done:
             vm.take_kernel_registers(regs)
             return
@@ -209,17 +210,28 @@ def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int
         w[fasthost.W_SLOT] = slot + 1
 
 
+_ENTRY_FIELDS = operator.attrgetter("robot", "distance", "azimuth", "elevation")
+
+
+def _ring_rows(ring: RingBuffer[NeighborEntry]) -> np.ndarray:
+    """The ring's entries newest first, one (robot, distance, azimuth, elevation) row each,
+    as :func:`fasthost.xtreme_walk` reads them."""
+    records, start, capacity = ring.records, ring.start, ring.capacity
+    count = ring.size()
+    flat: list[int] = []
+    for i in range(count - 1, -1, -1):  # ring.at(i), inlined: one row per neighbour
+        flat.extend(_ENTRY_FIELDS(records[((i + start) & 0xFF) % capacity]))
+    return np.array(flat, np.int64).reshape(count, 4)
+
+
 def _walk_compiled(vm: VM, walk: CompiledWalk) -> tuple[int, bool]:
     """The ring's neighbours, newest first, by :func:`fasthost.xtreme_walk`, re-entered
     after each neighbour it leaves to Python; returns how many (the oldest) are left for
     the Python loop, and whether the last thing done was a collection (of the VM as it is
     now: the end of a neighbour)."""
     kind, closure, result_table, after_call = walk
-    ring = vm.neighbors.ring
-    count = ring.size()
-    rows = np.array([(e.robot, e.distance, e.azimuth, e.elevation)
-                     for e in (ring.at(i) for i in range(count - 1, -1, -1))],
-                    np.int64).reshape(count, 4)
+    rows = _ring_rows(vm.neighbors.ring)
+    count = len(rows)
     w = np.zeros(fasthost.WALK_SLOTS, np.int64)
     h = vm.heap
     start = 0
@@ -571,3 +583,5 @@ _NEIGHBORLIKE_METHODS: tuple[tuple[int, str, Callable[[VM], None]], ...] = (
 #: their names' string ids, as fasthost.add_functions takes them
 _NEIGHBORLIKE_METHOD_SIDS = np.array([sid for sid, _symbol, _fn in _NEIGHBORLIKE_METHODS],
                                      np.int64)
+#: their (symbol, function) pairs, as HostRegistry.register_all takes them
+_NEIGHBORLIKE_FUNCTIONS = tuple((symbol, fn) for _sid, symbol, fn in _NEIGHBORLIKE_METHODS)

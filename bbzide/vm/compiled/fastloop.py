@@ -1010,9 +1010,9 @@ def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
 
 
 @_compile
-def _new_table_of_leaves(d: Any, t: int, s: int, elems: int) -> bool:
-    """Does table ``t`` (one its caller just made) hold valid leaves only, in segments
-    inside the heap? Marked at depth 3, it then marks only leaves."""
+def _table_of_leaves(d: Any, t: int, s: int, elems: int) -> bool:
+    """Does table ``t`` hold valid leaves only, in segments inside the heap? Reached at
+    depth 3, it then marks only leaves, at depth 4."""
     size = len(d)
     g = 4 * elems + 2
     n = 2 * elems
@@ -1037,36 +1037,48 @@ def _new_table_of_leaves(d: Any, t: int, s: int, elems: int) -> bool:
 
 
 @_compile
-def _mark_as_reached(d: Any, info: Any, y: int, depth: int, s: int) -> None:
+def _mark_as_reached(d: Any, info: Any, y: int, depth: int, s: int) -> bool:
     """Leaf ``y`` reached from a new frame at ``depth``: marked if it was not (a new
     object, ``info`` as the collector would first set it, plus :data:`NEW`); a fresh
-    temporary the frame now holds is fresh no more."""
+    temporary the frame now holds is fresh no more. A leaf the last collection reached
+    from the stack only (a walk's accumulator) is now reached from the permanent roots,
+    which its ``info`` then says, as the collection would; True when that rewrote an old
+    object's ``info`` (``R_OLD_CHANGED``)."""
     m = _i(d[y * s])
     if not m & _GC_MARK:
         d[y * s] = m | _GC_MARK
         info[y] = depth + PERMANENT_PHASE + NEW
-    elif _i(info[y]) == FRESH:
+        return False
+    first = _i(info[y])
+    if first & PERMANENT_PHASE:
+        return False
+    if first <= FRESH or first & NEW:
         info[y] = depth + PERMANENT_PHASE + NEW
+        return False
+    info[y] = depth + PERMANENT_PHASE
+    return True
 
 
 @_compile
-def _mark_new_table(d: Any, info: Any, t: int, s: int, elems: int) -> None:
-    """A new table of leaves (:func:`_new_table_of_leaves`) reached from a new frame:
-    marked at depth 3, its segments and its keys and values (depth 4) as well."""
+def _mark_new_table(d: Any, info: Any, t: int, s: int, elems: int) -> bool:
+    """A new table of leaves (:func:`_table_of_leaves`) reached from a new frame:
+    marked at depth 3, its segments and its keys and values (depth 4) as well; True when
+    an old leaf's ``info`` was rewritten (:func:`_mark_as_reached`)."""
     g = 4 * elems + 2
     n = 2 * elems
     d[t * s] = _i(d[t * s]) | _GC_MARK
     info[t] = 3 + PERMANENT_PHASE + NEW
     seg = _u16(d, t, s)
+    changed = False
     while True:
         _set_word(d, seg, n, g, _word(d, seg, n, g) | 0x4000)  # SEG_MARK
         for p in range(n):
             w = _word(d, seg, p, g)
-            if w & 0x8000:
-                _mark_as_reached(d, info, w & 0x7FFF, 4, s)
+            if w & 0x8000 and _mark_as_reached(d, info, w & 0x7FFF, 4, s):
+                changed = True
         seg = _word(d, seg, n, g) & _NO_NEXT
         if seg == _NO_NEXT:
-            return
+            return changed
 
 
 @_compile
@@ -1080,9 +1092,15 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
     last collection reached (``R_REACHED``), the dropped closure and ``self`` are kept by the
     permanent roots (``self`` may also be the frame's first local), and every local of the
     new activation record is a valid leaf: the record, a new permanent root marked at depth
-    2, then marks only leaves, so no other object's marking changes (a local may also be
-    a table the caller just made that holds leaves only: the neighbour's data table of a
-    walk). The effect is then
+    2, then marks only leaves, so no other object's marking changes. A local may also be a
+    table that holds leaves only: one the caller just made (the neighbour's data table of a
+    walk), or an old one the last collection walked from the permanent roots (the
+    ``neighbors`` table, a walk's ``self``). Reached from the record at depth 3, such an
+    old table marks the leaves it marked before, so the marks stay as they are; which
+    permanent root reaches it first may change, and with it the depth ``info`` gives it
+    and its leaves, but a depth only decides whether the marker looks inside a table
+    (below the mark depth: true either way), so ``info`` keeps the last collection's
+    depths. The effect is then
     done here: the record, its segments and its new locals marked (``info`` as the
     collector would first set it, plus :data:`NEW`), the return address and block pointer
     ints marked as stack roots; the count, unreachable, is the caller's to free
@@ -1116,8 +1134,9 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
                 m = _i(d[y * s])
                 if not m & _VALID:
                     return False
-                if not _is_leaf(m) and (m & 7 != _TABLE or m & _GC_MARK or limit < 4
-                                        or not _new_table_of_leaves(d, y, s, elems)):
+                if not _is_leaf(m) and (
+                        m & 7 != _TABLE or limit < 4 or not _table_of_leaves(d, y, s, elems)
+                        or (m & _GC_MARK and not _walked_from_permanent(info, y, limit))):
                     return False
         seg = _word(d, seg, n, g) & _NO_NEXT
         if seg == _NO_NEXT:
@@ -1139,9 +1158,11 @@ def _entered_on_fixed_heap(d: Any, stack: Any, regs: Any, info: Any, count: int,
             if w & 0x8000:
                 y = w & 0x7FFF
                 if _i(d[y * s]) & 7 == _TABLE and not _i(d[y * s]) & _GC_MARK:
-                    _mark_new_table(d, info, y, s, elems)
+                    changed = _mark_new_table(d, info, y, s, elems)
                 else:
-                    _mark_as_reached(d, info, y, 3, s)
+                    changed = _mark_as_reached(d, info, y, 3, s)
+                if changed:
+                    regs[R_OLD_CHANGED] = 1
         seg = _word(d, seg, n, g) & _NO_NEXT
         if seg == _NO_NEXT:
             break
