@@ -20,11 +20,12 @@ import dataclasses
 
 import pytest
 
-from bbzide.compiler import compile_source
+from bbzide.compiler import bittybuzz_string_table, compile_source
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import TABLE
+from bbzide.vm.inspector import globals_by_name
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
-from bbzide.vm.vm import State
+from bbzide.vm.vm import VM, State
 from tests.vm.chunked_runs import assert_modes_agree, chunk_stops
 
 SCRIPTS = {
@@ -175,3 +176,35 @@ def test_the_kernel_marks_values_only_a_global_holds() -> None:
         assert not set(owned) & set(vm.stack[:vm.stackptr + 1])
     assert vm.state == State.DONE
     assert owned_seen > 10
+
+
+
+COUNTER = """
+i = 0
+while (i < 400) {
+  i = i + 1
+}
+"""
+
+
+@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
+def test_a_counter_stays_its_globals_alone_while_it_counts() -> None:
+    """``i = i + 1``: ``gload`` puts i's number on the stack (one more reference), ``add``
+    drops it again (its global's alone once more), so at the ``gstore`` the number it
+    replaces is ``fastloop.OWNED``, and the store frees it without a collection. Run from
+    the start for one budget after another, the VM stopped before a ``gstore`` of the loop
+    holds i's number as OWNED; and the run is the reference's."""
+    program = compile_source(COUNTER, "counter.bzz",
+                             string_table=bittybuzz_string_table([])).to_bbo()
+    gstore = 29
+    owned_at_store = []
+    for budget in range(24, 160):  # from the loop's second iteration on
+        vm = VM(PC, stress_gc=False)
+        vm.construct()
+        vm.set_bcode(program.bbo)
+        vm.run(max_instructions=budget)
+        if vm.bcode[vm.pc] == gstore:
+            value = globals_by_name(vm, program.strings)["i"]
+            owned_at_store.append(vm.heap.gc_info[value] == fastloop.OWNED)
+    assert len(owned_at_store) > 5 and all(owned_at_store)
+    assert_modes_agree(program.bbo, PC, 3000, "counter")

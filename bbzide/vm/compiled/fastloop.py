@@ -938,6 +938,16 @@ def _table_copy_kept(regs: Any, info: Any, copy: int, source: int, nobj: int,
 
 
 @_compile
+def _pushed_owned(info: Any, x: int, owned_pushed: int) -> int:
+    """The number ``run`` follows (``owned_pushed``) after a push of the old object ``x``:
+    ``x`` when it is :data:`OWNED` (its global's alone until now), none when ``x`` is the
+    one followed (on the stack twice now), else the one it was."""
+    if _i(info[x]) == OWNED:
+        return x
+    return -1 if x == owned_pushed else owned_pushed
+
+
+@_compile
 def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
     """After an instruction that pushed the existing object ``x``: is the heap still a fixed
     point? Yes for a marked leaf (the marker never looks inside it), or a non-leaf the last
@@ -1423,6 +1433,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     # a fresh number the last gstore moved into a global whose old value a collection must
     # judge: that collection leaves it referenced by the global alone, so OWNED
     owned_next = -1
+    # an OWNED number the last push put on the stack, once (-1: none): while nothing but
+    # that stack slot and its global refers to it, an instruction that drops the slot makes
+    # it its global's alone again, OWNED (how ``x = x + 1`` keeps x's number OWNED)
+    owned_pushed = -1
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
         regs[R_GC_RUNS] += 1
@@ -1439,6 +1453,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             regs[R_OLD_CHANGED] = 1
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
+            owned_pushed = -1
         owned_next = -1
         fixed = False
         pending = -1
@@ -1760,6 +1775,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         regs[R_EXECUTED] += 1
         rule = rules[op]
         fixed = True
+        if rule == _STORED_GLOBAL or rule == _STORED_NEW_LOCAL:
+            owned_pushed = -1  # the number may have moved into a second place
         if rule == _STORED_GLOBAL:
             freed = _stored_global_kept(d, regs, info, top_before, below_before, replaced,
                                         gsyms, nobj, s, limit)
@@ -1777,10 +1794,15 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             # the permanent roots or be a fresh temporary, which the skipped collection frees
             top = _dropped(info, top_before, nobj)
             below = _DROP_KEPT
-            if rule == _POPPED_TWO_NEW or rule == _POPPED_TWO_OLD:
+            two = rule == _POPPED_TWO_NEW or rule == _POPPED_TWO_OLD
+            if two:
                 below = _dropped(info, below_before, nobj)
             fixed = top != _DROP_UNKNOWN and below != _DROP_UNKNOWN and not (
                 top == below == _DROP_FRESH and top_before == below_before)
+            if owned_pushed >= 0 and (top_before == owned_pushed
+                                      or (two and below_before == owned_pushed)):
+                info[owned_pushed] = OWNED  # its one stack slot dropped (or a collection
+                owned_pushed = -1           # follows, which rewrites every info anyway)
             if not fixed or rule == _POPPED_ONE:
                 pass
             elif sp < 0 or _i(stack[sp]) >= nobj:
@@ -1789,6 +1811,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 pending = _i(stack[sp]) * s
                 fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
             else:
+                owned_pushed = _pushed_owned(info, _i(stack[sp]), owned_pushed)
                 fixed = _old_kept(d, info, _i(stack[sp]), s)
             if fixed and top == _DROP_FRESH:
                 free_a = top_before
@@ -1806,6 +1829,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             else:
                 fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
         elif rule == _PUSHED_OLD:
+            owned_pushed = _pushed_owned(info, _i(stack[sp]), owned_pushed)
             fixed = _old_kept(d, info, _i(stack[sp]), s)
         else:
             fixed = rule == _PC_ONLY
