@@ -41,6 +41,7 @@ from bbzide.vm.compiled.fastloop import (
     CALL_ON_FIXED_HEAP,
     EXIT,
     HOST_CALL,
+    NEW,
     NONE,
     OWNED,
     R_BP,
@@ -71,6 +72,7 @@ from bbzide.vm.compiled.fastloop import (
     end_host_frame,
     host_frame_droppable,
     run,
+    undo_to_fixed_point,
 )
 from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import darray_get, darray_size
@@ -368,12 +370,17 @@ def _table_set_sure(d: Any, t: int, s: int, elems: int) -> bool:
 @_compile
 def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any,
                  s: int, elems: int, reserved: int, kind: int, result_table: int,
-                 w: Any) -> bool:
+                 w: Any, fixed: bool) -> bool:
     """The end of an element's ``fun`` once its closure call returned: foreach's pop,
     reduce's RET check, map's and filter's put in ``result_table``; then the collection.
     False with nothing done when Python must do it (an error, no room, a method to bind,
-    a result table ``_table_set`` would refuse)."""
+    a result table ``_table_set`` would refuse). ``fixed``: the call began on a fixed point
+    (``fastloop.CALL_ON_FIXED_HEAP``, ``R_OLD_CHANGED`` and ``R_REACHED`` cleared there);
+    when nothing it made outlives it (foreach, or a filter that put nothing) and both are
+    still clear, the collection is the return to that fixed point
+    (``fastloop.undo_to_fixed_point``)."""
     sp = regs[R_SP]
+    kept_nothing = kind == WALK_FOREACH
     if kind == WALK_FOREACH:
         if sp < 0:
             return False
@@ -397,7 +404,12 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
             if ar != NO_ACTREC and not _i(d[ar * s]) & FLAG2:
                 return False  # tput would bind a method
         # ret popped; push ret_tbl, push_int(key); then put
+        reached = regs[R_REACHED]
         key = _obj_alloc(d, regs, s, reserved, INT, 0)
+        if _i(info[key]) & NEW:
+            # the slot of the call's own record, which its return left marked: no slot the
+            # fixed point's collection reached
+            regs[R_REACHED] = reached
         kv = w[W_KEY]
         d[key * s + 1] = kv & 0xFF
         d[key * s + 2] = (kv >> 8) & 0xFF
@@ -409,8 +421,14 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
         elif m & 7 == INT and (_i(d[ret * s + 1]) | _i(d[ret * s + 2])) != 0:
             stack[sp + 2] = w[W_DATA]
             _table_set(d, regs, result_table, key, w[W_DATA], s, elems)
+        else:
+            kept_nothing = True
         regs[R_SP] = sp - 1
-    _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+    if fixed and kept_nothing and regs[R_OLD_CHANGED] == 0 and regs[R_REACHED] == 0:
+        regs[R_GC_RUNS] += 1
+        undo_to_fixed_point(d, regs, info, s, elems, reserved)
+    else:
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
     return True
 
 
@@ -476,6 +494,7 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
             return WALK_PYTHON
         # ---- the data table (_push_data_table): table, then each field's value, its name
         regs[R_REACHED] = 0
+        regs[R_OLD_CHANGED] = 0  # (a fixed point when ``fixed``; else the call collects)
         t = _obj_alloc(d, regs, s, reserved, TABLE, 0)
         seg = _seg_alloc(d, regs, elems)
         d[t * s + 1] = seg & 0xFF
@@ -508,7 +527,7 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
             w[W_STATUS] = status
             return WALK_IN_CALL
         if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
-                            kind, result_table, w):
+                            kind, result_table, w, fixed):
             return WALK_AFTER_CALL
         fixed = True
         # the walk's own collection (``vm.gc()`` after ``fun``) follows the one that ended
@@ -568,7 +587,7 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                 w[W_STATUS] = status
                 return WALK_IN_CALL
             if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems,
-                                reserved, kind, result_table, w):
+                                reserved, kind, result_table, w, False):
                 return WALK_AFTER_CALL
         first = 0
         o = size - (si + 1) * g + 4 * elems

@@ -1342,6 +1342,18 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
         o = i * s
         m = _i(d[o])
         if m & _VALID:
+            if m & 7 == _TABLE and first & NEW:
+                # a table the caller made for the call (a walk's data table, marked with
+                # its segments by _mark_new_table): its segments are its own, freed with it
+                seg = _u16(d, i, s)
+                for _ in range(size // g + 1):
+                    if (seg + 1) * g > size:
+                        break
+                    w = _word(d, seg, n, g)
+                    _set_word(d, seg, n, g, w & (0xFFFF ^ 0xC000))  # SEG_VALID, SEG_MARK
+                    seg = w & _NO_NEXT
+                    if seg == _NO_NEXT:
+                        break
             _free_object(d, info, i, s)
         elif m & _GC_MARK:
             # a returned activation record: its segments, freed by the return, keep marks
