@@ -179,26 +179,41 @@ def test_the_kernel_marks_values_only_a_global_holds() -> None:
 
 
 
-COUNTER = """
+
+COUNTERS = {
+    "alone": """
 i = 0
 while (i < 400) {
   i = i + 1
 }
-"""
+""",
+    # the same counter in a function the top level calls
+    "in a function": """
+i = 0
+function count() {
+  while (i < 400) {
+    i = i + 1
+  }
+}
+count()
+""",
+}
 
 
 @pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
-def test_a_counter_stays_its_globals_alone_while_it_counts() -> None:
+@pytest.mark.parametrize("name", sorted(COUNTERS))
+def test_a_counter_stays_its_globals_alone_while_it_counts(name: str) -> None:
     """``i = i + 1``: ``gload`` puts i's number on the stack (one more reference), ``add``
     drops it again (its global's alone once more), so at the ``gstore`` the number it
     replaces is ``fastloop.OWNED``, and the store frees it without a collection. Run from
-    the start for one budget after another, the VM stopped before a ``gstore`` of the loop
-    holds i's number as OWNED; and the run is the reference's."""
-    program = compile_source(COUNTER, "counter.bzz",
+    the start for one budget after another,
+    the VM stopped before a ``gstore`` of the loop holds i's number as OWNED; and the run
+    is the reference's."""
+    program = compile_source(COUNTERS[name], "counter.bzz",
                              string_table=bittybuzz_string_table([])).to_bbo()
     gstore = 29
     owned_at_store = []
-    for budget in range(24, 160):  # from the loop's second iteration on
+    for budget in range(30, 200):  # from the loop's second time round on
         vm = VM(PC, stress_gc=False)
         vm.construct()
         vm.set_bcode(program.bbo)
@@ -207,4 +222,4 @@ def test_a_counter_stays_its_globals_alone_while_it_counts() -> None:
             value = globals_by_name(vm, program.strings)["i"]
             owned_at_store.append(vm.heap.gc_info[value] == fastloop.OWNED)
     assert len(owned_at_store) > 5 and all(owned_at_store)
-    assert_modes_agree(program.bbo, PC, 3000, "counter")
+    assert_modes_agree(program.bbo, PC, 3000, name)

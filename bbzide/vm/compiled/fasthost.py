@@ -43,7 +43,6 @@ from bbzide.vm.compiled.fastloop import (
     HOST_CALL,
     NEW,
     NONE,
-    OWNED,
     R_BP,
     R_BUDGET,
     R_CALL_FIRST,
@@ -84,17 +83,7 @@ from bbzide.vm.compiled.packed_queues import (
     OUT_START,
     ROBOT,
 )
-from bbzide.vm.heap_layout import (
-    CLOSURE,
-    FLAG2,
-    FLOAT,
-    GC_MARK,
-    INT,
-    NO_ACTREC,
-    STRING,
-    TABLE,
-    VALID,
-)
+from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING, TABLE
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
@@ -310,9 +299,6 @@ _WALK_OBJECTS = 9
 _WALK_PUSHES = 5
 #: string id of the data table's first field, ``distance`` (``azimuth``, ``elevation`` follow)
 _FIRST_FIELD_SID = 21
-#: OWNED numbers a walk's end collection keeps so (:func:`_collect`): a script's counters
-#: and totals; any more lose the mark, which only costs a collection later
-_OWNED_KEPT = 8
 #: a segment's next field meaning "none" (``SEG_NEXT``)
 _NO_NEXT_SEGMENT = 0x3FFF
 
@@ -320,28 +306,13 @@ _NO_NEXT_SEGMENT = 0x3FFF
 @_compile
 def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any, s: int,
              elems: int, reserved: int) -> None:
-    """``VM.gc`` in the fast mode (``collect_fast``) on the registers, at the end of a
-    walk's call: a number :data:`fastloop.OWNED` before (only its global's slot refers to
-    it) is still so after — a collection moves no reference, and since the collection after
-    the walk's first ``callc`` cleared every older mark only machine code ran, which clears
-    ``OWNED`` wherever it pushes such a number — so it stays ``OWNED``, and the next
-    ``gstore`` over that global frees it without a collection."""
-    owned = np.empty(_OWNED_KEPT, np.int64)
-    owned_count = 0
-    for x in range(regs[R_RTOBJ] // s):
-        if _i(info[x]) == OWNED and owned_count < _OWNED_KEPT:
-            owned[owned_count] = x
-            owned_count += 1
+    """``VM.gc`` in the fast mode (``collect_fast``) on the registers."""
     regs[R_GC_RUNS] += 1
     r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
                      frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
     regs[R_RTOBJ] = r >> 16
     regs[R_LTSEG] = r & 0xFFFF
     regs[R_OLD_CHANGED] = 1
-    for k in range(owned_count):
-        x = owned[k]
-        if _i(d[x * s]) & (VALID | GC_MARK) == VALID | GC_MARK:
-            info[x] = OWNED
 
 
 @_compile

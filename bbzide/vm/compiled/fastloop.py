@@ -992,13 +992,15 @@ def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
     """After a ``gstore`` that replaced global ``k``'s value ``old`` by the stack top
     ``v`` (``old`` -1: a new global): is the heap still a fixed point, but for ``old``
     the skipped collection frees? -2 when a collection must tell, else the object to free
-    (-1: none). Yes when the name is kept by the permanent roots, ``v`` is a marked leaf
+    (-1: none). Yes when the name is kept by the permanent roots or a fresh string (the
+    table keeps its own key for a global it had: the caller frees the name), ``v`` is a
+    marked leaf
     (not nil: storing nil deletes the global), the globals' table is walked from the
     permanent roots, and ``old`` is ``v``, a permanent leaf (nil) or :data:`OWNED` (then
     unreachable now). A fresh int or float ``v`` becomes :data:`OWNED`; any other ``v``
     not yet permanent-reached is said to be, one level below the globals. The globals
     changed: ``R_OLD_CHANGED``."""
-    if old < 0 or old >= nobj or v >= nobj or _dropped(info, k, nobj) != _DROP_KEPT:
+    if old < 0 or old >= nobj or v >= nobj or _dropped(info, k, nobj) == _DROP_UNKNOWN:
         return -2
     m = _i(d[v * s])
     t = m & 7
@@ -1790,12 +1792,20 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         if rule == _STORED_GLOBAL or rule == _STORED_NEW_LOCAL:
             owned_pushed = -1  # the number may have moved into a second place
         if rule == _STORED_GLOBAL:
+            name_fresh = _dropped(info, below_before, nobj) == _DROP_FRESH
             freed = _stored_global_kept(d, regs, info, top_before, below_before, replaced,
                                         gsyms, nobj, s, limit)
             fixed = freed > -2
             if freed >= 0:
                 free_a = freed
-            elif not fixed and _i(info[top_before]) == FRESH \
+            if fixed and name_fresh:
+                # the name string: a new one when a free slot came before the table's key
+                # (BittyBuzz deduplicates a string only when it meets it first)
+                if free_a < 0:
+                    free_a = below_before
+                else:
+                    free_b = below_before
+            if not fixed and _i(info[top_before]) == FRESH \
                     and _i(d[top_before * s]) & 7 in (_INT, _FLOAT):
                 owned_next = top_before
         elif rule == _STORED_NEW_LOCAL:
