@@ -316,6 +316,22 @@ def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: A
 
 
 @_compile
+def end_of_call_collection(d: Any, stack: Any, regs: Any, info: Any, traversed: Any,
+                           frames: Any, s: int, elems: int, reserved: int,
+                           may_undo: bool) -> None:
+    """The collection after a call returned and its result was taken: when ``may_undo``
+    (the call began on a fixed point, ``fastloop.CALL_ON_FIXED_HEAP``, and its caller kept
+    nothing it made) and since then no collection ran, no old ``info`` was rewritten
+    (``R_OLD_CHANGED``) and no allocation took a reached slot (``R_REACHED``), the return
+    to that fixed point (``fastloop.undo_to_fixed_point``); else a collection."""
+    if may_undo and regs[R_OLD_CHANGED] == 0 and regs[R_REACHED] == 0:
+        regs[R_GC_RUNS] += 1
+        undo_to_fixed_point(d, regs, info, s, elems, reserved)
+    else:
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+
+
+@_compile
 def _table_set_sure(d: Any, t: int, s: int, elems: int) -> bool:
     """Would ``_table_set`` on table ``t`` take its path (every segment of the chain inside
     the heap, every key index too, a chain no longer than the heap)? The room for a new
@@ -349,7 +365,7 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
     (``fastloop.CALL_ON_FIXED_HEAP``, ``R_OLD_CHANGED`` and ``R_REACHED`` cleared there);
     when nothing it made outlives it (foreach, or a filter that put nothing) and both are
     still clear, the collection is the return to that fixed point
-    (``fastloop.undo_to_fixed_point``)."""
+    (:func:`end_of_call_collection`)."""
     sp = regs[R_SP]
     kept_nothing = kind == WALK_FOREACH
     if kind == WALK_FOREACH:
@@ -395,11 +411,8 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
         else:
             kept_nothing = True
         regs[R_SP] = sp - 1
-    if fixed and kept_nothing and regs[R_OLD_CHANGED] == 0 and regs[R_REACHED] == 0:
-        regs[R_GC_RUNS] += 1
-        undo_to_fixed_point(d, regs, info, s, elems, reserved)
-    else:
-        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+    end_of_call_collection(d, stack, regs, info, traversed, frames, s, elems, reserved,
+                           fixed and kept_nothing)
     return True
 
 

@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
-from bbzide.vm.compiled.fasthost import call_pushed
+from bbzide.vm.compiled.fasthost import call_pushed, end_of_call_collection
 from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
@@ -67,7 +67,6 @@ from bbzide.vm.compiled.fastloop import (
     R_SP,
     R_STACK_SIZE,
     _obj_alloc,
-    undo_to_fixed_point,
 )
 from bbzide.vm.compiled.fasttables import table_lookup
 from bbzide.vm.heap_layout import INT, PERMANENT, STRING, TYPE_MASK, USERDATA, VALID
@@ -190,14 +189,8 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
             return IN_CALL
         # ---- the end of process_broadcast: pop the result, collect
         regs[R_SP] -= 1
-        regs[R_GC_RUNS] += 1
-        if regs[R_OLD_CHANGED] == 0 and regs[R_REACHED] == 0:
-            undo_to_fixed_point(d, regs, info, s, elems, reserved)
-        else:
-            r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
-                             traversed, frames, size, s, g, elems, reserved, limit)
-            regs[R_RTOBJ] = r >> 16
-            regs[R_LTSEG] = r & 0xFFFF
+        end_of_call_collection(d, stack, regs, info, traversed, frames, s, elems, reserved,
+                               True)
         inq[Q_COLLECTED] = 1
 
 

@@ -1322,6 +1322,23 @@ def _retreat(d: Any, regs: Any, s: int, elems: int, reserved: int) -> None:
 
 
 @_compile
+def _clear_segment_flags(d: Any, seg: int, flags: int, elems: int) -> None:
+    """Clear ``flags`` (of SEG_VALID 0x8000, SEG_MARK 0x4000) in every segment of the chain
+    from ``seg``, as far as it stays inside the heap."""
+    size = len(d)
+    g = 4 * elems + 2
+    n = 2 * elems
+    for _ in range(size // g + 1):
+        if (seg + 1) * g > size:
+            return
+        w = _word(d, seg, n, g)
+        _set_word(d, seg, n, g, w & (0xFFFF ^ flags))
+        seg = w & _NO_NEXT
+        if seg == _NO_NEXT:
+            return
+
+
+@_compile
 def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
                         reserved: int) -> None:
     """The collection that ends a call begun with :data:`CALL_ON_FIXED_HEAP`, when since
@@ -1333,9 +1350,6 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
     ones — a valid object whose ``info`` is 0, :data:`FRESH` or has :data:`NEW` — clears
     the marks the returned record and its segments kept, and retreats both ends of the
     heap (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
-    size = len(d)
-    g = 4 * elems + 2
-    n = 2 * elems
     rtobj = regs[R_RTOBJ]
     for i in range(rtobj // s):
         first = _i(info[i])
@@ -1347,30 +1361,14 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
             if m & 7 == _TABLE and first & NEW:
                 # a table the caller made for the call (a walk's data table, marked with
                 # its segments by _mark_new_table): its segments are its own, freed with it
-                seg = _u16(d, i, s)
-                for _ in range(size // g + 1):
-                    if (seg + 1) * g > size:
-                        break
-                    w = _word(d, seg, n, g)
-                    _set_word(d, seg, n, g, w & (0xFFFF ^ 0xC000))  # SEG_VALID, SEG_MARK
-                    seg = w & _NO_NEXT
-                    if seg == _NO_NEXT:
-                        break
+                _clear_segment_flags(d, _u16(d, i, s), 0xC000, elems)  # SEG_VALID, SEG_MARK
             _free_object(d, info, i, s)
         elif m & _GC_MARK:
             # a returned activation record: its segments, freed by the return, keep marks
             d[o] = m & (0xFF ^ _GC_MARK)
             info[i] = 0
             if m & 7 == _TABLE:
-                seg = _u16(d, i, s)
-                for _ in range(size // g + 1):
-                    if (seg + 1) * g > size:
-                        break
-                    w = _word(d, seg, n, g)
-                    _set_word(d, seg, n, g, w & (0xFFFF ^ 0x4000))
-                    seg = w & _NO_NEXT
-                    if seg == _NO_NEXT:
-                        break
+                _clear_segment_flags(d, _u16(d, i, s), 0x4000, elems)  # SEG_MARK
     _retreat(d, regs, s, elems, reserved)
 
 
