@@ -182,11 +182,16 @@ class ProgramSession:
         return revision
 
     def reload_from_disk(self) -> CompileOutcome | None:
-        """Re-read the file after an external save; None if its text did not change."""
-        text = self._read_disk()
-        if text is None:
-            return None  # mid-rename or unreadable: the next event will bring it
+        """Re-read the file after an external save; None if its text did not change.
+
+        The file is read under the lock that a browser save writes under: a text read before
+        such a save and compared after it would look like an external edit and bring the
+        older text back (the file watcher's event for the editor's previous save, read just
+        before its next one)."""
         with self._lock:
+            text = self._read_disk()
+            if text is None:
+                return None  # mid-rename or unreadable: the next event will bring it
             if text == self._disk_text:
                 return None
             self._disk_text = text

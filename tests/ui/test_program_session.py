@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import pytest
+from browser import wait_until
 from doubles import FakeBackend
 
 from bbzide.ui.program_session import EditConflict, ProgramSession, write_atomically
@@ -106,3 +108,62 @@ def test_an_edit_equal_to_the_newer_text_is_no_conflict(tmp_path: Path) -> None:
     assert again is first and again.ok  # not compiled again: no robot reloaded for nothing
     assert session.revision == 1 and path.read_text() == GOOD + "# same\n"
     assert [p.text for p in loaded] == [GOOD, GOOD + "# same\n"]
+
+
+class _ContendedLock:
+    """A re-entrant lock that tells when a second thread has to wait for it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.RLock()
+        self.waited_for = threading.Event()
+
+    def acquire(self, blocking: bool = True, timeout: float = -1) -> bool:
+        if self._lock.acquire(blocking=False):
+            return True
+        self.waited_for.set()
+        return self._lock.acquire(blocking, timeout)
+
+    def release(self) -> None:
+        self._lock.release()
+
+    __enter__ = acquire
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+
+def test_a_browser_save_during_the_watchers_read_keeps_the_newer_text(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The watcher's event for the editor's save of A is read while the editor saves B: the
+    # save waits for that read to be compared, so A never comes back as an "external" edit
+    # (which would run A on the robots and refuse the editor's next save as a conflict).
+    session, loaded, path = make_session(tmp_path)
+    session.compile_now()
+    first = GOOD + "# A\n"
+    newer = GOOD + "# B\n"
+    session.edit_from_browser(first, base_revision=0)
+    lock = _ContendedLock()
+    session._lock = lock  # type: ignore[assignment]
+    read_disk = session._read_disk
+    saved = threading.Event()
+    saves: list[int] = []
+
+    def save_newer() -> None:
+        saves.append(session.save_from_browser(newer, base_revision=1))
+        saved.set()
+
+    def read_during_a_save() -> str | None:
+        text = read_disk()
+        monkeypatch.setattr(session, "_read_disk", read_disk)  # the save reads the disk too
+        saver = threading.Thread(target=save_newer)
+        saver.start()
+        wait_until(lambda: lock.waited_for.is_set() or saved.is_set(), 30.0,
+                   message="the save to wait for the lock or to be done")
+        return text
+
+    monkeypatch.setattr(session, "_read_disk", read_during_a_save)
+    assert session.reload_from_disk() is None  # the editor's own save of A
+    wait_until(saved.is_set, 30.0, message="the save of B")
+    assert saves == [2]
+    assert session.text == newer == path.read_text() and session.revision == 2
+    assert session.save_from_browser(newer + "# C\n", base_revision=2) == 3  # no conflict
