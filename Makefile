@@ -77,15 +77,13 @@ run: setup
 lint: setup
 	$(VENV)/bin/ruff check bbzide tests benchmarks
 
-# The tests run in one process by default. `make test TEST_WORKERS=auto` runs them on every core
-# (pytest-xdist; tests sharing a module-scoped fixture stay on one worker, tests/conftest.py
-# groups them): on a 2-core machine two workers took 771 s against 949 s in one process, but
-# with the browser tests, their IDEs and two workers fighting for the cores a 60 s wait of a
-# browser test ran out.
-TEST_WORKERS ?= 0
+# The tests run on every core (pytest-xdist), whole test modules per worker so that a module's
+# shared fixture (an IDE and its Chromium, a recorded replay) is built once (tests/conftest.py).
+# `make test TEST_WORKERS=0` runs them in one process.
+TEST_WORKERS ?= auto
 
 test: setup browser lint
-	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
+	$(PY) -m pytest -n $(TEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 # Regenerate the lock after a change of pyproject.toml's dependencies, then `make setup`. uv keeps
 # the lock's present versions where pyproject.toml allows them (a new dependency brings only its

@@ -1,13 +1,15 @@
 """Shared pytest setup: the tests directory is importable (`import corpus`), the property tests'
-Hypothesis profile, the grouping that lets `make test` run the tests on every core, and the run
-ends with the conformance corpus pass counts.
+Hypothesis profile, the order that lets `make test` keep every core busy, and the run ends
+with the conformance corpus pass counts.
 
-Parallel runs (pytest-xdist, `make test` passes `-n auto --dist loadgroup`): each worker is a
-process of its own that takes whole groups of tests. A test that uses a module- or class-scoped
-fixture (a running IDE and its Chromium, a recorded replay, a swarm run shared by a module's
-asserts) joins its module's group, so the fixture is built once, as in a serial run; every other
-test goes to whichever worker is free. A test marked `xdist_group` keeps the group it names.
-Tests marked `slow` are handed out first.
+Parallel runs (pytest-xdist, `make test` passes `--dist loadfile`): each worker is a process
+of its own that takes whole test modules, so a module- or class-scoped fixture (a running IDE
+and its Chromium, a recorded replay, a swarm run shared by a module's asserts) is built once,
+as in a serial run. (`--dist loadgroup` with groups per shared fixture would balance finer, but
+pytest-xdist 3.8 marks a group by rewriting the test's node id, which pytest 9.2 no longer
+reads: its groups are silently ignored.) Tests marked `slow` come first, so their modules are
+handed out first: a long module handed out last would keep one worker busy while the others
+sit idle.
 
 Every test module that imports a corpus folder from `tests/corpus.py` is a corpus test; its
 parametrised tests (one case per corpus script or run) are tallied per test function and printed
@@ -42,9 +44,6 @@ _CORPUS_PATHS = {corpus.CORPUS, corpus.COMPILER_DIR, corpus.COMPILER_ERRORS_DIR,
 _TALLY_PROPERTY = "corpus_tally"
 #: the key of a worker's `corpus.report` counts in its output to the controlling process
 _REPORTED_OUTPUT = "corpus_reported"
-#: fixture scopes that a module's group keeps to one worker, so they are built once per module
-#: (or class) as in a serial run; a session-scoped fixture is built once per worker instead
-_GROUPED_SCOPES = {"module", "class"}
 _tally: dict[str, list[int]] = defaultdict(lambda: [0, 0])  # passed, run
 
 
@@ -55,31 +54,14 @@ def _is_corpus_module(module: object) -> bool:
     )
 
 
-def _shared_fixture_group(item: pytest.Item) -> str | None:
-    """The module's node id when `item` uses a fixture shared beyond one test, else None."""
-    fixture_info = getattr(item, "_fixtureinfo", None)
-    if fixture_info is None:
-        return None
-    for definitions in fixture_info.name2fixturedefs.values():
-        if any(definition.scope in _GROUPED_SCOPES for definition in definitions):
-            return item.nodeid.split("::", 1)[0]
-    return None
-
-
-@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
-        if item.get_closest_marker("xdist_group") is None:
-            group = _shared_fixture_group(item)
-            if group is not None:
-                item.add_marker(pytest.mark.xdist_group(group))
         module = getattr(item, "module", None)
         if module is None or not hasattr(item, "callspec") or not _is_corpus_module(module):
             continue
         name = f"{module.__name__.rsplit('.', 1)[-1]}::{item.originalname}"
         item.user_properties.append((_TALLY_PROPERTY, name))
-    # tests marked `slow` first (a stable sort: the rest keep their order): on several workers
-    # a long test handed out last would keep one worker busy while the others sit idle
+    # tests marked `slow` first (a stable sort: the rest keep their order), see above
     items.sort(key=lambda item: item.get_closest_marker("slow") is None)
 
 
