@@ -32,6 +32,7 @@ import logging
 import multiprocessing
 import os
 import pickle
+import socket
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -49,6 +50,8 @@ LOCAL = "local"
 #: Seconds to reach a scheduler: a reachable one answers in well under a second, a wrong
 #: address (a typo, a firewall) should not keep the user waiting for Dask's default 30 s.
 CONNECT_SECONDS = 10
+#: The port `dask scheduler` listens on unless told otherwise (an address without a port).
+DEFAULT_SCHEDULER_PORT = 8786
 #: Seconds to wait for the first worker of a scheduler that has none yet: time to start
 #: `dask worker` on another machine after the scheduler, not an endless hang.
 FIRST_WORKER_SECONDS = 60
@@ -120,6 +123,20 @@ class _IndexedCall:
         return index, self.function(item)
 
 
+def _refused_at_once(address: str) -> None:
+    """Raise `ConnectionRefusedError` at once when nothing listens at a TCP scheduler address
+    (a wrong port, a scheduler not started): Dask's client retries a refused connection until
+    its timeout, CONNECT_SECONDS of waiting for an answer that is already known."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    scheme, location = parse_address(address)
+    if scheme != "tcp":
+        return
+    host, port = parse_host_port(location, default_port=DEFAULT_SCHEDULER_PORT)
+    with socket.create_connection((host, port), timeout=CONNECT_SECONDS):
+        pass
+
+
 class DaskExecutor:
     """A Dask cluster: the scheduler at `address`, or a LocalCluster of `jobs` workers."""
 
@@ -164,6 +181,7 @@ class DaskExecutor:
                 self._client = Client(self._cluster)
                 self.description = f"a Dask LocalCluster of {self.jobs} workers"
             else:
+                _refused_at_once(self.address)
                 self._client = Client(self.address, timeout=CONNECT_SECONDS)
         except ValueError:   # Dask could not parse the address
             self.__exit__(None, None, None)
