@@ -7,7 +7,8 @@ drones running the flocking example and the search-and-rescue mission (examples/
 README "Search and rescue"). Each case boots the swarm,
 runs a few warm-up steps, then times `seconds` of steps and prints steps/s next to the goal
 (issue 20's: 100 Kilobots >= 400 steps/s, 1,000 >= 40, M300 x 25 flocking >= 300, search and
-rescue >= 500), the steps per CPU second of this process and the CPU seconds beside the
+rescue >= 500; the Kilobot cases once more on 2 threads, `--threads 2`, as a machine with a
+core to spare runs them), the steps per CPU second of this process and the CPU seconds beside the
 wall seconds (a shared machine's load inflates the wall figure; the load average is printed
 before each case), and the share of step time spent in the engine's
 phases (`Simulation.timings`: sense, vm = `swarm_batch.control_steps` (receive and control
@@ -23,24 +24,29 @@ import sys
 import time
 from pathlib import Path
 
+from bbzide.vm import swarm_batch
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
 from bbzide.worlds.registry import WORLDS
 
 REPO = Path(__file__).resolve().parents[1]
 
-#: (world, robots, script, world options, goal in steps/s or None)
+#: (world, robots, script, world options, goal in steps/s or None, threads: `--threads`)
 CASES = [
-    ("kilobot", 100, "examples/kilobot/gradient.bzz", {"width": 1.0, "height": 1.0}, 400.0),
-    ("kilobot", 1000, "examples/kilobot/gradient.bzz", {"width": 2.0, "height": 2.0}, 40.0),
-    ("crazyflie", 10, "examples/crazyflie/consensus.bzz", {}, None),
-    ("m300", 25, None, {}, 300.0),
-    ("m300", 25, "examples/sar/sar.bzz", {"size": 30.0}, 500.0),
+    ("kilobot", 100, "examples/kilobot/gradient.bzz", {"width": 1.0, "height": 1.0}, 400.0, 1),
+    ("kilobot", 100, "examples/kilobot/gradient.bzz", {"width": 1.0, "height": 1.0}, 400.0, 2),
+    ("kilobot", 1000, "examples/kilobot/gradient.bzz", {"width": 2.0, "height": 2.0}, 40.0, 1),
+    ("kilobot", 1000, "examples/kilobot/gradient.bzz", {"width": 2.0, "height": 2.0}, 40.0, 2),
+    ("crazyflie", 10, "examples/crazyflie/consensus.bzz", {}, None, 1),
+    ("m300", 25, None, {}, 300.0, 1),
+    ("m300", 25, "examples/sar/sar.bzz", {"size": 30.0}, 500.0, 1),
 ]
 WARM_UP_STEPS = 3
 
 
-def bench(world: str, robots: int, script: str | None, options: dict, seconds: float) -> dict:
+def bench(world: str, robots: int, script: str | None, options: dict, seconds: float,
+          threads: int = 1) -> dict:
+    swarm_batch.set_threads(threads)
     spec = WORLDS[world]
     path = REPO / (script or spec.example)
     program = load_script(path, spec.host_names, [])
@@ -74,27 +80,28 @@ def bench(world: str, robots: int, script: str | None, options: dict, seconds: f
 def main() -> None:
     seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 5.0
     only = sys.argv[2] if len(sys.argv) > 2 else None      # e.g. `m300`: one world's cases
-    print(f"{'case':28} {'steps/s':>9} {'goal':>6} {'vm':>5} {'radio':>6} {'physics':>8} "
+    print(f"{'case':31} {'steps/s':>9} {'goal':>6} {'vm':>5} {'radio':>6} {'physics':>8} "
           f"{'sense':>6} {'msg/step':>9} {'boot s':>7} errors")
     # vm / engine us: microseconds per robot-step in the VM phase (`control_steps`) and in
     # everything else (sense, radio, physics), from `Simulation.timings`
     # steps/s is wall clock (what the goals mean); the last column, steps per CPU second of
     # this process, is what a busy shared machine distorts least
-    for world, robots, script, options, goal in CASES:
+    for world, robots, script, options, goal, threads in CASES:
         example = script or (WORLDS[world].example if world in WORLDS else "")
-        label = f"{world} x {robots} {Path(example).stem}"
+        label = f"{world} x {robots} {Path(example).stem}" + \
+            ("" if threads == 1 else f", {threads} thr")
         if only is not None and world != only:
             continue
         if world not in WORLDS:
-            print(f"{label:28} (world not registered in this build)")
+            print(f"{label:31} (world not registered in this build)")
             continue
         load = Path("/proc/loadavg").read_text().split()[0] \
             if Path("/proc/loadavg").exists() else "?"
-        r = bench(world, robots, script, options, seconds)
+        r = bench(world, robots, script, options, seconds, threads)
         s = r["shares"]
         verdict = "" if goal is None else f"{goal:6.0f}"
         ratio = "" if goal is None else f"  ({r['steps_per_s'] / goal:.2f} x goal)"
-        print(f"{label:28} {r['steps_per_s']:9.2f} {verdict:>6} {100 * s['vm']:4.0f}% "
+        print(f"{label:31} {r['steps_per_s']:9.2f} {verdict:>6} {100 * s['vm']:4.0f}% "
               f"{100 * s['radio']:5.0f}% {100 * s['physics']:7.0f}% {100 * s['sense']:5.0f}% "
               f"{r['messages_per_step']:9.1f} {r['boot_s']:7.2f} {r['failures']}{ratio}"
               f"  [{r['steps_per_cpu_s']:.2f} per CPU s ({r['steps']} steps: "

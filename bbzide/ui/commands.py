@@ -67,6 +67,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=30.0,
         help="control steps per second, 0 = as fast as possible (default 30)",
     )
+    ide.add_argument("--threads", type=int, default=1, metavar="N",
+                     help="split each step of a large swarm over N threads (default 1; the "
+                          "same run, sooner on a machine with cores to spare)")
     ide.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1)")
     ide.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (default 8080)")
     add_token_argument(ide)
@@ -82,6 +85,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         robots=None,
         seed=None,
         speed=30.0,
+        threads=1,
         host="127.0.0.1",
         port=DEFAULT_PORT,
         token=None,
@@ -237,6 +241,11 @@ def open_ide(args: argparse.Namespace, scenario: Any = None, banner: str = "") -
     if not 1 <= robots <= MAX_ROBOTS:
         raise IdeError(f"--robots must be 1..{MAX_ROBOTS} in the IDE, got {robots} "
                        "(larger swarms: bbzide run --world)")
+    if args.threads < 1:
+        raise IdeError(f"--threads must be >= 1, got {args.threads}")
+    from bbzide.vm import swarm_batch
+
+    swarm_batch.set_threads(args.threads)
     script = resolve_script(args.script, backend.example_path(world))
     folder = getattr(args, "scenarios", None)
     if folder is not None and not folder.is_dir():

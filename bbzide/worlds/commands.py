@@ -67,6 +67,9 @@ def add_world_run_arguments(parser: argparse.ArgumentParser) -> None:
                        help="message loss probability (replaces the world's loss model)")
     group.add_argument("--asynchronous", action="store_true",
                        help="robots step at their own phase within the step (not in lockstep)")
+    group.add_argument("--threads", type=int, default=None, metavar="N",
+                       help="split each step of a large swarm over N threads (default 1; "
+                            "the same run, sooner on a machine with cores to spare)")
     group.add_argument("--steptime", action="store_true",
                        help="estimate each control step's duration on the platforms with a "
                             "cost model (Kilobot measured, Crazyflie scaled): min/mean/max ms")
@@ -211,10 +214,18 @@ def seed_of(args: argparse.Namespace) -> int:
 
 
 def vm_options_for_world(args: argparse.Namespace) -> dict[str, Any]:
-    """`--budget` and `--loop` for every robot of the world; single-robot options refused."""
+    """`--budget` and `--loop` for every robot of the world (and `--threads` for the swarm's
+    steps, set here once for the run); single-robot options refused."""
     for dest, option in SINGLE_ROBOT_ONLY:
         if getattr(args, dest, None):
             raise WorldConfigError(f"{option} is for one robot (without --world)")
+    threads = getattr(args, "threads", None)
+    if threads is not None:
+        if threads < 1:
+            raise WorldConfigError(f"--threads must be >= 1, got {threads}")
+        from bbzide.vm import swarm_batch  # the kernels load with the run, not the CLI
+
+        swarm_batch.set_threads(threads)
     options: dict[str, Any] = {}
     budget = getattr(args, "budget", None)
     if budget is not None:

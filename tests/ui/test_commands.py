@@ -68,6 +68,7 @@ def test_a_folder_is_named_as_a_folder(tmp_path: Path) -> None:
 @pytest.mark.parametrize("command, extra, words", [
     ("ide", ["--seed", "-1"], "--seed must be >= 0"),
     ("ide", ["--robots", "5000"], "--robots must be 1..1000"),
+    ("ide", ["--threads", "0"], "--threads must be >= 1"),
     ("ide", ["--port", "70000"], "--port must be 0..65535"),
     ("ide", ["--host", "999.1.1.1"], "cannot listen on 999.1.1.1"),
     ("replay", ["--port", "-2"], "--port must be 0..65535"),

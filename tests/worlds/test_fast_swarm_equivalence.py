@@ -517,14 +517,19 @@ def test_situated_values_as_the_model_converts() -> None:
 def test_batch_threads_identical(monkeypatch, tmp_path: Path) -> None:  # noqa: ANN001
     """The kernel part split over threads (contiguous robot ranges) leaves the same robots,
     outboxes and LEDs as the reference, hand-overs included."""
+    from bbzide.vm import swarm_batch
     from bbzide.vm.compiled import swarm_batch_fast
 
-    monkeypatch.setattr(swarm_batch_fast, "THREADS", 3)
     monkeypatch.setattr(swarm_batch_fast, "MIN_ROBOTS_PER_THREAD", 4)
-    assert len(swarm_batch_fast._chunks(np.arange(14))) == 3
-    program = _compile(tmp_path, BATCH_HAND_OVERS)
-    seen = _run_batches(program, "kilobot", 14, 12, budget=3000,
-                        options={"width": 0.3, "height": 0.3})
+    swarm_batch.set_threads(3)
+    try:
+        assert len(swarm_batch_fast._chunks(np.arange(14))) == 3
+        program = _compile(tmp_path, BATCH_HAND_OVERS)
+        seen = _run_batches(program, "kilobot", 14, 12, budget=3000,
+                            options={"width": 0.3, "height": 0.3})
+        assert swarm_batch_fast._pool()._max_workers == 2  # this thread and two of the pool
+    finally:
+        swarm_batch.set_threads(1)
     assert seen["messages"] > 200
 
 

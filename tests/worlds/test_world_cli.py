@@ -6,6 +6,7 @@ from pathlib import Path
 import pytest
 
 from bbzide.cli import main
+from bbzide.vm import swarm_batch
 
 REPO = Path(__file__).resolve().parents[2]
 GRADIENT = REPO / "examples" / "kilobot" / "gradient.bzz"
@@ -119,6 +120,7 @@ def test_budget_and_loop_apply_to_every_robot_of_a_world(tmp_path, capsys):
     (["--robot", "3"], "--robot is for one robot"),
     (["--budget", "-1"], "--budget must be >= 1"),
     (["--budget", "0"], "--budget must be >= 1"),
+    (["--threads", "0"], "--threads must be >= 1"),
 ])
 def test_single_robot_options_are_refused_with_a_world(extra, words, capsys):
     assert main(["run", str(GRADIENT), "--world", "kilobot", "--steps", "1", *extra]) == 1
@@ -181,3 +183,23 @@ def test_a_run_prints_each_robots_heap_peak_and_warns_near_the_limit(tmp_path, c
         "of the 1088 B heap (kilobot profile, 2048 B of RAM)")
     assert peaks[1] > peaks[0] == peaks[2]      # only robot 1 grows its table
     assert "warning: robot(s) 1 used up to " in out and "may stop them with MEM" in out
+
+
+def test_threads_split_a_large_swarms_steps_and_change_nothing_of_the_run(tmp_path, capsys):
+    scenario = tmp_path / "gradient.toml"
+    scenario.write_text(
+        'version = 1\nworld = "kilobot"\nsteps = 25\nwatch = ["gradient", "heard"]\n'
+        '[world_options]\nwidth = 2.0\nheight = 2.0\n'
+        f'[[robots]]\ncount = 300\nscript = "{GRADIENT}"\n')
+    printed = []
+    try:
+        for threads in ("1", "3"):
+            assert main(["run", str(scenario), "--threads", threads]) == 0
+            out = capsys.readouterr().out
+            printed.append([line for line in out.splitlines()
+                            if not line.startswith(("speed:", "time:"))])
+    finally:
+        swarm_batch.set_threads(1)  # the process's later runs
+    watched = [line for line in printed[0] if line.startswith("watch gradient:")]
+    assert len(watched) == 1 and len(set(watched[0].split()[2:])) > 3  # hops spread out
+    assert printed[1] == printed[0]

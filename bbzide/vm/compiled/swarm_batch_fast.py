@@ -338,15 +338,28 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
 
 #: threads of a swarm step's kernel part (robots' kernel parts are independent, so a swarm
 #: split in contiguous index ranges gives the same result whatever the threads' timing).
-#: 1 by default. Measured on the shared 2-core machine, 1,000 gradient Kilobots: at load
-#: ~2.9 two threads lost wall time (168-177 against 107-149 µs per robot-step); at load
-#: ~1.1 they gained (`control_steps` 37-46 against 65-66 µs wall, CPU the same or +13 %;
-#: world_bench 15.2-19.0 against 14.6-14.7 steps/s). A gain only when a core is free, so
-#: it is the caller's choice (a multi-core desktop: the cores to spare)
+#: 1 by default: a gain only when a core is free (on a shared 2-core machine two threads
+#: lost wall time at load ~2.9 and gained at ~1), so it is the user's choice, `--threads`
+#: (`set_threads`): a multi-core desktop has cores to spare; `world_bench.py` prints both.
 THREADS = 1
-#: the fewest robots per thread worth a thread's hand-off (~20 µs)
-MIN_ROBOTS_PER_THREAD = 64
+#: the fewest robots per thread worth a thread's hand-off: the hand-off costs about one
+#: robot's kernel step (~20 µs), so at 32 robots a part it is ~3 % of the part (100 gradient
+#: Kilobots on 2 threads: ~1.45x the steps per second of one thread, +3-7 % CPU)
+MIN_ROBOTS_PER_THREAD = 32
 _POOL: list[ThreadPoolExecutor] = []
+
+
+def set_threads(count: int) -> None:
+    """Run the kernel part of every later swarm step on ``count`` threads (this one and
+    ``count - 1`` pool threads); the pool is made again for a new count."""
+    global THREADS
+    if count < 1:
+        raise ValueError(f"a swarm step needs at least 1 thread, not {count}")
+    if count != THREADS:
+        for pool in _POOL:
+            pool.shutdown(wait=True)
+        _POOL.clear()
+    THREADS = count
 
 
 def _pool() -> ThreadPoolExecutor:
