@@ -65,7 +65,8 @@ def run_lesson(args: argparse.Namespace) -> int:
         return check_lesson(chosen, Path(args.check) if args.check else None)
     work = catalog.work_file(chosen)
     ide_args = argparse.Namespace(script=None, world=None, robots=None, seed=None, speed=30.0,
-                                  host=args.host, port=args.port, no_browser=args.no_browser,
+                                  threads=1, host=args.host, port=args.port,
+                                  no_browser=args.no_browser,
                                   paused=args.paused, token=args.token)
     scenario = ide_scenario(chosen.scenario_path, ide_args, script=work)
     print(chosen.text.rstrip())
