@@ -71,10 +71,10 @@ def set_threads(count: int) -> None:
     """The threads the compiled path splits each later swarm step over (robots in
     contiguous index ranges, each range's kernel part on its own thread; the results do
     not depend on the count). Without numba there is one: the reference path is Python."""
+    if count < 1:
+        raise ValueError(f"a swarm step needs at least 1 thread, not {count}")
     if kernels.COMPILED:
         kernels.swarm_batch_fast.set_threads(count)
-    elif count < 1:
-        raise ValueError(f"a swarm step needs at least 1 thread, not {count}")
 
 
 def control_steps_reference(robots: Sequence[SteppableRobot | None],

@@ -33,6 +33,7 @@ GRADIENT = REPO / "examples" / "kilobot" / "gradient.bzz"
     # a list-valued option cannot be given as KEY=VALUE
     (["--world", "crazyflie", "--set", "obstacles=3"], "obstacles cannot be set"),
     (["--world", "kilobot", "--seed", "-1"], "--seed must be >= 0"),
+    (["--world", "kilobot", "--threads", "0"], "--threads must be >= 1"),
     (["--world", "m300", "--set", "map_seed=-1"], "map_seed must be >= 0, got -1"),
     (["--world", "m300", "--set", "cells=20"], "at most 10 x 10 cells, got 20"),
     (["--world", "m300", "--set", "threshold=1000"], "within 0..100, got 1000"),
@@ -120,7 +121,6 @@ def test_budget_and_loop_apply_to_every_robot_of_a_world(tmp_path, capsys):
     (["--robot", "3"], "--robot is for one robot"),
     (["--budget", "-1"], "--budget must be >= 1"),
     (["--budget", "0"], "--budget must be >= 1"),
-    (["--threads", "0"], "--threads must be >= 1"),
 ])
 def test_single_robot_options_are_refused_with_a_world(extra, words, capsys):
     assert main(["run", str(GRADIENT), "--world", "kilobot", "--steps", "1", *extra]) == 1

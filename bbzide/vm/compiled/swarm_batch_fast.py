@@ -350,11 +350,10 @@ _POOL: list[ThreadPoolExecutor] = []
 
 
 def set_threads(count: int) -> None:
-    """Run the kernel part of every later swarm step on ``count`` threads (this one and
-    ``count - 1`` pool threads); the pool is made again for a new count."""
+    """Run the kernel part of every later swarm step on ``count`` (>= 1, checked by
+    ``swarm_batch.set_threads``) threads: this one and ``count - 1`` pool threads; the pool
+    is made again for a new count."""
     global THREADS
-    if count < 1:
-        raise ValueError(f"a swarm step needs at least 1 thread, not {count}")
     if count != THREADS:
         for pool in _POOL:
             pool.shutdown(wait=True)
