@@ -119,7 +119,9 @@ def process_inmsgs(vm: VM) -> None:
 
     The fast mode hands the loop to the compiled :func:`fastinbox.process_broadcasts`,
     which stops at the first message (or listener step) it does not cover; from there
-    this loop goes on with the reference routines, then calls the kernel again.
+    this loop goes on with the reference routines, then calls the kernel again when the
+    head is a broadcast (the kernel would only collect for a stigmergy message and hand
+    it back: a search-and-rescue drone gets some sixteen of them a step).
     """
     if vm.state == State.ERROR:
         return
@@ -137,7 +139,7 @@ def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> No
     while taken or (not q.inbox.empty() and count < vm.profile.msg_in_proc_max):
         if taken:
             taken = False
-        elif compiled and vm.state == State.READY:
+        elif compiled and vm.state == State.READY and q.inbox.at(0)[TYPE] == BROADCAST:
             status, count, collected = _process_compiled(vm, count, collected)
             if status != fastinbox.PYTHON_MESSAGE:
                 continue
@@ -156,7 +158,7 @@ def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> No
         if t == BROADCAST:
             collected = process_broadcast(vm, rec)
         elif t in (VSTIG_PUT, VSTIG_QUERY):
-            vstig.process_vstig(vm, rec)
+            collected = vstig.process_vstig(vm, rec)
 
 
 def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bool]:

@@ -201,7 +201,9 @@ def _alloc_copy(vm: VM, obj: bytes) -> int | None:
     return o
 
 
-def process_vstig(vm: VM, rec: bytearray) -> None:
+def process_vstig(vm: VM, rec: bytearray) -> bool:
+    """``bbzmsg_process_vstig``. True when it ended with its collection (the in-queue loop
+    may then count, not run, the next message's: ``inmsgs.go_on_inmsgs``)."""
     from bbzide.vm.messages import VSTIG_PUT, VSTIG_QUERY
 
     h = vm.heap
@@ -218,7 +220,7 @@ def process_vstig(vm: VM, rec: bytearray) -> None:
             h.set_mdata(e.value, h.mdata(e.value) & ~VALID & 0xFF)
             o = _alloc_copy(vm, obj)
             if o is None:
-                return
+                return False
             vm.unmake_permanent(e.value)
             e.value = o
             vm.make_permanent(o)
@@ -228,17 +230,18 @@ def process_vstig(vm: VM, rec: bytearray) -> None:
             queue_vstig(vm, VSTIG_PUT, vm.robot, key, e.value, e.timestamp)
         elif e.timestamp == lamport and e.robot != rid:
             if not _conflict(vm, e, rid, key, lamport, obj):
-                return
+                return False
         break
     else:
         o = _alloc_copy(vm, obj)
         if o is None:
-            return
+            return False
         vm.make_permanent(o)
         e = VstigEntry(key=key, value=o, timestamp=lamport, robot=rid)
         vm.vstig.entries.append(e)
         queue_vstig(vm, VSTIG_PUT, e.robot, e.key, e.value, e.timestamp)
     vm.gc()
+    return True
 
 
 def _conflict(vm: VM, e: VstigEntry, rid: int, key: int, lamport: int, obj: bytes) -> bool:
