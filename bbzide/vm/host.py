@@ -25,7 +25,7 @@ import numpy as np
 from bbzide.compiler import bbzfloat
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
-from bbzide.vm.kernels import packed_queues
+from bbzide.vm.kernels import fasthost, packed_queues
 from bbzide.vm.states import Error
 
 if TYPE_CHECKING:
@@ -70,6 +70,7 @@ class HostRegistry:
     """Address ↔ host function map of one VM (addresses masked to the pointer width)."""
 
     def __init__(self, ptr_size: int) -> None:
+        self.ptr_size = ptr_size
         self.mask = (1 << (8 * ptr_size)) - 1
         self.by_address: dict[int, RegisteredHostFunction] = {}
         self.by_symbol: dict[str, RegisteredHostFunction] = {}
@@ -79,6 +80,10 @@ class HostRegistry:
         #: `register_all`'s last answer per tuple of functions, with the version it was for
         self._registered_all: dict[tuple[tuple[str, HostFunction], ...],
                                   tuple[int, np.ndarray]] = {}
+        #: host functions a kernel computes in place, by symbol: (``fasthost.HOST_*`` kind,
+        #: argument count); see `computed_rows`
+        self.computed: dict[str, tuple[int, int]] = {}
+        self._computed_rows: tuple[int, np.ndarray] | None = None
 
     def register(self, symbol: str, function: HostFunction, address: int | None = None) -> int:
         """Register ``function`` under ``symbol``; returns the address to store in the heap."""
@@ -117,6 +122,27 @@ class HostRegistry:
 
     def lookup(self, address: int) -> RegisteredHostFunction | None:
         return self.by_address.get(address & self.mask)
+
+    def mark_computed(self, symbol: str, kind: int, argc: int) -> None:
+        """The host function registered as ``symbol`` is one a kernel computes itself
+        (``fasthost`` kind ``kind``, ``argc`` arguments): e.g. a `RoundedDistanceHostFunction`."""
+        self.computed[symbol] = (kind, argc)
+        self._computed_rows = None
+
+    def computed_rows(self) -> np.ndarray:
+        """``fasthost``'s ``hosts`` rows (address, pointer size, kind, 0, argument count)
+        of the marked host functions as registered now: the ones a kernel may run in place
+        even with the queues unpacked, since they touch none. Cached until a registration."""
+        cached = self._computed_rows
+        if cached is not None and cached[0] == self.version:
+            return cached[1]
+        rows = [(call.address, self.ptr_size, kind, 0, argc)
+                for symbol, (kind, argc) in self.computed.items()
+                if (call := self.by_symbol.get(symbol)) is not None
+                and self.by_address.get(call.address) is call]
+        table = np.array(rows, np.int64).reshape(-1, fasthost.HOST_COLUMNS)
+        self._computed_rows = (self.version, table)
+        return table
 
 
 NIL = None  # the Buzz nil as a decoded argument / return value
@@ -230,6 +256,26 @@ class LatchedHostFunction:
     #: what ``apply`` gets for this robot (the world's index of the robot)
     target: int
     apply: Callable[[Any, Any], None]
+
+    def __call__(self, call: HostCall) -> None:
+        self.function(call)
+
+
+@dataclass(frozen=True)
+class RoundedDistanceHostFunction:
+    """A world host function ``distance(x1, y1, x2, y2)`` returning
+    ``round(hypot(x1 - x2, y1 - y2))``, nothing else (an M300's, in decimetres). Called from
+    Python it is ``function`` as usual; a kernel (``fasthost``, kind ``HOST_DISTANCE``) may
+    instead compute it in place on its happy path — four int arguments, a result within an
+    int16, room for it — and hand anything else to ``function``, which reports it as it
+    always does. Exact because the result is a function of the arguments alone, computed
+    in integers (``fasthost.rounded_distance``), and ``ret1`` of a fresh int is what
+    ``HostCall.ret`` does with it.
+    """
+
+    function: Callable[[HostCall], None]
+    #: its arguments: x1, y1, x2, y2
+    argc: int = 4
 
     def __call__(self, call: HostCall) -> None:
         self.function(call)

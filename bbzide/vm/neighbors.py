@@ -29,13 +29,16 @@ import numpy as np
 
 from bbzide.vm import messages
 from bbzide.vm.heap import CLOSURE, INT, STRING
-from bbzide.vm.kernels import COMPILED, fasthost, fastloop
+from bbzide.vm.kernels import fasthost, fastloop
 from bbzide.vm.messages import RingBuffer
 from bbzide.vm.states import Error, State
 from bbzide.vm.table_library import (
+    CompiledWalk,
     foreach_live,
+    kernels_now,
     table_set_quiet,
     table_size_live,
+    table_walk_compiled,
     to_bool,
 )
 from bbzide.vm.tables import compare, table_get
@@ -117,7 +120,7 @@ def _add_neighborlike_fields(vm: VM, count: int) -> None:
         _add_data(vm, STR_DATA, sub)
         cnt = vm.new_int(count)
         _add_data(vm, STR_RESET, cnt)
-    if COMPILED and not vm.stress_gc and vm.state == State.READY:
+    if kernels_now(vm):
         # the fast mode adds them in machine code when the heap has room (fasthost)
         addresses = vm.host.register_all(_NEIGHBORLIKE_FUNCTIONS)
         h = vm.heap
@@ -136,12 +139,6 @@ def _is_neighbors_table(vm: VM, self_obj: int) -> bool:
     return compare(vm.heap, self_obj, vm.neighbors.hpos) == 0
 
 
-#: What a compiled walk (:func:`_walk_compiled`) needs: the walk's kind, the closure, the
-#: table map/filter return (else -1) and the rest of ``fun`` once ``closure_call`` has
-#: returned, given the stack depth before the call, the element's key and its data.
-CompiledWalk = tuple[int, int, int, Callable[[int, int, int], None]]
-
-
 def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
                           walk: CompiledWalk | None = None) -> None:
     """Call ``fun(key, data)`` per neighbour. ``walk``: the fast mode may do the XTREME
@@ -151,8 +148,8 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
         sub = _subfield(vm, STR_DATA)
         vm.pop()
         start = None
-        if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
-            start = _table_walk_compiled(vm, sub, walk)
+        if walk is not None and kernels_now(vm):
+            start = table_walk_compiled(vm, sub, walk)
             if start is None:
                 return
         foreach_live(vm, sub, fun, start)
@@ -161,7 +158,7 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
     if _is_neighbors_table(vm, self_obj):
         ring = vm.neighbors.ring
         i = ring.size()
-        if walk is not None and COMPILED and not vm.stress_gc and vm.state == State.READY:
+        if walk is not None and kernels_now(vm):
             i, collected = _walk_compiled(vm, walk)
             if i == 0 and collected:
                 # the walk's last act was a collection of these very roots: the one below
@@ -179,35 +176,6 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
     else:
         foreach_live(vm, self_obj, fun)
     vm.gc()
-
-
-def _table_walk_compiled(vm: VM, sub: int, walk: CompiledWalk) -> tuple[int, int, int] | None:
-    """The data table's elements by :func:`fasthost.table_walk`, re-entered after each
-    call it leaves to Python; the (segment, slot, visit) the Python walk goes on from,
-    or None when it is over."""
-    kind, closure, result_table, after_call = walk
-    w = np.zeros(fasthost.WALK_SLOTS, np.int64)
-    w[fasthost.W_SEGMENT] = vm.heap.u16(sub)
-    h = vm.heap
-    while True:
-        saved, budget = vm.blockptr, vm.instruction_budget
-        regs = vm.kernel_registers(saved, budget)
-        result = fasthost.table_walk(
-            h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
-            fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, result_table, w,
-            *fasthost.NO_HOST_ARGS)
-        vm.take_kernel_registers(regs)
-        _index, status, depth, segment, slot, visit, key, data = w.tolist()
-        if result == fasthost.WALK_DONE:
-            return None
-        if result == fasthost.WALK_PYTHON:
-            return segment, slot, visit
-        if result == fasthost.WALK_IN_CALL:  # closure_call's loop, where the kernel left it
-            vm._loop(saved, budget, resume=(status, regs))
-        after_call(depth, key, data)
-        if vm.state != State.READY:
-            return segment, slot + 1, visit
-        w[fasthost.W_SLOT] = slot + 1
 
 
 _ENTRY_FIELDS = operator.attrgetter("robot", "distance", "azimuth", "elevation")
@@ -241,7 +209,8 @@ def _walk_compiled(vm: VM, walk: CompiledWalk) -> tuple[int, bool]:
         result = fasthost.xtreme_walk(
             h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
             fastloop.RULES, h.obj_size, h.elems, h.reserved, rows, start, kind, closure,
-            result_table, vm.profile.neighbors_floats, w, *fasthost.NO_HOST_ARGS)
+            result_table, vm.profile.neighbors_floats, w, vm.host.computed_rows(),
+            *fasthost.NO_HOST_ARGS[1:])
         vm.take_kernel_registers(regs)
         index, status, depth, _segment, _slot, _visit, key, data = w.tolist()
         if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:

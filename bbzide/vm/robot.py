@@ -45,7 +45,7 @@ from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
 from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout
-from bbzide.vm.host import HostCall, LatchedHostFunction
+from bbzide.vm.host import HostCall, LatchedHostFunction, RoundedDistanceHostFunction
 from bbzide.vm.kernels import fastbatch, fasthost, fastinbox, fastloop, fastreceive, packed_queues
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
@@ -199,6 +199,8 @@ class Robot:
     def _note_latched(self, symbol: str, fn: HostFunction) -> None:
         if isinstance(fn, LatchedHostFunction):
             self._latched[symbol] = fn
+        elif isinstance(fn, RoundedDistanceHostFunction):
+            self.vm.host.mark_computed(symbol, fasthost.HOST_DISTANCE, fn.argc)
 
     def _symbol(self, name: str) -> str:
         return self.host_symbols.get(name, name)
@@ -219,9 +221,9 @@ class Robot:
     def compiled_hosts(self) -> tuple[np.ndarray, list[LatchedHostFunction | None]]:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
         (address, pointer size, kind, latch slot, argument count) for the closure address of
-        ``neighbors.broadcast`` and of each latched host function, as the VM's registry maps
-        them now; and the latched function of each latch slot. Cached until the registry
-        changes."""
+        ``neighbors.broadcast``, of each latched host function and of each one the kernel
+        computes (``HostRegistry.computed_rows``), as the VM's registry maps them now; and
+        the latched function of each latch slot. Cached until the registry changes."""
         registry = self.vm.host
         cached = self._hosts
         if cached is not None and cached[0] == registry.version:
@@ -240,6 +242,7 @@ class Robot:
                 continue
             rows.append((call.address, ptr, fasthost.HOST_LATCH, len(slots), fn.argc))
             slots.append(fn)
+        rows.extend(map(tuple, registry.computed_rows().tolist()))
         table = np.array(rows, np.int64).reshape(-1, fasthost.HOST_COLUMNS)
         self._hosts = (registry.version, table, slots)
         return table, slots

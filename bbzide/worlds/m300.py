@@ -80,6 +80,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bbzide.vm.host import RoundedDistanceHostFunction
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import M300_HOST_NAMES
 from bbzide.worlds.world import HostFunction, RadioSettings, World
@@ -509,7 +510,8 @@ class M300Field(World):
 
         return {"takeoff": takeoff, "land": land, "goto": goto, "position": position,
                 "arrived": arrived, "flying": flying, "camera": camera,
-                "random_goal": random_goal, "prior": prior, "distance": distance,
+                "random_goal": random_goal, "prior": prior,
+                "distance": RoundedDistanceHostFunction(distance),
                 "mission": mission, "set_role": set_role, "know_target": know_target,
                 "relay_link": relay_link, "missed": missed, "rand": random_byte,
                 "clock": clock, "doze": doze}

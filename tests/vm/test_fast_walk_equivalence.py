@@ -1,20 +1,27 @@
-"""The compiled neighbour walks (``fasthost.xtreme_walk``/``table_walk``) against the reference.
+"""The compiled walks (``fasthost.xtreme_walk``/``table_walk``) against the reference.
 
-``neighbors.foreach``/``reduce``/``map``/``filter`` hand their per-neighbour closure calls to
-machine code in the fast mode; each must leave every observable byte as the reference mode
-does (heap bytes, mark bits, rtobj/ltseg, stack, pc, state, errors, GC runs, instruction
-counts) after every control step, on an XTREME build (the ring) and on heap-table builds,
-including the cases where the kernel hands back: a heap too full for a neighbour's objects,
-a closure calling a host function or another walk, an error inside the closure, a closure
-returning nothing, the instruction budget running out.
+``neighbors.foreach``/``reduce``/``map``/``filter`` and the table library's ``foreach`` hand
+their per-element closure calls to machine code in the fast mode; each must leave every
+observable byte as the reference mode does (heap bytes, mark bits, rtobj/ltseg, stack, pc,
+state, errors, GC runs, instruction counts) after every control step, on an XTREME build
+(the ring) and on heap-table builds, including the cases where the kernel hands back: a
+heap too full for a neighbour's objects, a closure calling a host function or another walk,
+an error inside the closure, a closure returning nothing, the instruction budget running
+out. A ``distance`` host function the kernel computes in place
+(``host.RoundedDistanceHostFunction``) runs inside the walks, with its own hand-backs: a
+float argument, a result beyond an int16, a wrong argument count.
 """
 
 from __future__ import annotations
+
+import math
 
 import pytest
 
 from bbzide.compiler import bbzfloat, bittybuzz_string_table, compile_source
 from bbzide.vm import neighbors
+from bbzide.vm.host import HostCall
+from bbzide.vm.kernels import fasthost
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
 from bbzide.vm.vm import VM, State
 
@@ -83,6 +90,48 @@ function step() {
   var x = neighbors.reduce(function(rid, data, acc) { acc = 1 }, 0)
 }
 """,
+    "table foreach": """
+pos = {}
+total = 0
+function step() {
+  pos[1] = 30
+  pos[2] = 12
+  pos[3] = 1.5
+  pos[4] = -7
+  pos[5] = 30000
+  pos[6] = nil
+  total = 0
+  foreach(pos, function(k, v) {
+    total = total + distance(k, v, -k, 4)
+    if (k == 2) { pos[6] = 8
+                  pos[1] = nil }
+  })
+}
+""",
+    "table foreach with neighbours": """
+far = 0
+function step() {
+  var kept = {}
+  neighbors.foreach(function(rid, data) { kept[rid] = rid * 3 })
+  far = 0
+  foreach(kept, function(rid, v) {
+    if (distance(rid, v, 0, 0) > 20) { far = far + 1 }
+    neighbors.foreach(function(r2, d2) { far = far + distance(r2, 0, rid, 0) })
+  })
+}
+""",
+    "table foreach errors": """
+n = 0
+function step() {
+  n = n + 1
+  var t = {.a = 1, .b = 2, .c = 3}
+  foreach(t, function(k, v) {
+    if (n == 2) { var x = distance(1, 2, 3) }
+    if (n == 3 and v == 2) { var y = distance(1, 2, 3, "far") }
+    if (n == 4 and v == 3) { v = v + t }
+  })
+}
+""",
     "budget": """
 function step() {
   neighbors.foreach(function(rid, data) {
@@ -98,6 +147,18 @@ def _led(vm: VM) -> None:
     vm.ret0()
 
 
+def _distance(vm: VM) -> None:
+    """An M300's ``distance`` (``worlds/m300.py``), on the VM directly."""
+    call = HostCall(vm)
+    if not call.expect_args(4):
+        return
+    x1, y1, x2, y2 = call.args
+    if not all(isinstance(a, int | float) for a in (x1, y1, x2, y2)):
+        call.fail("TYPE")
+        return
+    call.ret(int(round(math.hypot(x1 - x2, y1 - y2))))  # type: ignore[operator]
+
+
 def _observe(vm: VM) -> tuple:
     return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
             vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data), list(vm.error_events),
@@ -107,13 +168,15 @@ def _observe(vm: VM) -> tuple:
 def _run(source: str, profile: Profile, stress: bool, count: int, budget: int | None
          ) -> list[tuple]:
     program = compile_source(source, "walk.bzz",
-                             string_table=bittybuzz_string_table(["led"])).to_bbo()
+                             string_table=bittybuzz_string_table(["led", "distance"])).to_bbo()
     vm = VM(profile, stress_gc=stress)
     if budget is not None:
         vm.instruction_budget = budget
     vm.construct()
     vm.set_bcode(program.bbo)
     vm.function_register(program.strings.index("led"), "led", _led)
+    vm.function_register(program.strings.index("distance"), "distance", _distance)
+    vm.host.mark_computed("distance", fasthost.HOST_DISTANCE, 4)
     vm.run(max_instructions=100_000)
     states = [_observe(vm)]
     vm.state = State.READY
@@ -158,3 +221,10 @@ def test_walks_identical_on_a_full_heap(heap_size: int) -> None:
         stress = _run(SCRIPTS[name], small, True, 15, None)
         fast = _run(SCRIPTS[name], small, False, 15, None)
         assert stress == fast, f"{name} with a {heap_size}-byte heap"
+
+
+@pytest.mark.parametrize("dx", [0, 1, 2, 3, 7, 100, 181, 255, 4095, 32767, 65535, -65535])
+def test_rounded_distance_is_pythons_rounded_hypot(dx: int) -> None:
+    """``fasthost.rounded_distance`` (integers only) against ``round(math.hypot)``."""
+    for dy in (*range(-300, 301), 32767, -32768, 65535, 46341, 23170):
+        assert fasthost.rounded_distance(dx, dy) == int(round(math.hypot(dx, dy))), (dx, dy)

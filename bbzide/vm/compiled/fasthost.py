@@ -14,9 +14,15 @@ call back to Python with nothing done otherwise):
 * a **latched** host function (``host.LatchedHostFunction``: a world function whose only
   effect is to store its int arguments as the robot's state, e.g. a Kilobot's ``led``):
   its arguments are type-checked (ints only) and stored in the robot's latch slot, ``ret0``;
-  the world gets them after the swarm step (``swarm_batch``). Anything else — another
-  argument count (LNUM), a non-int (TYPE), a return the kernel's ``_ret`` refuses, the
-  budget about to run out, a ``run`` without a saved block pointer — goes to Python.
+  the world gets them after the swarm step (``swarm_batch``);
+* a **rounded distance** (``host.RoundedDistanceHostFunction``: an M300's
+  ``distance(x1, y1, x2, y2)``, ``round(hypot(x1 - x2, y1 - y2))``): four int arguments,
+  the int result pushed and ``ret1``; it touches no queue, so a walk begun from Python
+  (:func:`table_walk`, :func:`xtreme_walk`) runs it in place too (``HostRegistry.computed_rows``).
+  Anything else — another
+  argument count (LNUM), a non-int (TYPE), a result outside an int16, a return the
+  kernel's ``_ret`` refuses, no room for the result, the budget about to run out, a
+  ``run`` without a saved block pointer — goes to Python.
 
 After a host function ``VM._loop`` counts a step (``n``), applies no skip rule (``callc``
 has none: the next step collects) and checks the budget; :func:`run_hosted` does the same
@@ -87,14 +93,15 @@ from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING,
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
-           "HOST_LATCH", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk", "WALK_FOREACH",
-           "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_DONE", "WALK_PYTHON",
-           "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk", "WALK_SLOTS"]
+           "HOST_LATCH", "HOST_DISTANCE", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
+           "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
+           "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
+           "WALK_SLOTS", "rounded_distance"]
 
 # Columns of a ``hosts`` row, and its kinds.
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
 HOST_COLUMNS = 5
-HOST_BROADCAST, HOST_LATCH = 1, 2
+HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE = 1, 2, 3
 
 
 
@@ -146,6 +153,20 @@ def _address_matches(d: Any, c: int, s: int, address: int, ptr_size: int) -> boo
 
 
 @_compile
+def rounded_distance(dx: int, dy: int) -> int:
+    """``round(math.hypot(dx, dy))`` of ints, in ints: the integer square root ``r`` of
+    ``n = dx² + dy²``, plus one when ``n > r² + r`` (then √n > r + ½; it is never exactly
+    r + ½, since (r + ½)² is not an integer, so Python's rounding of ties never arises)."""
+    n = dx * dx + dy * dy
+    r = int(np.sqrt(n))
+    while r * r > n:
+        r -= 1
+    while (r + 1) * (r + 1) <= n:
+        r += 1
+    return r + 1 if n > r * r + r else r
+
+
+@_compile
 def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
                    elems: int, reserved: int, hosts: Any, outq: Any, ctl: Any,
                    latch: Any) -> bool:
@@ -176,16 +197,35 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
         o = darray_get(d, lsyms, i, s, elems)
         if o < 0 or o >= nobj:
             return False
-        if kind == HOST_LATCH and _i(d[o * s]) & 7 != INT:
+        if kind != HOST_BROADCAST and _i(d[o * s]) & 7 != INT:
             return False  # TYPE (or a string id the world would read as an int): Python
     sp = regs[R_SP]
     bp = regs[R_BP]
-    if not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
+    result = 0
+    if kind == HOST_DISTANCE:
+        result = rounded_distance(
+            _int_arg(d, lsyms, 1, s, elems) - _int_arg(d, lsyms, 3, s, elems),
+            _int_arg(d, lsyms, 2, s, elems) - _int_arg(d, lsyms, 4, s, elems))
+        if (result > 0x7FFF or sp + 1 >= regs[R_STACK_SIZE]
+                or not _ret_ok(d, stack, True, sp + 1, bp, lsyms, bsize, s, elems)
+                or not _room(d, regs, s, reserved, elems, 1, 0)):
+            return False
+    elif not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
     count = regs[R_HOST_COUNT]
-    droppable = count >= 0 and host_frame_droppable(d, info, count, c, lsyms, s, elems)
-    # ---- commit: the host function's effect, then ret0 and the end of the step
-    if kind == HOST_BROADCAST:
+    # a frame is dropped only when the call made nothing (the distance's result outlives it)
+    droppable = (kind != HOST_DISTANCE and count >= 0
+                 and host_frame_droppable(d, info, count, c, lsyms, s, elems))
+    # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
+    with_value = False
+    if kind == HOST_DISTANCE:
+        o = _obj_alloc(d, regs, s, reserved, INT, 0)  # push_int(result)
+        d[o * s + 1] = result & 0xFF
+        d[o * s + 2] = result >> 8
+        sp += 1
+        stack[sp] = o
+        with_value = True
+    elif kind == HOST_BROADCAST:
         size = len(outq) // (ctl[OUT_SLOTS] + 1)
         out_append_broadcast(d, outq, ctl, size, darray_get(d, lsyms, 1, s, elems),
                              darray_get(d, lsyms, 2, s, elems), s)
@@ -197,7 +237,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
             latch[slot, i] = _s16(_i(d[o * s + 1]) | (_i(d[o * s + 2]) << 8))
     return_pc = _i(stack[bp - 2])
     block = _i(stack[bp])
-    _ret(d, stack, regs, False, sp, bp, lsyms, bsize, s, elems)
+    _ret(d, stack, regs, with_value, sp, bp, lsyms, bsize, s, elems)
     regs[R_N] = n + 1
     regs[R_FIXED] = 0
     regs[R_PENDING] = -1
@@ -206,6 +246,13 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
                        reserved)
         regs[R_FIXED] = 1
     return True
+
+
+@_compile
+def _int_arg(d: Any, lsyms: int, i: int, s: int, elems: int) -> int:
+    """Argument ``i`` of the activation record, an int object: its signed value."""
+    o = darray_get(d, lsyms, i, s, elems)
+    return _s16(_i(d[o * s + 1]) | (_i(d[o * s + 2]) << 8))
 
 
 @_compile
@@ -279,8 +326,10 @@ def add_functions(d: Any, stack: Any, regs: Any, table: int, sids: Any, addresse
 # under way is handed back with its status (Python resumes it, ``VM._loop(resume=)``).
 #: walk kinds: ``neighbors_foreach`` (f(key, data)), ``neighbors_reduce`` (f(key, data,
 #: accumulator), the accumulator kept on the stack), ``neighbors_map`` and
-#: ``neighbors_filter`` (f(key, data), its result or the data put in the returned table)
-WALK_FOREACH, WALK_REDUCE, WALK_MAP, WALK_FILTER = 0, 1, 2, 3
+#: ``neighbors_filter`` (f(key, data), its result or the data put in the returned table);
+#: the table library's ``foreach(t, f)`` (``table_library.table_foreach``: f(key, value)
+#: with the table in self's place, a call leaving nothing is RET, no collection after it)
+WALK_FOREACH, WALK_REDUCE, WALK_MAP, WALK_FILTER, WALK_TABLE_FOREACH = 0, 1, 2, 3, 4
 #: results: every neighbour done; neighbour ``w[W_INDEX]`` not started (Python does it and
 #: the rest); its call under way (status ``w[W_STATUS]``: Python resumes it, then ends the
 #: neighbour); its call done but its end (pop or RET check, collections) left to Python
@@ -359,7 +408,8 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
                  s: int, elems: int, reserved: int, kind: int, result_table: int,
                  w: Any, fixed: bool) -> bool:
     """The end of an element's ``fun`` once its closure call returned: foreach's pop,
-    reduce's RET check, map's and filter's put in ``result_table``; then the collection.
+    reduce's RET check, map's and filter's put in ``result_table``; then the collection
+    (none for the table library's foreach: its RET check and pop alone).
     False with nothing done when Python must do it (an error, no room, a method to bind,
     a result table ``_table_set`` would refuse). ``fixed``: the call began on a fixed point
     (``fastloop.CALL_ON_FIXED_HEAP``, ``R_OLD_CHANGED`` and ``R_REACHED`` cleared there);
@@ -367,6 +417,11 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
     still clear, the collection is the return to that fixed point
     (:func:`end_of_call_collection`)."""
     sp = regs[R_SP]
+    if kind == WALK_TABLE_FOREACH:  # call_and_take: RET when the call left nothing, pop
+        if sp + 1 <= w[W_DEPTH]:
+            return False
+        regs[R_SP] = sp - 1
+        return True
     kept_nothing = kind == WALK_FOREACH
     if kind == WALK_FOREACH:
         if sp < 0:
@@ -534,14 +589,16 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                result_table: int, w: Any, hosts: Any, outq: Any, ctl: Any,
                latch: Any) -> int:
     """``table_library.foreach_live`` over a table's segments from ``w``'s position, with
-    the neighbours' ``fun`` of ``neighbors_foreach``/``neighbors_reduce`` (``kind``) per
-    valid element: the heap-table builds' (not XTREME) walk. The segments are read live,
-    as the C loop reads them, between the calls; a ``WALK_*`` result with ``w`` at the
-    element reached."""
+    the ``fun`` of ``kind`` per valid element: the neighbours' (``neighbors_foreach`` ...
+    ``neighbors_filter``, the heap-table builds' walk, self in local 0) or the table
+    library's ``foreach`` (``WALK_TABLE_FOREACH``, the table in local 1 as self). The
+    segments are read live, as the C loop reads them, between the calls; a ``WALK_*``
+    result with ``w`` at the element reached."""
     size = len(d)
     g = 4 * elems + 2
     max_segments = size // g
     frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
+    self_slot = 1 if kind == WALK_TABLE_FOREACH else 0
     si = w[W_SEGMENT]
     first = w[W_SLOT]
     for visit in range(w[W_VISIT], max_segments + 1):
@@ -559,7 +616,7 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
             vo = o + 2 * (i + elems)
             value = (_i(d[vo]) | (_i(d[vo + 1]) << 8)) & 0x7FFF
             sp = regs[R_SP]
-            self_obj = darray_get(d, regs[R_LSYMS], 0, s, elems)
+            self_obj = darray_get(d, regs[R_LSYMS], self_slot, s, elems)
             if (sp + _WALK_PUSHES >= regs[R_STACK_SIZE] or self_obj < 0
                     or regs[R_LTSEG] - regs[R_RTOBJ] < s
                     or (kind == WALK_REDUCE and sp < 0)):
