@@ -7,9 +7,10 @@ before each one. A broadcast calls the listener of its topic as ``f(topic, value
 with self nil; a stigmergy message goes to :mod:`bbzide.vm.vstig`. The queues and the wire
 format are :mod:`bbzide.vm.messages`; this module is the loop over them, above both.
 
-In the fast mode the loop hands its broadcasts to the compiled in-queue kernel (through the
-seam, :mod:`bbzide.vm.kernels`), which stops at the first message or listener step it does
-not cover; this loop then goes on with the reference routines from exactly there.
+In the fast mode the loop hands its broadcasts to the compiled in-queue kernel and its
+stigmergy messages to the compiled stigmergy loop (both through the seam,
+:mod:`bbzide.vm.kernels`); each stops at the first message or listener step it does not
+cover, and this loop then goes on with the reference routines from exactly there.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import numpy as np
 
 from bbzide.vm import vstig
 from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
-from bbzide.vm.kernels import fasthost, fastinbox, fastloop
+from bbzide.vm.kernels import fasthost, fastinbox, fastloop, fastvstig
 from bbzide.vm.message_layout import (
     BC_TOPIC,
     BC_VALUE,
@@ -39,6 +40,8 @@ if TYPE_CHECKING:
 
 #: the compiled in-queue loop is used when numba compiles it (else Python alone)
 _INBOX_KERNEL = fastloop.COMPILED
+#: the record types of virtual-stigmergy messages
+_STIGMERGY = (VSTIG_PUT, VSTIG_QUERY)
 
 
 def process_broadcast(vm: VM, rec: bytearray) -> bool:
@@ -120,8 +123,9 @@ def process_inmsgs(vm: VM) -> None:
     The fast mode hands the loop to the compiled :func:`fastinbox.process_broadcasts`,
     which stops at the first message (or listener step) it does not cover; from there
     this loop goes on with the reference routines, then calls the kernel again when the
-    head is a broadcast (the kernel would only collect for a stigmergy message and hand
-    it back: a search-and-rescue drone gets some sixteen of them a step).
+    head is a broadcast. Stigmergy messages at the head go to the compiled
+    :func:`fastvstig.process_vstigs` the same way (a search-and-rescue drone gets some
+    sixteen of them a step).
     """
     if vm.state == State.ERROR:
         return
@@ -137,13 +141,25 @@ def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> No
     # nothing (the fast mode's PC_ONLY rule, vm._SKIP_RULES): fast mode counts it only
     compiled = _INBOX_KERNEL and not vm.stress_gc
     while taken or (not q.inbox.empty() and count < vm.profile.msg_in_proc_max):
-        if taken:
+        # the head's type, for a kernel to take it (None: the reference routines only)
+        head = q.inbox.at(0)[TYPE] if compiled and vm.state == State.READY else None
+        if head in _STIGMERGY:
+            status, count, collected = _process_vstig_compiled(vm, count, collected, taken)
             taken = False
-        elif compiled and vm.state == State.READY and q.inbox.at(0)[TYPE] == BROADCAST:
+            if status != fastvstig.PYTHON_MESSAGE:
+                continue
+            # message `count` is collected for; the kernel left the whole of it to us
+        elif taken:
+            taken = False
+        elif head == BROADCAST:
             status, count, collected = _process_compiled(vm, count, collected)
             if status != fastinbox.PYTHON_MESSAGE:
                 continue
-            # the kernel took message `count` and collected for it; the rest is ours
+            # the kernel took message `count` and collected for it: a stigmergy message
+            # goes on in the stigmergy kernel from its extraction, the rest is ours
+            taken = q.inbox.at(0)[TYPE] in _STIGMERGY
+            if taken:
+                continue
         else:
             count += 1
             if collected and not vm.stress_gc:
@@ -190,4 +206,50 @@ def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bo
         vm.pop()
         vm.gc()
         collected = True
+    return status, count, bool(collected)
+
+
+def _process_vstig_compiled(vm: VM, count: int, collected: bool,
+                            taken: bool) -> tuple[int, int, bool]:
+    """Run :func:`fastvstig.process_vstigs` from message ``count + 1`` (``taken``: from
+    message ``count``, its collection done) on the queues and the stigmergy entries packed
+    for the call, and write back what it changed. Returns (kernel status, messages taken,
+    collected)."""
+    queues = vm.queues
+    q, out = queues.inbox, queues.outbox
+    records, outs = q.records, out.records
+    size = len(records[0])
+    packed = bytearray().join(records)
+    before_out = bytearray().join(outs)
+    packed_out = bytearray(before_out)
+    entries = vm.vstig.entries
+    known = len(entries)
+    # a row for every entry, and one for each message the call may append
+    table = np.zeros((known + q.size(), fastvstig.ENTRY_COLUMNS), np.int64)
+    if known:
+        table[:known] = [(e.key, e.value, e.timestamp, e.robot) for e in entries]
+    before = table[:known].copy()
+    state = np.array((q.start, q.end, q.capacity, size, count, vm.profile.msg_in_proc_max,
+                      collected, taken, vm.robot, vm.profile.lamport_threshold,
+                      vm.vstig.hpos, 0, known, out.start, out.end, out.capacity), np.int64)
+    regs = vm.kernel_registers(None, None)
+    h = vm.heap
+    status = fastvstig.process_vstigs(
+        h.view, vm._stack_view, regs, h.gc_info, h.gc_traversed, h.obj_size, h.elems,
+        h.reserved, np.frombuffer(packed, np.uint8), state, table,
+        np.frombuffer(packed_out, np.uint8))
+    vm.take_kernel_registers(regs)
+    (q.start, _end, _slots, _size, count, _max, collected, _taken, _robot, _threshold,
+     _hpos, extracted, rows, out.start, out.end, _out_slots) = state.tolist()
+    if extracted:  # the scratch record holds the last message the kernel took
+        scratch = q.capacity * size
+        records[q.capacity][:] = packed[scratch:scratch + size]
+        now = memoryview(packed_out)
+        changed = np.frombuffer(packed_out, np.uint8) != np.frombuffer(before_out, np.uint8)
+        for k in np.flatnonzero(changed.reshape(-1, size).any(axis=1)).tolist():
+            outs[k][:] = now[k * size:(k + 1) * size]
+        for k in np.flatnonzero((table[:known] != before).any(axis=1)).tolist():
+            e = entries[k]
+            e.value, e.timestamp, e.robot = table[k, 1:].tolist()
+        entries.extend(vstig.VstigEntry(*row) for row in table[known:rows].tolist())
     return status, count, bool(collected)

@@ -25,6 +25,7 @@ from bbzide.vm.compiled import (
     fastloop,
     fastreceive,
     fasttables,
+    fastvstig,
     packed_queues,
     swarm_batch_fast,
 )
@@ -34,4 +35,4 @@ from bbzide.vm.compiled import (
 COMPILED: bool = fastgc.COMPILED
 
 __all__ = ["COMPILED", "fastbatch", "fastgc", "fasthost", "fastinbox", "fastloop",
-           "fastreceive", "fasttables", "packed_queues", "swarm_batch_fast"]
+           "fastreceive", "fasttables", "fastvstig", "packed_queues", "swarm_batch_fast"]
