@@ -212,7 +212,7 @@ def _walk_compiled(vm: VM, walk: CompiledWalk) -> tuple[int, bool]:
             result_table, vm.profile.neighbors_floats, w, vm.host.computed_rows(),
             *fasthost.NO_HOST_ARGS[1:])
         vm.take_kernel_registers(regs)
-        index, status, depth, _segment, _slot, _visit, key, data = w.tolist()
+        index, status, depth, _segment, _slot, _visit, key, data, _accum = w.tolist()
         if result == fasthost.WALK_DONE or result == fasthost.WALK_PYTHON:
             # the kernel ends each neighbour with a collection
             return count - index, result == fasthost.WALK_DONE and index > start

@@ -9,10 +9,11 @@ check that ``t`` is a table (neither does the C); it stops at a segment index ou
 heap and after as many segment visits as the heap can hold (a corrupted chain would make
 the firmware loop forever; the model stops instead).
 
-In the fast mode ``foreach`` walks the table in machine code (``fasthost.table_walk``,
-:func:`table_walk_compiled`: the same live reads, the same calls), handing an element back
-to this loop wherever the kernel does not cover it; an M300 flocking drone's
-``foreach(neighbours, repel)`` was two thirds of its control step in Python.
+In the fast mode ``foreach``, ``map``, ``filter`` and ``reduce`` walk the table in machine
+code (``fasthost.table_walk``, :func:`walk_live`: the same live reads, the same calls),
+handing an element back to this loop wherever the kernel does not cover it; an M300
+flocking drone's ``foreach(neighbours, repel)`` was two thirds of its control step in
+Python.
 """
 
 from __future__ import annotations
@@ -67,12 +68,14 @@ def kernels_now(vm: VM) -> bool:
     return COMPILED and not vm.stress_gc and vm.state == State.READY
 
 
-def table_walk_compiled(vm: VM, t: int, walk: CompiledWalk) -> tuple[int, int, int] | None:
+def table_walk_compiled(vm: VM, t: int, walk: CompiledWalk,
+                        accum: list[int] | None = None) -> tuple[int, int, int] | None:
     """Table ``t``'s elements by :func:`fasthost.table_walk`, re-entered after each call
     it leaves to Python; the (segment, slot, visit) :func:`foreach_live` goes on from, or
-    None when the walk is over. The host functions a kernel computes in place
-    (``HostRegistry.computed_rows``) run in the calls; the queues are not packed here, so
-    no other host function does."""
+    None when the walk is over. ``accum``: the table library's reduce accumulator, in and
+    out (``after_call`` updates it for a call Python ended). The host functions a kernel
+    computes in place (``HostRegistry.computed_rows``) run in the calls; the queues are not
+    packed here, so no other host function does."""
     kind, closure, result_table, after_call = walk
     w = np.zeros(fasthost.WALK_SLOTS, np.int64)
     h = vm.heap
@@ -82,12 +85,16 @@ def table_walk_compiled(vm: VM, t: int, walk: CompiledWalk) -> tuple[int, int, i
     while True:
         saved, budget = vm.blockptr, vm.instruction_budget
         regs = vm.kernel_registers(saved, budget)
+        if accum is not None:
+            w[fasthost.W_ACCUM] = accum[0]
         result = fasthost.table_walk(
             h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
             fastloop.RULES, h.obj_size, h.elems, h.reserved, kind, closure, result_table, w,
             hosts, outq, ctl, latch)
         vm.take_kernel_registers(regs)
-        _index, status, depth, segment, slot, visit, key, data = w.tolist()
+        _index, status, depth, segment, slot, visit, key, data, reduced = w.tolist()
+        if accum is not None:
+            accum[0] = reduced
         if result == fasthost.WALK_DONE:
             return None
         if result == fasthost.WALK_PYTHON:
@@ -98,6 +105,18 @@ def table_walk_compiled(vm: VM, t: int, walk: CompiledWalk) -> tuple[int, int, i
         if vm.state != State.READY:
             return segment, slot + 1, visit
         w[fasthost.W_SLOT] = slot + 1
+
+
+def walk_live(vm: VM, t: int, fun: Callable[[int, int], None], walk: CompiledWalk,
+              accum: list[int] | None = None) -> None:
+    """:func:`foreach_live` of ``fun`` over ``t``, in machine code where the fast mode
+    covers it (:func:`table_walk_compiled` with ``walk``; ``accum`` as there)."""
+    start = None
+    if kernels_now(vm):
+        start = table_walk_compiled(vm, t, walk, accum)
+        if start is None:
+            return
+    foreach_live(vm, t, fun, start)
 
 
 def table_size_live(vm: VM, t: int) -> int:
@@ -165,17 +184,11 @@ def table_foreach(vm: VM) -> None:
     def after_call(depth: int, _key: int, _value: int) -> None:
         take_result(vm, depth)
 
-    start = None
-    if kernels_now(vm):
-        start = table_walk_compiled(vm, t, (fasthost.WALK_TABLE_FOREACH, c, -1, after_call))
-        if start is None:
-            vm.ret0()
-            return
-    foreach_live(vm, t, entry, start)
+    walk_live(vm, t, entry, (fasthost.WALK_TABLE_FOREACH, c, -1, after_call))
     vm.ret0()
 
 
-def _map_base(vm: VM, keep: Callable[[int, int, int, int], None]) -> None:
+def _map_base(vm: VM, kind: int, keep: Callable[[int, int, int, int], None]) -> None:
     if not vm.assert_lnum(2):
         return
     t = vm.lsym(1)
@@ -191,12 +204,18 @@ def _map_base(vm: VM, keep: Callable[[int, int, int, int], None]) -> None:
         if ret is not None:
             keep(ret_tbl, key, value, ret)
 
-    foreach_live(vm, t, entry)
+    def after_call(depth: int, key: int, value: int) -> None:
+        ret = take_result(vm, depth)
+        if ret is not None:
+            keep(ret_tbl, key, value, ret)
+
+    walk_live(vm, t, entry, (kind, c, ret_tbl, after_call))
     vm.ret1()
 
 
 def table_map(vm: VM) -> None:
-    _map_base(vm, lambda t, k, _v, ret: table_set_quiet(vm, t, k, ret) and None)
+    _map_base(vm, fasthost.WALK_TABLE_MAP,
+              lambda t, k, _v, ret: table_set_quiet(vm, t, k, ret) and None)
 
 
 def table_filter(vm: VM) -> None:
@@ -204,7 +223,7 @@ def table_filter(vm: VM) -> None:
         if to_bool(vm, ret):
             table_set_quiet(vm, t, k, v)
 
-    _map_base(vm, keep)
+    _map_base(vm, fasthost.WALK_TABLE_FILTER, keep)
 
 
 def table_reduce(vm: VM) -> None:
@@ -216,16 +235,20 @@ def table_reduce(vm: VM) -> None:
     c = vm.lsym(2)
     if not vm.assert_type(c, CLOSURE):
         return
-    accum = vm.lsym(3)
+    accum = [vm.lsym(3)]  # held by the C loop's local, not on the stack
 
     def entry(key: int, value: int) -> None:
-        nonlocal accum
-        ret = call_and_take(vm, 1, c, key, value, accum)
+        ret = call_and_take(vm, 1, c, key, value, accum[0])
         if ret is not None:
-            accum = ret
+            accum[0] = ret
 
-    foreach_live(vm, t, entry)
-    vm.push(accum)
+    def after_call(depth: int, _key: int, _value: int) -> None:
+        ret = take_result(vm, depth)
+        if ret is not None:
+            accum[0] = ret
+
+    walk_live(vm, t, entry, (fasthost.WALK_TABLE_REDUCE, c, -1, after_call), accum)
+    vm.push(accum[0])
     vm.ret1()
 
 

@@ -1,13 +1,13 @@
 """The compiled walks (``fasthost.xtreme_walk``/``table_walk``) against the reference.
 
-``neighbors.foreach``/``reduce``/``map``/``filter`` and the table library's ``foreach`` hand
-their per-element closure calls to machine code in the fast mode; each must leave every
-observable byte as the reference mode does (heap bytes, mark bits, rtobj/ltseg, stack, pc,
-state, errors, GC runs, instruction counts) after every control step, on an XTREME build
-(the ring) and on heap-table builds, including the cases where the kernel hands back: a
-heap too full for a neighbour's objects, a closure calling a host function or another walk,
-an error inside the closure, a closure returning nothing, the instruction budget running
-out. A ``distance`` host function the kernel computes in place
+``neighbors.foreach``/``reduce``/``map``/``filter`` and the table library's ``foreach``,
+``map``, ``filter`` and ``reduce`` hand their per-element closure calls to machine code in
+the fast mode; each must leave every observable byte as the reference mode does (heap
+bytes, mark bits, rtobj/ltseg, stack, pc, state, errors, GC runs, instruction counts) after
+every control step, on an XTREME build (the ring) and on heap-table builds, including the
+cases where the kernel hands back: a heap too full for a neighbour's objects, a closure
+calling a host function or another walk, an error inside the closure, a closure returning
+nothing, the instruction budget running out. A ``distance`` host function the kernel computes in place
 (``host.RoundedDistanceHostFunction``) runs inside the walks, with its own hand-backs: a
 float argument, a result beyond an int16, a wrong argument count.
 """
@@ -120,6 +120,28 @@ function step() {
   })
 }
 """,
+    "table map filter reduce": """
+kept = 0
+sum = 0
+function step() {
+  var t = {}
+  var i = 0
+  while (i < 12) { t[i] = i * 7 - 20
+                   i = i + 1 }
+  t.name = 9
+  var halves = map(t, function(k, v) { if (k == 3) { return nil } return v / 2 })
+  var odd = filter(t, function(k, v) { if (k == 5) { return "yes" } return v % 2 })
+  var big = filter(t, function(k, v) { return distance(v, 0, 0, 0) > 30 })
+  sum = reduce(t, function(k, v, acc) { if (k == 7) { t[20] = 1 } return acc + v }, 0)
+  var longest = reduce(halves, function(k, v, acc) { return {.k = k, .prev = acc} }, nil)
+  kept = size(halves) + size(odd) + size(big)
+}
+""",
+    "table reduce without return": """
+function step() {
+  var x = reduce({.a = 1, .b = 2}, function(k, v, acc) { acc = 1 }, 0)
+}
+""",
     "table foreach errors": """
 n = 0
 function step() {
@@ -217,7 +239,7 @@ def test_walks_identical_on_a_full_heap(heap_size: int) -> None:
     (or the reference runs out of memory at the same allocation)."""
     small = Profile(name="small", heap_size=heap_size, ptr_size=2, xtreme=True,
                     neighbors_floats=False, float_ops=False)
-    for name in ("foreach", "reduce", "map and filter"):
+    for name in ("foreach", "reduce", "map and filter", "table map filter reduce"):
         stress = _run(SCRIPTS[name], small, True, 15, None)
         fast = _run(SCRIPTS[name], small, False, 15, None)
         assert stress == fast, f"{name} with a {heap_size}-byte heap"

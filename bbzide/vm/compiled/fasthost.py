@@ -95,6 +95,7 @@ from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_DISTANCE", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
+           "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
            "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
            "WALK_SLOTS", "rounded_distance"]
 
@@ -327,9 +328,12 @@ def add_functions(d: Any, stack: Any, regs: Any, table: int, sids: Any, addresse
 #: walk kinds: ``neighbors_foreach`` (f(key, data)), ``neighbors_reduce`` (f(key, data,
 #: accumulator), the accumulator kept on the stack), ``neighbors_map`` and
 #: ``neighbors_filter`` (f(key, data), its result or the data put in the returned table);
-#: the table library's ``foreach(t, f)`` (``table_library.table_foreach``: f(key, value)
-#: with the table in self's place, a call leaving nothing is RET, no collection after it)
-WALK_FOREACH, WALK_REDUCE, WALK_MAP, WALK_FILTER, WALK_TABLE_FOREACH = 0, 1, 2, 3, 4
+#: the table library's ``foreach``, ``map``, ``filter`` and ``reduce`` (``table_library``:
+#: f(key, value), reduce's f(key, value, accumulator) with the accumulator kept in ``w``;
+#: the table in self's place, a call leaving nothing is RET, no collection after a call;
+#: map and filter put the result or the value under the element's own key)
+WALK_FOREACH, WALK_REDUCE, WALK_MAP, WALK_FILTER = 0, 1, 2, 3
+WALK_TABLE_FOREACH, WALK_TABLE_MAP, WALK_TABLE_FILTER, WALK_TABLE_REDUCE = 4, 5, 6, 7
 #: results: every neighbour done; neighbour ``w[W_INDEX]`` not started (Python does it and
 #: the rest); its call under way (status ``w[W_STATUS]``: Python resumes it, then ends the
 #: neighbour); its call done but its end (pop or RET check, collections) left to Python
@@ -337,8 +341,9 @@ WALK_DONE, WALK_PYTHON, WALK_IN_CALL, WALK_AFTER_CALL = 0, 1, 2, 3
 #: slots of the ``w`` array (``xtreme_walk``): the neighbour (row) reached, the run status,
 #: the stack depth ``neighbors_reduce`` compares the depth after the call with
 W_INDEX, W_STATUS, W_DEPTH = 0, 1, 2
-#: slots of ``w``: the key and the data of the element whose call was made
-W_KEY, W_DATA = 6, 7
+#: slots of ``w``: the key and the data of the element whose call was made, and the table
+#: library's reduce accumulator (in and out)
+W_KEY, W_DATA, W_ACCUM = 6, 7, 8
 #: ring columns: robot, distance, azimuth, elevation (rows newest first, as the walk visits)
 NB_ROBOT, NB_DISTANCE = 0, 1
 #: objects a neighbour allocates at most: its data table, three values, three field-name
@@ -417,9 +422,28 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
     still clear, the collection is the return to that fixed point
     (:func:`end_of_call_collection`)."""
     sp = regs[R_SP]
-    if kind == WALK_TABLE_FOREACH:  # call_and_take: RET when the call left nothing, pop
+    if kind >= WALK_TABLE_FOREACH:
+        # call_and_take (RET when the call left nothing, pop), then map's, filter's or
+        # reduce's use of the result
         if sp + 1 <= w[W_DEPTH]:
             return False
+        ret = _i(stack[sp])
+        nobj = len(d) // s
+        if kind == WALK_TABLE_MAP or kind == WALK_TABLE_FILTER:
+            if ret >= nobj:
+                return False
+            put = ret
+            if kind == WALK_TABLE_FILTER:  # to_bool: a non-zero int keeps the value
+                put = w[W_DATA] if (_i(d[ret * s]) & 7 == INT and (
+                    _i(d[ret * s + 1]) | _i(d[ret * s + 2])) != 0) else -1
+            # table_set_quiet; a set _table_set refuses (e.g. no room) is Python's
+            if put >= 0 and (result_table >= nobj or put >= nobj
+                             or _i(d[result_table * s]) & 7 != TABLE
+                             or not _table_set(d, regs, result_table, w[W_KEY], put, s,
+                                               elems)):
+                return False
+        elif kind == WALK_TABLE_REDUCE:
+            w[W_ACCUM] = ret
         regs[R_SP] = sp - 1
         return True
     kept_nothing = kind == WALK_FOREACH
@@ -486,6 +510,8 @@ def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
     if kind == WALK_REDUCE:
         accum = _i(stack[sp])
         sp -= 1
+    elif kind == WALK_TABLE_REDUCE:
+        accum = w[W_ACCUM]
     w[W_DEPTH] = sp + 1
     w[W_KEY] = key
     w[W_DATA] = data
@@ -495,7 +521,7 @@ def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
     stack[sp + 4] = data
     sp += 4
     argc = 2
-    if kind == WALK_REDUCE:
+    if kind == WALK_REDUCE or kind == WALK_TABLE_REDUCE:
         sp += 1
         stack[sp] = accum
         argc = 3
@@ -580,7 +606,7 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
 #: slots of ``w`` for :func:`table_walk`: the segment, slot and segment visit reached
 W_SEGMENT, W_SLOT, W_VISIT = 3, 4, 5
 #: slots in ``w``
-WALK_SLOTS = 8
+WALK_SLOTS = 9
 
 
 @_compile
@@ -591,14 +617,14 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     """``table_library.foreach_live`` over a table's segments from ``w``'s position, with
     the ``fun`` of ``kind`` per valid element: the neighbours' (``neighbors_foreach`` ...
     ``neighbors_filter``, the heap-table builds' walk, self in local 0) or the table
-    library's ``foreach`` (``WALK_TABLE_FOREACH``, the table in local 1 as self). The
+    library's (``WALK_TABLE_*``, the table in local 1 as self). The
     segments are read live, as the C loop reads them, between the calls; a ``WALK_*``
     result with ``w`` at the element reached."""
     size = len(d)
     g = 4 * elems + 2
     max_segments = size // g
     frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
-    self_slot = 1 if kind == WALK_TABLE_FOREACH else 0
+    self_slot = 1 if kind >= WALK_TABLE_FOREACH else 0
     si = w[W_SEGMENT]
     first = w[W_SLOT]
     for visit in range(w[W_VISIT], max_segments + 1):
