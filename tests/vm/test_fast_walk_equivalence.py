@@ -7,9 +7,9 @@ bytes, mark bits, rtobj/ltseg, stack, pc, state, errors, GC runs, instruction co
 every control step, on an XTREME build (the ring) and on heap-table builds, including the
 cases where the kernel hands back: a heap too full for a neighbour's objects, a closure
 calling a host function or another walk, an error inside the closure, a closure returning
-nothing, the instruction budget running out. A ``distance`` host function the kernel computes in place
-(``host.RoundedDistanceHostFunction``) runs inside the walks, with its own hand-backs: a
-float argument, a result beyond an int16, a wrong argument count.
+nothing, the instruction budget running out. A ``distance`` host function the kernel
+computes in place (``host.RoundedDistanceHostFunction``) runs inside the walks, with its own
+hand-backs: a float argument, a result beyond an int16, a wrong argument count.
 """
 
 from __future__ import annotations

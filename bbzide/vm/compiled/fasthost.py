@@ -79,7 +79,7 @@ from bbzide.vm.compiled.fastloop import (
     run,
     undo_to_fixed_point,
 )
-from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
+from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import darray_get, darray_size
 from bbzide.vm.compiled.packed_queues import (
     CTL_SLOTS,
@@ -97,7 +97,7 @@ __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST"
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
            "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
            "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
-           "WALK_SLOTS", "rounded_distance"]
+           "WALK_SLOTS", "rounded_distance", "collect_on_registers"]
 
 # Columns of a ``hosts`` row, and its kinds.
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
@@ -123,15 +123,8 @@ def out_append_broadcast(d: Any, outq: Any, ctl: Any, size: int, topic: int, val
     ``value`` (its ``s`` bytes) on the packed out-queue (``_out_template``'s overflow bug
     included: a full queue gets the unused record copied over its last one)."""
     slots = ctl[OUT_SLOTS]
-    start = ctl[OUT_START]
-    end = ctl[OUT_END]
-    m = (end & 0xFF) % slots
-    if ring_size(start, end, slots) + 1 == slots:
-        last = ((end - 1 + slots) & 0xFF) % slots
-        for j in range(size):
-            outq[last * size + j] = outq[m * size + j]
-    else:
-        ctl[OUT_END] = ((end + 1) & 0xFF) % slots
+    m, end = out_template(outq, ctl[OUT_START], ctl[OUT_END], slots, size)
+    ctl[OUT_END] = end
     o = m * size
     rid = ctl[ROBOT] & 0xFFFF
     outq[o + TYPE] = BROADCAST
@@ -358,14 +351,22 @@ _NO_NEXT_SEGMENT = 0x3FFF
 
 
 @_compile
-def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any, s: int,
-             elems: int, reserved: int) -> None:
-    """``VM.gc`` in the fast mode (``collect_fast``) on the registers."""
-    regs[R_GC_RUNS] += 1
+def collect_on_registers(d: Any, stack: Any, regs: Any, info: Any, traversed: Any,
+                         frames: Any, s: int, elems: int, reserved: int) -> None:
+    """One collection (``fastgc.collect_with``) of the heap the registers describe, their
+    ``rtobj`` and ``ltseg`` updated; the caller counts it."""
     r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
                      frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
     regs[R_RTOBJ] = r >> 16
     regs[R_LTSEG] = r & 0xFFFF
+
+
+@_compile
+def _collect(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frames: Any, s: int,
+             elems: int, reserved: int) -> None:
+    """``VM.gc`` in the fast mode (``collect_fast``) on the registers."""
+    regs[R_GC_RUNS] += 1
+    collect_on_registers(d, stack, regs, info, traversed, frames, s, elems, reserved)
     regs[R_OLD_CHANGED] = 1
 
 

@@ -48,8 +48,12 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
-from bbzide.vm.compiled.fasthost import call_pushed, end_of_call_collection
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fasthost import (
+    call_pushed,
+    collect_on_registers,
+    end_of_call_collection,
+)
 from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
@@ -116,8 +120,6 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
     the instruction budget of one call); the VM must be READY. Returns :data:`DONE`,
     :data:`PYTHON_MESSAGE` or :data:`IN_CALL`. ``hosts`` ... ``latch``: the compiled host
     functions the listeners may call (:func:`fasthost.run_hosted`; empty from Python)."""
-    size = len(d)
-    g = 4 * elems + 2
     limit = regs[R_MARK_DEPTH]
     frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
     n = inq[Q_RECORD]
@@ -132,10 +134,7 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         inq[Q_COUNT] += 1
         regs[R_GC_RUNS] += 1
         if inq[Q_COLLECTED] == 0:
-            r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
-                             traversed, frames, size, s, g, elems, reserved, limit)
-            regs[R_RTOBJ] = r >> 16
-            regs[R_LTSEG] = r & 0xFFFF
+            collect_on_registers(d, stack, regs, info, traversed, frames, s, elems, reserved)
         inq[Q_COLLECTED] = 0
         # the fixed point the listener call is begun on (CALL_ON_FIXED_HEAP) and undone to
         regs[R_REACHED] = 0

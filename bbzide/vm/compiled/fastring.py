@@ -24,6 +24,20 @@ def ring_size(start: int, end: int, slots: int) -> int:
 
 
 @_compile
+def out_template(records: Any, start: int, end: int, slots: int, size: int) -> tuple[int, int]:
+    """``outmsg_queue_append_template`` (``messages._out_template``): the slot the next
+    out-message is written into and the queue's new end. A full queue keeps its end and
+    gets its unused record copied over its last one, the firmware's overflow bug."""
+    m = (end & 0xFF) % slots
+    if ring_size(start, end, slots) + 1 == slots:
+        last = ((end - 1 + slots) & 0xFF) % slots
+        for j in range(size):
+            records[last * size + j] = records[m * size + j]
+        return m, end
+    return m, ((end + 1) & 0xFF) % slots
+
+
+@_compile
 def sort_ring_by_type(records: Any, start: int, end: int, slots: int, size: int,
                       spare: Any) -> None:
     """``RingBuffer.sort_by_type``: a stable sort of the queued records by their type byte

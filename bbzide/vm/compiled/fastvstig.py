@@ -54,18 +54,16 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fasthost import collect_on_registers
 from bbzide.vm.compiled.fastinbox import _room_for_objects
 from bbzide.vm.compiled.fastloop import (
     R_GC_RUNS,
-    R_LTSEG,
     R_MARK_DEPTH,
     R_PRIOR,
-    R_RTOBJ,
-    R_SP,
     _obj_alloc,
 )
-from bbzide.vm.compiled.fastring import ring_size, sort_ring_by_type
+from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import table_lookup
 from bbzide.vm.heap_layout import PERMANENT, STRING, USERDATA, VALID
 from bbzide.vm.message_layout import RID, TYPE, VS_DATA, VS_KEY, VS_LAMPORT, VSTIG_PUT, VSTIG_QUERY
@@ -153,15 +151,8 @@ def _out_append_vstig(d: Any, outq: Any, state: Any, size: int, s: int, typ: int
     packed out-queue: a full queue gets its unused record copied over its last one and the
     message written into the unused record (``_out_template``), then the sort by type."""
     slots = state[V_OUT_SLOTS]
-    start = state[V_OUT_START]
-    end = state[V_OUT_END]
-    m = (end & 0xFF) % slots
-    if ring_size(start, end, slots) + 1 == slots:
-        last = ((end - 1 + slots) & 0xFF) % slots
-        for j in range(size):
-            outq[last * size + j] = outq[m * size + j]
-    else:
-        state[V_OUT_END] = ((end + 1) & 0xFF) % slots
+    m, end = out_template(outq, state[V_OUT_START], state[V_OUT_END], slots, size)
+    state[V_OUT_END] = end
     o = m * size
     outq[o + TYPE] = typ
     outq[o + RID] = rid & 0xFF
@@ -185,7 +176,6 @@ def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: 
     :data:`PYTHON_MESSAGE` or :data:`OTHER`."""
     size = len(d)
     nobj = size // s
-    g = 4 * elems + 2
     limit = regs[R_MARK_DEPTH]
     frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
     n = state[V_RECORD]
@@ -207,10 +197,8 @@ def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: 
             state[V_COUNT] += 1
             regs[R_GC_RUNS] += 1
             if state[V_COLLECTED] == 0:
-                r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
-                                 traversed, frames, size, s, g, elems, reserved, limit)
-                regs[R_RTOBJ] = r >> 16
-                regs[R_LTSEG] = r & 0xFFFF
+                collect_on_registers(d, stack, regs, info, traversed, frames, s, elems,
+                                     reserved)
         state[V_COLLECTED] = 0
         # ---- the message's branch, and everything it needs, before any write
         typ = _i(records[head + TYPE])
@@ -286,8 +274,5 @@ def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: 
         # ---- process_vstig's closing collection (only counted on an unchanged heap)
         regs[R_GC_RUNS] += 1
         if dirty:
-            r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info,
-                             traversed, frames, size, s, g, elems, reserved, limit)
-            regs[R_RTOBJ] = r >> 16
-            regs[R_LTSEG] = r & 0xFFFF
+            collect_on_registers(d, stack, regs, info, traversed, frames, s, elems, reserved)
         state[V_COLLECTED] = 1
