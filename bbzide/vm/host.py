@@ -25,7 +25,7 @@ import numpy as np
 from bbzide.compiler import bbzfloat
 from bbzide.vm.heap import CLOSURE, FLOAT, INT, STRING, TABLE
 from bbzide.vm.heap import NIL as TNIL
-from bbzide.vm.kernels import fasthost, packed_queues
+from bbzide.vm.kernels import fasthost, kernels_now, packed_queues
 from bbzide.vm.states import Error
 
 if TYPE_CHECKING:
@@ -208,14 +208,33 @@ class HostCall:
         elif isinstance(value, float):
             vm.push_float(bbzfloat.from_float(value))
         elif isinstance(value, dict):
-            t = vm.push_table()
-            for k, v in value.items():
-                key = vm.new_string_obj(self.strings.index(k))
-                val = vm.new_int(v) if isinstance(v, int) else vm.new_float(bbzfloat.from_float(v))
-                vm.table_put_raw(t, val, key)
+            if not self._int_record_compiled(value):
+                t = vm.push_table()
+                for k, v in value.items():
+                    key = vm.new_string_obj(self.strings.index(k))
+                    val = vm.new_int(v) if isinstance(v, int) \
+                        else vm.new_float(bbzfloat.from_float(v))
+                    vm.table_put_raw(t, val, key)
         else:
             vm.push_nil()
         vm.ret1()
+
+    def _int_record_compiled(self, record: dict[str, Any]) -> bool:
+        """The table of a dict of ints pushed by a kernel (``fasthost.push_int_record``:
+        the same allocations and puts) in the fast mode; False, with nothing done, when
+        Python must build it (a float, no room, the reference mode)."""
+        vm = self.vm
+        if not kernels_now(vm) or not all(isinstance(v, int) for v in record.values()):
+            return False
+        sids = np.array([self.strings.index(k) for k in record], np.int64)
+        values = np.array([int(v) & 0xFFFF for v in record.values()], np.int64)
+        heap = vm.heap
+        regs = vm.kernel_registers(None, None)
+        if not fasthost.push_int_record(heap.view, vm._stack_view, regs, sids, values,
+                                        heap.obj_size, heap.elems, heap.reserved):
+            return False
+        vm.take_kernel_registers(regs)
+        return True
 
     def ret_object(self, index: int) -> None:
         """Return an existing heap object (by index) unchanged, as ``bbzvm_push(x); ret1``."""

@@ -17,6 +17,8 @@ layouts and constants only (``heap_layout``, ``message_layout``, ``packed_messag
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from bbzide.vm.compiled import (
     fastbatch,
     fastgc,
@@ -29,10 +31,22 @@ from bbzide.vm.compiled import (
     packed_queues,
     swarm_batch_fast,
 )
+from bbzide.vm.states import State
+
+if TYPE_CHECKING:
+    from bbzide.vm.vm import VM
 
 #: numba is installed and compiled the kernels (without it they run as plain Python, and
 #: the callers that only gain speed from them take the model's routines instead)
 COMPILED: bool = fastgc.COMPILED
 
-__all__ = ["COMPILED", "fastbatch", "fastgc", "fasthost", "fastinbox", "fastloop",
-           "fastreceive", "fasttables", "fastvstig", "packed_queues", "swarm_batch_fast"]
+
+def kernels_now(vm: VM) -> bool:
+    """May a model routine of this VM hand its work to a kernel now (compiled, fast mode,
+    READY)?"""
+    return COMPILED and not vm.stress_gc and vm.state == State.READY
+
+
+__all__ = ["COMPILED", "kernels_now", "fastbatch", "fastgc", "fasthost", "fastinbox",
+           "fastloop", "fastreceive", "fasttables", "fastvstig", "packed_queues",
+           "swarm_batch_fast"]

@@ -29,13 +29,12 @@ import numpy as np
 
 from bbzide.vm import messages
 from bbzide.vm.heap import CLOSURE, INT, STRING
-from bbzide.vm.kernels import fasthost, fastloop
+from bbzide.vm.kernels import fasthost, fastloop, kernels_now
 from bbzide.vm.messages import RingBuffer
 from bbzide.vm.states import Error, State
 from bbzide.vm.table_library import (
     CompiledWalk,
     foreach_live,
-    kernels_now,
     table_set_quiet,
     table_size_live,
     table_walk_compiled,

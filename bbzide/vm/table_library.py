@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from bbzide.vm.heap import CLOSURE, ELEM_INDEX, ELEM_VALID, INT, SEG_NEXT, TABLE, HeapFull
-from bbzide.vm.kernels import COMPILED, fasthost, fastloop
+from bbzide.vm.kernels import fasthost, fastloop, kernels_now
 from bbzide.vm.states import Error, State
 from bbzide.vm.tables import table_set
 
@@ -61,11 +61,6 @@ def foreach_live(vm: VM, t: int, fun: Callable[[int, int], None],
 #: ``fun`` once ``closure_call`` has returned, given the stack depth before the call, the
 #: element's key and its value.
 CompiledWalk = tuple[int, int, int, Callable[[int, int, int], None]]
-
-
-def kernels_now(vm: VM) -> bool:
-    """May a library routine of this VM run in machine code now (fast mode, READY)?"""
-    return COMPILED and not vm.stress_gc and vm.state == State.READY
 
 
 def table_walk_compiled(vm: VM, t: int, walk: CompiledWalk,

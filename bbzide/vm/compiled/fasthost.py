@@ -97,7 +97,7 @@ __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST"
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
            "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
            "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
-           "WALK_SLOTS", "rounded_distance", "collect_on_registers"]
+           "WALK_SLOTS", "rounded_distance", "collect_on_registers", "push_int_record"]
 
 # Columns of a ``hosts`` row, and its kinds.
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
@@ -278,6 +278,46 @@ def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     regs[R_CALL_FIRST] = entry
     return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
                       hosts, outq, ctl, latch)
+
+
+@_compile
+def _new_table(d: Any, regs: Any, s: int, reserved: int, elems: int) -> int:
+    """``Heap.obj_alloc(TABLE)`` when the caller has checked the room: the table object,
+    then its first segment."""
+    t = _obj_alloc(d, regs, s, reserved, TABLE, 0)
+    seg = _seg_alloc(d, regs, elems)
+    d[t * s + 1] = seg & 0xFF
+    d[t * s + 2] = seg >> 8
+    return t
+
+
+# ---- a host function's record returned (HostCall.ret of a dict, e.g. position()) --------
+@_compile
+def push_int_record(d: Any, stack: Any, regs: Any, sids: Any, values: Any, s: int,
+                    elems: int, reserved: int) -> bool:
+    """``HostCall.ret`` of a dict of ints before its ``ret1``: push a new table, then per
+    field the name string (``new_string_obj``: deduplicated), the int (``new_int``,
+    ``values`` already masked to 16 bits) and ``table_put_raw``. False, with nothing
+    written, unless the stack has room for the push and the heap for every object and
+    segment (the fields' names differ, so each put adds an element)."""
+    sp = regs[R_SP]
+    count = len(sids)
+    segments = max(1, (count + elems - 1) // elems)
+    if sp + 1 >= regs[R_STACK_SIZE] or not _room(d, regs, s, reserved, elems,
+                                                  1 + 2 * count, segments):
+        return False
+    t = _new_table(d, regs, s, reserved, elems)
+    stack[sp + 1] = t
+    regs[R_SP] = sp + 1
+    for i in range(count):
+        key = _obj_alloc(d, regs, s, reserved, STRING, sids[i])
+        d[key * s + 1] = sids[i] & 0xFF
+        d[key * s + 2] = (sids[i] >> 8) & 0xFF
+        v = _obj_alloc(d, regs, s, reserved, INT, 0)
+        d[v * s + 1] = values[i] & 0xFF
+        d[v * s + 2] = (values[i] >> 8) & 0xFF
+        _table_set(d, regs, t, key, v, s, elems)
+    return True
 
 
 # ---- the library's methods added to a table it made (neighbors.map/filter's result) ----
@@ -561,10 +601,7 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         # ---- the data table (_push_data_table): table, then each field's value, its name
         regs[R_REACHED] = 0
         regs[R_OLD_CHANGED] = 0  # (a fixed point when ``fixed``; else the call collects)
-        t = _obj_alloc(d, regs, s, reserved, TABLE, 0)
-        seg = _seg_alloc(d, regs, elems)
-        d[t * s + 1] = seg & 0xFF
-        d[t * s + 2] = seg >> 8
+        t = _new_table(d, regs, s, reserved, elems)
         sp += 1
         stack[sp] = t
         for f in range(3):
