@@ -31,7 +31,7 @@ from bbzide.vm.message_layout import (
     VSTIG_PUT,
     VSTIG_QUERY,
 )
-from bbzide.vm.messages import inmsg_extract, rec_rid, rec_topic, rec_value
+from bbzide.vm.messages import RingBuffer, inmsg_extract, rec_rid, rec_topic, rec_value
 from bbzide.vm.states import Error, State
 from bbzide.vm.tables import table_get
 
@@ -177,6 +177,13 @@ def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> No
             collected = vstig.process_vstig(vm, rec)
 
 
+def _take_scratch(q: RingBuffer[bytearray], packed: bytearray, size: int) -> None:
+    """The scratch record back from a kernel's packed in-queue (``packed``: the records
+    concatenated, the scratch one last): it holds the last message the kernel took."""
+    scratch = q.capacity * size
+    q.records[q.capacity][:] = packed[scratch:scratch + size]
+
+
 def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bool]:
     """Run :func:`fastinbox.process_broadcasts` from message ``count + 1``; a listener
     call it leaves under way is finished here (``VM._loop`` resumed, then the end of
@@ -198,9 +205,8 @@ def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bo
     start, _end, _slots, _size, count, _max, collected, _lst, extracted, inner = \
         inq.tolist()
     q.start = start
-    if extracted:  # the scratch record holds the last message the kernel took
-        scratch = q.capacity * size
-        records[q.capacity][:] = packed[scratch:scratch + size]
+    if extracted:
+        _take_scratch(q, packed, size)
     if status == fastinbox.IN_CALL:
         vm._loop(saved, budget, resume=(inner, regs))
         vm.pop()
@@ -241,9 +247,8 @@ def _process_vstig_compiled(vm: VM, count: int, collected: bool,
     vm.take_kernel_registers(regs)
     (q.start, _end, _slots, _size, count, _max, collected, _taken, _robot, _threshold,
      _hpos, extracted, rows, out.start, out.end, _out_slots) = state.tolist()
-    if extracted:  # the scratch record holds the last message the kernel took
-        scratch = q.capacity * size
-        records[q.capacity][:] = packed[scratch:scratch + size]
+    if extracted:
+        _take_scratch(q, packed, size)
         now = memoryview(packed_out)
         changed = np.frombuffer(packed_out, np.uint8) != np.frombuffer(before_out, np.uint8)
         for k in np.flatnonzero(changed.reshape(-1, size).any(axis=1)).tolist():

@@ -173,7 +173,7 @@ class Robot:
                     self.skipped_host_functions.append(name)
                 else:
                     vm.function_register(sid, self._symbol(name), self._wrap(fn))
-                    self._note_latched(self._symbol(name), fn)
+                    self._note_kernel_kind(self._symbol(name), fn)
                 i += 1
                 continue
             group = []
@@ -192,11 +192,13 @@ class Robot:
                     self.skipped_host_functions.append(full)
                     continue
                 vm.add_function(t, fsid, self._symbol(full), self._wrap(f))
-                self._note_latched(self._symbol(full), f)
+                self._note_kernel_kind(self._symbol(full), f)
             vm.gsym_register(tsid, t)
             vm.pop()
 
-    def _note_latched(self, symbol: str, fn: HostFunction) -> None:
+    def _note_kernel_kind(self, symbol: str, fn: HostFunction) -> None:
+        """A host function a kernel runs in place: latched (the compiled swarm step stores
+        its arguments) or computed (``HostRegistry.mark_computed``)."""
         if isinstance(fn, LatchedHostFunction):
             self._latched[symbol] = fn
         elif isinstance(fn, RoundedDistanceHostFunction):

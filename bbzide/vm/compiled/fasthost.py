@@ -74,6 +74,8 @@ from bbzide.vm.compiled.fastloop import (
     _s16,
     _seg_alloc,
     _table_set,
+    _true,
+    _u16,
     end_host_frame,
     host_frame_droppable,
     run,
@@ -227,8 +229,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
         slot = hosts[row, H_SLOT]
         latch[slot, 0] = 1
         for i in range(1, argc + 1):
-            o = darray_get(d, lsyms, i, s, elems)
-            latch[slot, i] = _s16(_i(d[o * s + 1]) | (_i(d[o * s + 2]) << 8))
+            latch[slot, i] = _int_arg(d, lsyms, i, s, elems)
     return_pc = _i(stack[bp - 2])
     block = _i(stack[bp])
     _ret(d, stack, regs, with_value, sp, bp, lsyms, bsize, s, elems)
@@ -245,8 +246,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
 @_compile
 def _int_arg(d: Any, lsyms: int, i: int, s: int, elems: int) -> int:
     """Argument ``i`` of the activation record, an int object: its signed value."""
-    o = darray_get(d, lsyms, i, s, elems)
-    return _s16(_i(d[o * s + 1]) | (_i(d[o * s + 2]) << 8))
+    return _s16(_u16(d, darray_get(d, lsyms, i, s, elems), s))
 
 
 @_compile
@@ -475,8 +475,7 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
                 return False
             put = ret
             if kind == WALK_TABLE_FILTER:  # to_bool: a non-zero int keeps the value
-                put = w[W_DATA] if (_i(d[ret * s]) & 7 == INT and (
-                    _i(d[ret * s + 1]) | _i(d[ret * s + 2])) != 0) else -1
+                put = w[W_DATA] if _true(d, ret, s) else -1
             # table_set_quiet; a set _table_set refuses (e.g. no room) is Python's
             if put >= 0 and (result_table >= nobj or put >= nobj
                              or _i(d[result_table * s]) & 7 != TABLE
@@ -503,7 +502,6 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
                 or _i(d[result_table * s]) & 7 != TABLE
                 or not _table_set_sure(d, result_table, s, elems)):
             return False
-        m = _i(d[ret * s])
         put = ret if kind == WALK_MAP else w[W_DATA]
         pm = _i(d[put * s])
         if pm & 7 == CLOSURE and pm & FLAG2:
@@ -525,7 +523,7 @@ def _end_of_call(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, frame
         if kind == WALK_MAP:
             stack[sp + 2] = ret
             _table_set(d, regs, result_table, key, ret, s, elems)
-        elif m & 7 == INT and (_i(d[ret * s + 1]) | _i(d[ret * s + 2])) != 0:
+        elif _true(d, ret, s):
             stack[sp + 2] = w[W_DATA]
             _table_set(d, regs, result_table, key, w[W_DATA], s, elems)
         else:

@@ -160,6 +160,12 @@ def _u16(d: Any, i: int, s: int) -> int:
 
 
 @_compile
+def _true(d: Any, o: int, s: int) -> bool:
+    """``bbztype_tobool`` of object ``o``: only a non-zero int is true."""
+    return (_i(d[o * s]) & 7) == _INT and _u16(d, o, s) != 0
+
+
+@_compile
 def _s16(v: int) -> int:
     v &= 0xFFFF
     return v - 0x10000 if v & 0x8000 else v
@@ -1604,8 +1610,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             if lhs >= nobj or rhs >= nobj:
                 break
             if op <= 18:  # land lor band bor: int truth of both sides
-                ta = 1 if (_i(d[lhs * s]) & 7) == _INT and _u16(d, lhs, s) != 0 else 0
-                tb = 1 if (_i(d[rhs * s]) & 7) == _INT and _u16(d, rhs, s) != 0 else 0
+                ta = 1 if _true(d, lhs, s) else 0
+                tb = 1 if _true(d, rhs, s) else 0
                 res = (ta & tb) if (op == 14 or op == 17) else (ta | tb)
             else:
                 c = _compare(d, lhs, rhs, s)
