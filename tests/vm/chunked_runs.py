@@ -1,6 +1,7 @@
 """A VM's top-level code run in both modes for comparison: whole, or in small chunks of
 instructions with the VM observed after each (every register, the heap bytes, the errors),
-so that a kernel that differs from the model is caught at the instruction where it does."""
+so that a kernel that differs from the model is caught at the instruction where it does;
+and a script's ``step`` called control step after control step, observed after each."""
 
 from __future__ import annotations
 
@@ -52,13 +53,32 @@ def run_whole(bbo: bytes, profile: Profile, stress: bool) -> tuple:
     return observe(vm)
 
 
+def observe_steps(vm: VM, step: int, steps: int) -> list[tuple]:
+    """The global ``step`` (its string id) called ``steps`` times as the firmware's loop
+    calls it (push nil, call, pop), the VM observed after each call, until an error."""
+    states = []
+    for _ in range(steps):
+        vm.push_nil()
+        vm.function_call(step, 0)
+        states.append(observe(vm))
+        if vm.state == State.ERROR:
+            break
+        vm.pop()
+    return states
+
+
+def assert_same_runs(stress: list[tuple], fast: list[tuple], what: str) -> None:
+    """Two runs' observations equal one by one (``what`` names the run and its unit)."""
+    assert len(stress) == len(fast)
+    for k, (a, b) in enumerate(zip(stress, fast, strict=True)):
+        assert a == b, f"{what}: differs after {k}"
+
+
 def assert_modes_agree_in_chunks(bbo: bytes, profile: Profile, limit: int, name: str) -> None:
     """The reference and the fast mode observed equal after every chunk."""
-    stress = run_in_chunks(bbo, profile, True, limit)
-    fast = run_in_chunks(bbo, profile, False, limit)
-    assert len(stress) == len(fast)
-    for chunk, (a, b) in enumerate(zip(stress, fast, strict=True)):
-        assert a == b, f"{name} on {profile.name}: differs after chunk {chunk}"
+    assert_same_runs(run_in_chunks(bbo, profile, True, limit),
+                     run_in_chunks(bbo, profile, False, limit),
+                     f"{name} on {profile.name}, chunk")
 
 
 def assert_modes_agree(bbo: bytes, profile: Profile, limit: int, name: str) -> None:

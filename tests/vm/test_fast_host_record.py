@@ -2,10 +2,11 @@
 built by the kernel (``fasthost.push_int_record``) against the reference's Python.
 
 Every observable byte must match after every step (heap bytes, rtobj/ltseg, stack, pc,
-state, errors, GC runs), on heaps from roomy to full: the kernel builds the table only when
-the stack and the heap have room for all of it and hands the rest to Python (which then
-runs out of memory at the same allocation as the reference). A record with a float, and
-ints beyond 16 bits (wrapped as ``new_int`` wraps them), take their own paths.
+lsyms, state, errors, GC runs, instruction counts), on heaps from roomy to full: the kernel
+builds the table only when the stack and the heap have room for all of it and hands the
+rest to Python (which then runs out of memory at the same allocation as the reference).
+A record with a float, and ints beyond 16 bits (wrapped as ``new_int`` wraps them), take
+their own paths.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from bbzide.compiler import bittybuzz_string_table, compile_source
 from bbzide.vm.host import HostCall
 from bbzide.vm.profiles import PC, Profile
 from bbzide.vm.vm import VM, State
+from tests.vm.chunked_runs import assert_same_runs, observe, observe_steps
 
 #: control steps per run: enough to fill the smaller heaps
 STEPS = 60
@@ -32,12 +34,6 @@ function step() {
 }
 """
 NAMES = ["where", "drift", "x", "y", "z", "cell"]
-
-
-def _observe(vm: VM) -> tuple:
-    return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
-            vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data), list(vm.error_events),
-            vm.heap.gc_runs, vm.heap.peak_used)
 
 
 def _run(profile: Profile, stress: bool) -> list[tuple]:
@@ -59,17 +55,9 @@ def _run(profile: Profile, stress: bool) -> list[tuple]:
     vm.function_register(strings.index("where"), "where", where)
     vm.function_register(strings.index("drift"), "drift", drift)
     vm.run(max_instructions=100_000)
-    states = [_observe(vm)]
+    states = [observe(vm)]
     vm.state = State.READY
-    step = strings.index("step")
-    for _ in range(STEPS):
-        vm.push_nil()
-        vm.function_call(step, 0)
-        states.append(_observe(vm))
-        if vm.state == State.ERROR:
-            break
-        vm.pop()
-    return states
+    return states + observe_steps(vm, strings.index("step"), STEPS)
 
 
 #: from a heap that runs out of memory after two steps to one that never does; the sizes
@@ -80,11 +68,8 @@ HEAP_SIZES = [1400, 1550, 1720, 1730, 1740, 1750, 1810, 1820, 1830, 4000]
 @pytest.mark.parametrize("heap_size", HEAP_SIZES)
 def test_records_identical(heap_size: int) -> None:
     profile = Profile(name="record", heap_size=heap_size, ptr_size=PC.ptr_size)
-    stress = _run(profile, True)
-    fast = _run(profile, False)
-    assert len(stress) == len(fast)
-    for step, (a, b) in enumerate(zip(stress, fast, strict=True)):
-        assert a == b, f"{heap_size}-byte heap: differs after step {step}"
+    assert_same_runs(_run(profile, True), _run(profile, False),
+                     f"{heap_size}-byte heap, step")
 
 
 def test_the_smallest_heap_runs_out_of_memory_and_the_largest_does_not() -> None:

@@ -24,6 +24,7 @@ from bbzide.vm.host import HostCall
 from bbzide.vm.kernels import fasthost
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
 from bbzide.vm.vm import VM, State
+from tests.vm.chunked_runs import assert_same_runs, observe, observe_steps
 
 #: control steps per run: enough for the walks to reach a steady heap and for the
 #: collections to reuse freed slots
@@ -181,12 +182,6 @@ def _distance(vm: VM) -> None:
     call.ret(int(round(math.hypot(x1 - x2, y1 - y2))))  # type: ignore[operator]
 
 
-def _observe(vm: VM) -> tuple:
-    return (vm.state, vm.error, vm.pc, list(vm.stack[:vm.stackptr + 1]), vm.blockptr,
-            vm.heap.rtobj, vm.heap.ltseg, bytes(vm.heap.data), list(vm.error_events),
-            vm.heap.gc_runs, vm.instructions_executed, vm.heap.peak_used)
-
-
 def _run(source: str, profile: Profile, stress: bool, count: int, budget: int | None
          ) -> list[tuple]:
     program = compile_source(source, "walk.bzz",
@@ -200,7 +195,7 @@ def _run(source: str, profile: Profile, stress: bool, count: int, budget: int | 
     vm.function_register(program.strings.index("distance"), "distance", _distance)
     vm.host.mark_computed("distance", fasthost.HOST_DISTANCE, 4)
     vm.run(max_instructions=100_000)
-    states = [_observe(vm)]
+    states = [observe(vm)]
     vm.state = State.READY
     for rid in range(1, count + 1):
         values = (10.0 * rid, 3.0 * rid, 0.0)
@@ -209,16 +204,8 @@ def _run(source: str, profile: Profile, stress: bool, count: int, budget: int | 
         else:
             d, a, e = (min(255, round(v)) for v in values)
         neighbors.add(vm, neighbors.NeighborEntry(rid, d, a, e))
-    states.append(_observe(vm))
-    step = program.strings.index("step")
-    for _ in range(STEPS):
-        vm.push_nil()
-        vm.function_call(step, 0)
-        states.append(_observe(vm))
-        if vm.state == State.ERROR:
-            break
-        vm.pop()
-    return states
+    states.append(observe(vm))
+    return states + observe_steps(vm, program.strings.index("step"), STEPS)
 
 
 @pytest.mark.parametrize("name", sorted(SCRIPTS))
@@ -226,11 +213,10 @@ def _run(source: str, profile: Profile, stress: bool, count: int, budget: int | 
 def test_walks_identical(name: str, profile: Profile) -> None:
     count = min(15, profile.neighbors_cap)
     budget = 150 if name == "budget" else None
-    stress = _run(SCRIPTS[name], profile, True, count, budget)
-    fast = _run(SCRIPTS[name], profile, False, count, budget)
-    assert len(stress) == len(fast)
-    for step, (a, b) in enumerate(zip(stress, fast, strict=True)):
-        assert a == b, f"{name} on {profile.name}: differs after step {step - 2}"
+    assert_same_runs(_run(SCRIPTS[name], profile, True, count, budget),
+                     _run(SCRIPTS[name], profile, False, count, budget),
+                     f"{name} on {profile.name}, observation (0: loaded, 1: neighbours "
+                     "added, then one per step)")
 
 
 @pytest.mark.parametrize("heap_size", [300, 360, 420, 480])
