@@ -136,7 +136,8 @@ class HostRegistry:
         cached = self._computed_rows
         if cached is not None and cached[0] == self.version:
             return cached[1]
-        rows = [(call.address, self.ptr_size, kind, 0, argc)
+        no_keys = (-1,) * (fasthost.HOST_COLUMNS - fasthost.H_KEYS)
+        rows = [(call.address, self.ptr_size, kind, 0, argc, *no_keys)
                 for symbol, (kind, argc) in self.computed.items()
                 if (call := self.by_symbol.get(symbol)) is not None
                 and self.by_address.get(call.address) is call]
@@ -298,3 +299,56 @@ class RoundedDistanceHostFunction:
 
     def __call__(self, call: HostCall) -> None:
         self.function(call)
+
+
+#: what a reading reads: an int, nil (None), or a record's ints in its `keys` order
+Reading = int | tuple[int, ...] | None
+
+
+@dataclass(frozen=True)
+class ReadingHostFunction:
+    """A world host function of no arguments that returns a **reading of its own robot's
+    state** — an int, nil, or a record of ints under fixed field names (an M300's
+    ``clock()``, ``position()``, ``camera()``) — which nothing changes during a control
+    step before that robot's first host call made in Python. Called from Python it pushes
+    ``read()`` as ``HostCall.ret`` does (a record as the dict of ``keys`` and values). A
+    compiled swarm step (``swarm_batch``) instead calls ``read()`` for the robot just before
+    its kernel part (`row`), and the kernel (``fasthost``) pushes that value in place; any
+    call with arguments, or a reading `row` could not encode, goes to Python.
+
+    Why it is exact: the kernel part of a robot's step runs before any Python code of that
+    step (a hand-over finishes it in Python), so the value read before it is the value the
+    Python call would read at that moment — the contract above.
+    """
+
+    #: the reading now (no effect of its own: it may be called more than once a step)
+    read: Callable[[], Reading]
+    #: the record's field names, in the order ``HostCall.ret`` puts them (empty: an int)
+    keys: tuple[str, ...] = ()
+
+    def __call__(self, call: HostCall) -> None:
+        value = self.read()
+        if self.keys and value is not None:
+            call.ret(dict(zip(self.keys, value, strict=True)))  # type: ignore[arg-type]
+        else:
+            call.ret(value)
+
+    def row(self) -> tuple[int, ...]:
+        """The reading as a robot's reading row (``packed_queues.READ_*`` and up to
+        ``LATCH_ARGS`` values masked to 16 bits, as ``VM.new_int`` stores them); no reading
+        when ``read`` fails or answers what this function does not return as declared
+        (Python's call then does what it always does)."""
+        width = packed_queues.LATCH_ARGS
+        try:
+            value = self.read()
+        except Exception:  # noqa: BLE001 -- the Python call raises it again, guarded
+            return (packed_queues.READ_NONE,) + (0,) * width
+        if value is None:
+            return (packed_queues.READ_NIL,) + (0,) * width
+        if not self.keys and type(value) is int:
+            return (packed_queues.READ_VALUE, value & 0xFFFF) + (0,) * (width - 1)
+        if self.keys and type(value) is tuple and len(value) == len(self.keys) \
+                and all(type(v) is int for v in value):
+            return (packed_queues.READ_VALUE, *(v & 0xFFFF for v in value)) \
+                + (0,) * (width - len(value))
+        return (packed_queues.READ_NONE,) + (0,) * width

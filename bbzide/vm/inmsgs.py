@@ -21,7 +21,7 @@ import numpy as np
 
 from bbzide.vm import vstig
 from bbzide.vm.heap import PERMANENT, TYPE_MASK, USERDATA, HeapFull
-from bbzide.vm.kernels import fasthost, fastinbox, fastloop, fastvstig
+from bbzide.vm.kernels import fastinbox, fastloop, fastvstig
 from bbzide.vm.message_layout import (
     BC_TOPIC,
     BC_VALUE,
@@ -200,7 +200,7 @@ def _process_compiled(vm: VM, count: int, collected: bool) -> tuple[int, int, bo
     status = fastinbox.process_broadcasts(
         h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info, h.gc_traversed,
         fastloop.RULES, h.obj_size, h.elems, h.reserved, np.frombuffer(packed, np.uint8),
-        inq, *fasthost.NO_HOST_ARGS)
+        inq, *vm.kernel_hosts())
     vm.take_kernel_registers(regs)
     start, _end, _slots, _size, count, _max, collected, _lst, extracted, inner = \
         inq.tolist()

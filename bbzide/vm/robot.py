@@ -45,7 +45,12 @@ from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
 from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout
-from bbzide.vm.host import HostCall, LatchedHostFunction, RoundedDistanceHostFunction
+from bbzide.vm.host import (
+    HostCall,
+    LatchedHostFunction,
+    ReadingHostFunction,
+    RoundedDistanceHostFunction,
+)
 from bbzide.vm.kernels import fastbatch, fasthost, fastinbox, fastloop, fastreceive, packed_queues
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
@@ -96,6 +101,18 @@ class RobotFailure:
         return f"{where}{self.reason} at pc {self.pc}: {self.message}"
 
 
+@dataclass(frozen=True)
+class CompiledHosts:
+    """What `Robot.compiled_hosts` gives the compiled swarm step."""
+
+    #: ``fasthost``'s ``hosts`` rows
+    table: np.ndarray
+    #: the latched function of each latch slot
+    latched: list[LatchedHostFunction]
+    #: the reading of each reading slot (``packed_queues.READING_SLOTS``)
+    readings: list[ReadingHostFunction]
+
+
 class Robot:
     """One robot: a VM, its host functions and the firmware loop (ARCHITECTURE.md contract)."""
 
@@ -126,7 +143,8 @@ class Robot:
         #: latched host functions by C symbol (host.LatchedHostFunction), and the table of
         #: host functions a compiled swarm step runs in place (compiled_hosts), cached
         self._latched: dict[str, LatchedHostFunction] = {}
-        self._hosts: tuple[int, np.ndarray, list[LatchedHostFunction | None]] | None = None
+        self._readings: dict[str, ReadingHostFunction] = {}
+        self._hosts: tuple[int, CompiledHosts] | None = None
         self._latching = True
 
     # ---- boot --------------------------------------------------------------------------
@@ -198,9 +216,12 @@ class Robot:
 
     def _note_kernel_kind(self, symbol: str, fn: HostFunction) -> None:
         """A host function a kernel runs in place: latched (the compiled swarm step stores
-        its arguments) or computed (``HostRegistry.mark_computed``)."""
+        its arguments), a reading (it writes the value before the kernel) or computed
+        (``HostRegistry.mark_computed``)."""
         if isinstance(fn, LatchedHostFunction):
             self._latched[symbol] = fn
+        elif isinstance(fn, ReadingHostFunction):
+            self._readings[symbol] = fn
         elif isinstance(fn, RoundedDistanceHostFunction):
             self.vm.host.mark_computed(symbol, fasthost.HOST_DISTANCE, fn.argc)
 
@@ -220,34 +241,50 @@ class Robot:
         self._hosts = None
         packed_queues.arrays_changed()
 
-    def compiled_hosts(self) -> tuple[np.ndarray, list[LatchedHostFunction | None]]:
+    def compiled_hosts(self) -> CompiledHosts:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
-        (address, pointer size, kind, latch slot, argument count) for the closure address of
-        ``neighbors.broadcast``, of each latched host function and of each one the kernel
-        computes (``HostRegistry.computed_rows``), as the VM's registry maps them now; and
-        the latched function of each latch slot. Cached until the registry changes."""
+        (address, pointer size, kind, slot, argument count, a record's field names) for the
+        closure address of ``neighbors.broadcast``, of each latched host function, of each
+        reading and of each one the kernel computes (``HostRegistry.computed_rows``), as the
+        VM's registry maps them now; the latched function of each latch slot; the reading
+        of each reading slot. Cached until the registry changes."""
         registry = self.vm.host
         cached = self._hosts
         if cached is not None and cached[0] == registry.version:
-            return cached[1], cached[2]
+            return cached[1]
         ptr = self.profile.ptr_size
-        rows: list[tuple[int, int, int, int, int]] = []
-        slots: list[LatchedHostFunction | None] = []
+        no_keys = (-1,) * packed_queues.LATCH_ARGS
+        rows: list[tuple[int, ...]] = []
+        slots: list[LatchedHostFunction] = []
+        readings: list[ReadingHostFunction] = []
         for address, call in registry.by_address.items():
             if call.function is neighbors.neighbors_broadcast:
-                rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2))
+                rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2, *no_keys))
         for symbol, fn in self._latched.items() if self._latching else ():
             call = registry.by_symbol.get(symbol)
             if call is None or registry.by_address.get(call.address) is not call \
                     or len(slots) >= packed_queues.LATCH_SLOTS \
                     or not 0 <= fn.argc <= packed_queues.LATCH_ARGS:
                 continue
-            rows.append((call.address, ptr, fasthost.HOST_LATCH, len(slots), fn.argc))
+            rows.append((call.address, ptr, fasthost.HOST_LATCH, len(slots), fn.argc,
+                         *no_keys))
             slots.append(fn)
+        for symbol, reading in self._readings.items() if self._latching else ():
+            call = registry.by_symbol.get(symbol)
+            keys = [self.program.string_id(key) for key in reading.keys]
+            if call is None or registry.by_address.get(call.address) is not call \
+                    or len(readings) >= packed_queues.READING_SLOTS \
+                    or len(keys) > packed_queues.LATCH_ARGS or None in keys:
+                continue  # a field name the program lacks: Python's call reports it
+            kind = fasthost.HOST_READ_RECORD if keys else fasthost.HOST_READ_INT
+            rows.append((call.address, ptr, kind, packed_queues.LATCH_SLOTS + len(readings), 0,
+                         *keys, *no_keys[len(keys):]))
+            readings.append(reading)
         rows.extend(map(tuple, registry.computed_rows().tolist()))
         table = np.array(rows, np.int64).reshape(-1, fasthost.HOST_COLUMNS)
-        self._hosts = (registry.version, table, slots)
-        return table, slots
+        hosts = CompiledHosts(table, slots, readings)
+        self._hosts = (registry.version, hosts)
+        return hosts
 
     def _wrap(self, fn: HostFunction) -> Callable[[VM], None]:
         strings = self.program.strings
@@ -470,7 +507,7 @@ def _call_global_compiled(vm: VM, sid: int) -> bool | None:
     h = vm.heap
     status = fastinbox.call_global(h.view, vm._stack_view, vm._bcode_view, regs, h.gc_info,
                                    h.gc_traversed, fastloop.RULES, h.obj_size, h.elems,
-                                   h.reserved, sid, *fasthost.NO_HOST_ARGS, False)
+                                   h.reserved, sid, *vm.kernel_hosts(), False)
     if status == fastinbox.PYTHON_MESSAGE:
         return None
     vm.take_kernel_registers(regs)

@@ -49,7 +49,7 @@ from bbzide.vm.heap import (
     HeapFull,
 )
 from bbzide.vm.host import HostFunction, HostRegistry
-from bbzide.vm.kernels import fastgc, fastloop, packed_queues
+from bbzide.vm.kernels import fastgc, fasthost, fastloop, packed_queues
 from bbzide.vm.messages import MessageQueues, record_size
 from bbzide.vm.neighbors import NeighborsState
 from bbzide.vm.profiles import PC, Profile
@@ -128,6 +128,11 @@ class VM:
                           self.heap.elems, self.heap.reserved, profile.gcmark_depth)
         self.swarm = SwarmState()
         self.vstig = VstigStore()
+        #: (``fasthost`` rows, latch array) of the host functions a kernel may run in place
+        #: while the robot finishes a compiled swarm step in Python (``swarm_batch``): its
+        #: readings and computed ones. A reading is the robot's state before any host call
+        #: made in Python, so the first one (`_call_host_function`) ends it (None).
+        self.hosted: tuple[np.ndarray, np.ndarray] | None = None
         #: the queues and neighbor ring as arrays (fast mode's swarm step), and whether the
         #: arrays hold the truth now (packed_queues.py: one form is the truth at a time)
         self._packed: packed_queues.PackedQueues | None = None
@@ -1093,11 +1098,24 @@ class VM:
         if cm & FLAG1:
             self.pc = x & 0xFFFF
         else:
-            call = self.host.lookup(x)
-            if call is None:
-                self.seterror(Error.NOTIMPL)
-            else:
-                call.function(self)
+            self._call_host_function(x)
+
+    def _call_host_function(self, address: int) -> None:
+        """The host function at ``address``, called in Python (NOTIMPL if none is)."""
+        self.hosted = None
+        call = self.host.lookup(address)
+        if call is None:
+            self.seterror(Error.NOTIMPL)
+        else:
+            call.function(self)
+
+    def kernel_hosts(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``fasthost``'s (hosts, outq, ctl, latch) for a kernel entered from Python: the
+        ones of `hosted`, or none."""
+        hosted = self.hosted
+        if hosted is None:
+            return fasthost.NO_HOST_ARGS
+        return hosted[0], fasthost.NO_HOST_ARGS[1], fasthost.NO_HOST_ARGS[2], hosted[1]
 
     def op_calls(self) -> None:
         pass
@@ -1219,11 +1237,7 @@ class VM:
     def _host_call(self, closure: int, offset: int) -> None:
         """The end of a ``callc`` instruction at ``offset`` whose set-up the compiled kernel
         did: the C closure's host function, then ``op_callc``/``exec_instr``'s pc rules."""
-        call = self.host.lookup(self.heap.ptr_value(closure))
-        if call is None:
-            self.seterror(Error.NOTIMPL)
-        else:
-            call.function(self)
+        self._call_host_function(self.heap.ptr_value(closure))
         if self.state == State.READY:
             self._assert_pc(self.pc)
         if self.state != State.READY:
@@ -1337,6 +1351,9 @@ class VM:
                 fresh = False
             kernel_args = (self._heap_view, self._stack_view, self._bcode_view, regs, info,
                            heap.gc_traversed, fastloop.RULES, s, heap.elems, heap.reserved)
+            if self.hosted is not None:  # readings and computed host functions in place
+                kernel = fasthost.run_hosted
+                kernel_args += self.kernel_hosts()
         while call_first or saved is None or saved < self.blockptr:
             if self.state != ready:
                 return
@@ -1369,6 +1386,9 @@ class VM:
                 if status == fastloop.HOST_CALL:  # callc set up: the host function's turn
                     pc = self.pc - 1
                     self._host_call(int(regs[fastloop.R_HOST]), pc)
+                    if kernel is not _KERNEL:  # a host call in Python: no more in place
+                        kernel = _KERNEL
+                        kernel_args = kernel_args[:10]
                 else:  # NEED_PYTHON: the step's collection is done; its instruction here
                     pc = self.pc
                     execute()

@@ -80,7 +80,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bbzide.vm.host import RoundedDistanceHostFunction
+from bbzide.vm.host import (
+    LatchedHostFunction,
+    ReadingHostFunction,
+    RoundedDistanceHostFunction,
+)
 from bbzide.worlds.radio import WorldConfigError
 from bbzide.worlds.registry import M300_HOST_NAMES
 from bbzide.worlds.world import HostFunction, RadioSettings, World
@@ -322,6 +326,7 @@ class M300Field(World):
     # ---- bodies -------------------------------------------------------------------------------
     def attach(self, sim: Simulation) -> None:
         count = sim.count
+        self._sim = sim  # the step a latched doze counts from
         if self.field_size < self.comm_range:     # again: `--comm-range` overrides the radio
             raise WorldConfigError(
                 f"a {self.field_size:g} m field is smaller than the {self.comm_range:g} m "
@@ -407,24 +412,25 @@ class M300Field(World):
                 world.goals[index, 0] = min(max(float(x) / DM, 0.0), size)
                 world.goals[index, 1] = min(max(float(y) / DM, 0.0), size)
 
-        def position(call: HostCall) -> None:
-            x, y, z = sim.positions[index]
-            call.ret({"x": _dm(x), "y": _dm(y), "z": _dm(z), "cell": world.cell_of(x, y)})
+        # Readings (vm/host.py): what they read changes only in `advance` and in this
+        # robot's takeoff, land and goto, never in a step before its first Python call.
+        def position() -> tuple[int, int, int, int]:
+            x, y, z = sim.positions[index].tolist()
+            return _dm(x), _dm(y), _dm(z), world.cell_of(x, y)
 
-        def arrived(call: HostCall) -> None:
+        def arrived() -> int:
             gap = float(np.linalg.norm(world.goals[index] - sim.positions[index]))
-            call.ret(int(world.mode[index] == FLYING and gap <= ARRIVAL_TOLERANCE))
+            return int(world.mode[index] == FLYING and gap <= ARRIVAL_TOLERANCE)
 
-        def flying(call: HostCall) -> None:
-            call.ret(int(world.mode[index] == FLYING))
+        def flying() -> int:
+            return int(world.mode[index] == FLYING)
 
-        def camera(call: HostCall) -> None:
+        def camera() -> tuple[int, int] | None:
             seen = world.seen_target(sim, index)
             if seen < 0:
-                call.ret(None)
-            else:
-                x, y = world.targets[seen]
-                call.ret({"x": _dm(x), "y": _dm(y)})
+                return None
+            x, y = world.targets[seen].tolist()
+            return _dm(x), _dm(y)
 
         def random_goal(call: HostCall) -> None:
             x, y = rng.uniform(0.0, size, 2)
@@ -498,8 +504,8 @@ class M300Field(World):
         def random_byte(call: HostCall) -> None:
             call.ret(int(rng.integers(0, 256)))
 
-        def clock(call: HostCall) -> None:
-            call.ret(int(sim.step_count))
+        def clock() -> int:
+            return int(sim.step_count)
 
         def doze(call: HostCall) -> None:
             if not call.expect_args(1):
@@ -508,13 +514,23 @@ class M300Field(World):
             if steps is not None:
                 world.asleep_until[index] = sim.step_count + 1 + max(int(steps), 0)
 
-        return {"takeoff": takeoff, "land": land, "goto": goto, "position": position,
-                "arrived": arrived, "flying": flying, "camera": camera,
+        return {"takeoff": takeoff, "land": land, "goto": goto,
+                "position": ReadingHostFunction(position, ("x", "y", "z", "cell")),
+                "arrived": ReadingHostFunction(arrived), "flying": ReadingHostFunction(flying),
+                "camera": ReadingHostFunction(camera, ("x", "y")),
                 "random_goal": random_goal, "prior": prior,
                 "distance": RoundedDistanceHostFunction(distance),
                 "mission": mission, "set_role": set_role, "know_target": know_target,
                 "relay_link": relay_link, "missed": missed, "rand": random_byte,
-                "clock": clock, "doze": doze}
+                "clock": ReadingHostFunction(clock),
+                # doze's only effect is this robot's wake-up step, which the engine reads
+                # between steps: a latched host function
+                "doze": LatchedHostFunction(doze, 1, index, self._apply_doze_latches)}
+
+    def _apply_doze_latches(self, targets: np.ndarray, values: np.ndarray) -> None:
+        """``doze(steps)`` of robots ``targets`` (their last call's int argument each), as
+        the host function stores it."""
+        self.asleep_until[targets] = self._sim.step_count + 1 + np.maximum(values[:, 0], 0)
 
     def count_transition(self, index: int, before: str, after: str) -> None:
         """Count the role changes that are events of the search pattern (§5.3.1)."""

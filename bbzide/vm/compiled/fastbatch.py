@@ -75,6 +75,7 @@ from bbzide.vm.compiled.packed_queues import (
     IN_SLOTS,
     IN_START,
     LATCH_ARGS,
+    LATCH_SLOTS,
     LISTENERS,
     MARK_TIME,
     MSG_MAX,
@@ -262,7 +263,7 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
             return P_RECEIVE
     if not flags & F_STEP:
         return P_DONE
-    latched = latch[:, 0].any()
+    latched = latch[:LATCH_SLOTS, 0].any()
     phase = P_DONE
     # ---- process_inmsgs
     q = np.zeros(QUEUE_SLOTS, np.int64)
@@ -311,7 +312,7 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                 else:
                     io[IO_ADDED] -= removed
             _drain(outq, ctl, index, out_payloads, out_lengths, out_robots, io)
-    if latched or latch[:, 0].any():
+    if latched or latch[:LATCH_SLOTS, 0].any():
         return phase | LATCHED
     return phase
 
@@ -385,7 +386,7 @@ def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynami
             dyn[k] = regs[_DYNAMIC_REGISTER[k]]
         if phase & LATCHED:
             phase ^= LATCHED
-            for slot in range(latch.shape[0]):
+            for slot in range(LATCH_SLOTS):
                 if latch[slot, 0]:
                     latch[slot, 0] = 0
                     latched[count, L_GROUP] = groups[i, slot]

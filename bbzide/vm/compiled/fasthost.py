@@ -18,7 +18,12 @@ call back to Python with nothing done otherwise):
 * a **rounded distance** (``host.RoundedDistanceHostFunction``: an M300's
   ``distance(x1, y1, x2, y2)``, ``round(hypot(x1 - x2, y1 - y2))``): four int arguments,
   the int result pushed and ``ret1``; it touches no queue, so a walk begun from Python
-  (:func:`table_walk`, :func:`xtreme_walk`) runs it in place too (``HostRegistry.computed_rows``).
+  (:func:`table_walk`, :func:`xtreme_walk`) runs it in place too (``HostRegistry.computed_rows``);
+* a **reading** (``host.ReadingHostFunction``: an M300's ``clock()``, ``position()``,
+  ``camera()``): no argument; the value the compiled swarm step wrote in the robot's reading
+  row before the kernel (``packed_queues.READ_*``) pushed as ``HostCall.ret`` pushes it —
+  an int, nil, or a record of ints (:func:`push_int_record`, field names from the row's
+  ``H_KEYS``) — and ``ret1``; a row with no reading (``READ_NONE``) goes to Python.
   Anything else — another
   argument count (LNUM), a non-int (TYPE), a result outside an int16, a return the
   kernel's ``_ret`` refuses, no room for the result, the budget about to run out, a
@@ -60,6 +65,7 @@ from bbzide.vm.compiled.fastloop import (
     R_LTSEG,
     R_MARK_DEPTH,
     R_N,
+    R_NIL,
     R_OLD_CHANGED,
     R_PENDING,
     R_REACHED,
@@ -89,22 +95,26 @@ from bbzide.vm.compiled.packed_queues import (
     OUT_END,
     OUT_SLOTS,
     OUT_START,
+    READ_NIL,
+    READ_NONE,
     ROBOT,
 )
 from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING, TABLE
 from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
-           "HOST_LATCH", "HOST_DISTANCE", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
+           "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD", "H_KEYS",
+           "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
            "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
            "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
            "WALK_SLOTS", "rounded_distance", "collect_on_registers", "push_int_record"]
 
-# Columns of a ``hosts`` row, and its kinds.
-H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC = range(5)
-HOST_COLUMNS = 5
-HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE = 1, 2, 3
+# Columns of a ``hosts`` row (a reading's record: its field names' string ids from
+# ``H_KEYS`` on, LATCH_ARGS of them), and its kinds.
+H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC, H_KEYS = range(6)
+HOST_COLUMNS = H_KEYS + LATCH_ARGS
+HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE, HOST_READ_INT, HOST_READ_RECORD = 1, 2, 3, 4, 5
 
 
 
@@ -198,28 +208,53 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
     sp = regs[R_SP]
     bp = regs[R_BP]
     result = 0
+    reading = kind == HOST_READ_INT or kind == HOST_READ_RECORD
+    read = READ_NONE
+    if reading:
+        read = latch[hosts[row, H_SLOT], 0]
+        if read == READ_NONE:
+            return False  # no reading this step: Python asks the world
+        result = latch[hosts[row, H_SLOT], 1] & 0xFFFF
     if kind == HOST_DISTANCE:
         result = rounded_distance(
             _int_arg(d, lsyms, 1, s, elems) - _int_arg(d, lsyms, 3, s, elems),
             _int_arg(d, lsyms, 2, s, elems) - _int_arg(d, lsyms, 4, s, elems))
-        if (result > 0x7FFF or sp + 1 >= regs[R_STACK_SIZE]
+        if result > 0x7FFF:
+            return False
+    if kind == HOST_DISTANCE or reading:
+        # ret1 of a pushed value: an int (one object), nil (none), a record (push_int_record
+        # checks its own room, and is the last check: it writes only when it succeeds)
+        objects = 1 if kind == HOST_DISTANCE or (read != READ_NIL and kind == HOST_READ_INT) \
+            else 0
+        if (sp + 1 >= regs[R_STACK_SIZE]
                 or not _ret_ok(d, stack, True, sp + 1, bp, lsyms, bsize, s, elems)
-                or not _room(d, regs, s, reserved, elems, 1, 0)):
+                or not _room(d, regs, s, reserved, elems, objects, 0)):
+            return False
+        if kind == HOST_READ_RECORD and read != READ_NIL and not push_int_record(
+                d, stack, regs, hosts[row, H_KEYS:H_KEYS + _record_fields(hosts, row)],
+                latch[hosts[row, H_SLOT], 1:], s, elems, reserved):
             return False
     elif not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
     count = regs[R_HOST_COUNT]
-    # a frame is dropped only when the call made nothing (the distance's result outlives it)
-    droppable = (kind != HOST_DISTANCE and count >= 0
+    # a frame is dropped only when the call made nothing (a result outlives it)
+    droppable = (kind != HOST_DISTANCE and not reading and count >= 0
                  and host_frame_droppable(d, info, count, c, lsyms, s, elems))
     # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
     with_value = False
-    if kind == HOST_DISTANCE:
+    if kind == HOST_DISTANCE or (kind == HOST_READ_INT and read != READ_NIL):
         o = _obj_alloc(d, regs, s, reserved, INT, 0)  # push_int(result)
         d[o * s + 1] = result & 0xFF
         d[o * s + 2] = result >> 8
         sp += 1
         stack[sp] = o
+        with_value = True
+    elif reading and read == READ_NIL:
+        sp += 1
+        stack[sp] = regs[R_NIL]  # push_nil
+        with_value = True
+    elif kind == HOST_READ_RECORD:
+        sp += 1  # push_int_record pushed the table
         with_value = True
     elif kind == HOST_BROADCAST:
         size = len(outq) // (ctl[OUT_SLOTS] + 1)
@@ -241,6 +276,15 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
                        reserved)
         regs[R_FIXED] = 1
     return True
+
+
+@_compile
+def _record_fields(hosts: Any, row: int) -> int:
+    """The fields of a reading's record: its row's string ids before the first -1."""
+    n = 0
+    while n < LATCH_ARGS and hosts[row, H_KEYS + n] >= 0:
+        n += 1
+    return n
 
 
 @_compile

@@ -57,6 +57,13 @@ RING_COLUMNS = 5
 LATCH_ARGS = 4
 #: latch slots of one robot (distinct latched host functions it registers)
 LATCH_SLOTS = 4
+#: reading slots of one robot (``host.ReadingHostFunction``: the rows after the latch
+#: slots). Six: an M300 reads five (clock, position, flying, arrived, camera) and a
+#: Crazyflie fewer; each row costs a robot 40 bytes.
+READING_SLOTS = 6
+#: column 0 of a reading row: no reading (the kernel hands the call to Python), an int or a
+#: record in columns 1..LATCH_ARGS, or nil
+READ_NONE, READ_VALUE, READ_NIL = 0, 1, 2
 
 
 #: bumped whenever an array or constant register a compiled swarm step may have cached
@@ -90,8 +97,10 @@ class PackedQueues:
         self.ctl[MSG_MAX:HPOS] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
                                   profile.neighbors_clr_period, profile.xtreme,
                                   profile.neighbors_floats)
-        #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (HostRegistry's latched functions)
-        self.latch = np.zeros((LATCH_SLOTS, 1 + LATCH_ARGS), np.int64)
+        #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (the robot's latched functions);
+        #: then per reading slot: [READ_*, value 1 ... value LATCH_ARGS] (its readings,
+        #: written by the compiled swarm step before each kernel call)
+        self.latch = np.zeros((LATCH_SLOTS + READING_SLOTS, 1 + LATCH_ARGS), np.int64)
 
     def pack(self, queues: MessageQueues, neighbors: NeighborsState, robot: int) -> None:
         """The Python records into the arrays (they become the truth)."""

@@ -28,6 +28,10 @@ functions that touch the world run in the reference's order; a robot's receive b
 own step is equivalent to all receives first (a receive touches only its own robot: see
 `swarm_batch`). Outbox rows added by Python are put back in robot order (a stable sort).
 
+Readings (``host.ReadingHostFunction``) are read for each robot the kernel takes just before
+the kernel, into the robot's reading rows: the kernel part of its step comes before any
+Python of the step, so they are what a Python call would read there.
+
 Latched host functions (``host.LatchedHostFunction``) the kernel ran are applied right
 after the kernel, grouped by their ``apply``: before any Python code of the step, so a
 robot's later Python call of the same function (a hand-over) stores after it, as in the
@@ -44,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled import fastbatch, fastloop, fastviews, packed_queues
+from bbzide.vm.compiled import fastbatch, fasthost, fastloop, fastviews, packed_queues
 from bbzide.vm.compiled.fastbatch import (
     F_POP,
     F_RECEIVE,
@@ -58,6 +62,11 @@ from bbzide.vm.compiled.packed_queues import LATCH_ARGS, LATCH_SLOTS
 from bbzide.vm.message_layout import PAYLOAD_SIZE
 from bbzide.vm.packed_messages import PackedMessages, StepResult
 from bbzide.vm.states import State
+
+#: the host functions a kernel entered from Python may run in place (``VM.hosted``): they
+#: touch no queue (the queues are Python's then) and latch nothing
+_IN_PLACE_FROM_PYTHON = (fasthost.HOST_READ_INT, fasthost.HOST_READ_RECORD,
+                         fasthost.HOST_DISTANCE)
 
 #: outbox rows allocated beyond what the kernel's drains can write (each robot at most its
 #: out-queue's capacity, ``_SwarmTables.max_out``): room for a few Python rows before the
@@ -162,6 +171,10 @@ class _SwarmTables:
         self.max_out = 1
         #: (VM, heap, robot) of each robot the kernel may take (None for the others)
         self.machines: list[tuple[Any, Any, Any] | None] = []
+        #: (latch array, readings) of each robot with readings (``host.ReadingHostFunction``)
+        self.readings: list[tuple[np.ndarray, list[Any]] | None] = [None] * count
+        #: ``VM.hosted`` of each robot with readings while Python finishes its step
+        self.hosted: list[tuple[np.ndarray, np.ndarray] | None] = [None] * count
         for i, robot in enumerate(robots):
             if type(robot) is not robot_type or robot.vm.stress_gc or not robot.booted:
                 self.machines.append(None)
@@ -170,10 +183,15 @@ class _SwarmTables:
             h = vm.heap
             self.machines.append((vm, h, robot))
             packed = vm.packed()
-            hosts, slots = robot.compiled_hosts()
+            hosts = robot.compiled_hosts()
+            slots = hosts.latched
+            if hosts.readings:
+                self.readings[i] = (packed.latch, hosts.readings)
+                in_place = np.isin(hosts.table[:, fasthost.H_KIND], _IN_PLACE_FROM_PYTHON)
+                self.hosted[i] = (np.ascontiguousarray(hosts.table[in_place]), packed.latch)
             arrays = (h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
                       h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
-                      packed.latch, np.ascontiguousarray(hosts, np.int64))
+                      packed.latch, np.ascontiguousarray(hosts.table, np.int64))
             self.kept.extend(arrays)
             self.addresses[i] = [fastviews.address_of(array) for array in arrays]
             self.sizes[i] = [len(array) for array in arrays]
@@ -260,8 +278,13 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
             if stepping[index]:
                 outbox.add(index, robot.control_step())
         else:
-            outbox.add(index, robot.finish_compiled_step(
-                int(phases[index]), tables.registers[index], ios[index]))
+            vm = robot.vm
+            vm.hosted = tables.hosted[index]  # its readings stand until a Python host call
+            try:
+                outbox.add(index, robot.finish_compiled_step(
+                    int(phases[index]), tables.registers[index], ios[index]))
+            finally:
+                vm.hosted = None
     failed = np.array([r is not None and r.failure is not None and not was
                        for r, was in zip(robots, failed_before, strict=True)], dtype=bool)
     return StepResult(outbox.packed(sort=len(python) > 0), failed)
@@ -283,6 +306,11 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
                       vm.instructions_executed, h.peak_used,
                       none if (b := vm.instruction_budget) is None else b)
                      for vm, h, _robot in chosen]
+    readings = tables.readings
+    for index in todo[stepping[todo]].tolist():  # only a step runs Buzz code
+        if (mine := readings[index]) is not None:  # the reading rows, read now
+            latch, functions = mine
+            latch[LATCH_SLOTS:LATCH_SLOTS + len(functions)] = [f.row() for f in functions]
     pops = [robot.loop == "pop" for _vm, _h, robot in chosen]
     flags = np.zeros(len(robots), np.int64)
     flags[todo] = np.where(deferred[todo], F_RECEIVE, 0) | np.where(stepping[todo], F_STEP, 0) \
