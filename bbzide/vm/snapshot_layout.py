@@ -160,7 +160,7 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
     """The VM's state in this layout as bytes-like parts to join, and their total length;
     None when it has another shape (see the module). Written for speed: a keyframe is one
     call, on the simulation's thread, with the caches cold from the step before."""
-    swarm, vstig = vm.swarm, vm.vstig
+    swarm, vstig = vm.swarm, vm._vstig
     queues, neighbors = vm._queues, vm._neighbors
     inbox, outbox, ring = queues.inbox, queues.outbox, neighbors.ring
     heap, stack, bcode, entries = vm.heap, vm.stack, vm.bcode, vstig.entries
@@ -182,6 +182,8 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
         if packed.record != record or (packed.xtreme and len(packed.ring) != len(ring.records)):
             return None
         ring_rows = _le(packed.ring) if packed.xtreme else None
+        packed_entries = packed.vstig_in_use()
+        rows, entry_count = _le(packed_entries), len(packed_entries)
     else:
         in_start, in_end, out_start, out_end = inbox.start, inbox.end, outbox.start, outbox.end
         ring_start, ring_end, clear_counter = ring.start, ring.end, neighbors.clear_counter
@@ -190,9 +192,10 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
                 return None
         inq, outq = b"".join(inbox.records), b"".join(outbox.records)
         ring_rows = None
+        rows = _rows(entries, VstigEntry, _vstig_row, _VSTIG_ROW, len(_VSTIG_FIELDS))
+        entry_count = len(entries)
     if ring_rows is None:
         ring_rows = _rows(ring.records, NeighborEntry, _ring_row, _RING_ROW, len(_RING_FIELDS))
-    rows = _rows(entries, VstigEntry, _vstig_row, _VSTIG_ROW, len(_VSTIG_FIELDS))
     if ring_rows is None or rows is None:
         return None
     events = vm.error_events
@@ -215,7 +218,7 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
         len(stack), vm.stackptr, vm.blockptr, vm.pc, int(vm.state), int(vm.error), vm.lsyms,
         vm.gsyms, vm.nil, vm.dflt_actrec, vm.flist, vm.robot, vm.instructions_executed,
         swarm.hpos, swarm.swarmstack, swarm.my_swarmlist,
-        vstig.hpos, len(entries),
+        vstig.hpos, entry_count,
         neighbors.hpos, neighbors.listeners, clear_counter, neighbors.count,
         ring.capacity, ring_start, ring_end, ring_count,
         queues.in_capacity, queues.out_capacity, queues.obj_size, record,
@@ -230,7 +233,7 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
     except struct.error:
         return None
     length = (_VM_HEAD.size + values[0] + 2 * values[5] + record * (in_count + out_count)
-              + 8 * (len(_RING_FIELDS) * ring_count + len(_VSTIG_FIELDS) * len(entries))
+              + 8 * (len(_RING_FIELDS) * ring_count + len(_VSTIG_FIELDS) * entry_count)
               + len(bcode) + sum(map(len, tail)))
     return [head, heap.data, _le(stack), inq, outq, ring_rows, bcode, rows, *tail], length
 

@@ -73,7 +73,7 @@ from bbzide.vm.tables import (
 from bbzide.vm.tables import (
     compare as type_compare,
 )
-from bbzide.vm.vstig import VstigStore
+from bbzide.vm.vstig import VstigEntry, VstigStore
 
 _I16 = 0xFFFF
 
@@ -127,7 +127,7 @@ class VM:
         self._geometry = (self.heap.size, self.heap.obj_size, self.heap.seg_size,
                           self.heap.elems, self.heap.reserved, profile.gcmark_depth)
         self.swarm = SwarmState()
-        self.vstig = VstigStore()
+        self._vstig = VstigStore()
         #: (``fasthost`` rows, latch array) of the host functions a kernel may run in place
         #: while the robot finishes a compiled swarm step in Python (``swarm_batch``): its
         #: readings and computed ones. A reading is the robot's state before any host call
@@ -168,19 +168,41 @@ class VM:
             self._unpack()
         self._neighbors = value
 
+    @property
+    def vstig(self) -> VstigStore:
+        """``vm->vstig`` (unpacked first when the arrays hold the truth)."""
+        if self._packed_live:
+            self._unpack()
+        return self._vstig
+
+    @vstig.setter
+    def vstig(self, value: VstigStore) -> None:
+        if self._packed_live:
+            self._unpack()
+        self._vstig = value
+
     def _unpack(self) -> None:
         self._packed_live = False
-        self._packed.unpack(self._queues, self._neighbors)  # type: ignore[union-attr]
+        packed = self._packed
+        packed.unpack(self._queues, self._neighbors)  # type: ignore[union-attr]
+        changed, added = packed.vstig_changes()  # type: ignore[union-attr]
+        entries = self._vstig.entries
+        for k, (_key, value, timestamp, robot) in changed:
+            e = entries[k]
+            e.value, e.timestamp, e.robot = value, timestamp, robot
+        entries.extend(VstigEntry(*row) for row in added)
 
     def packed(self) -> packed_queues.PackedQueues:
-        """The queues and neighbor ring as arrays that hold the truth from now until the
-        next Python access to ``queues``/``neighbors`` (packed_queues.py)."""
+        """The queues, neighbor ring and stigmergy entries as arrays that hold the truth
+        from now until the next Python access to ``queues``/``neighbors``/``vstig``
+        (packed_queues.py)."""
         packed = self._packed
         if not self._packed_live:
             if packed is None:
                 packed = self._packed = packed_queues.PackedQueues(self.profile,
                                                      len(self._queues.inbox.records[0]))
             packed.pack(self._queues, self._neighbors, self.robot)
+            packed.pack_vstig(self._vstig)
             self._packed_live = True
         return packed  # type: ignore[return-value]
 

@@ -15,10 +15,12 @@ from __future__ import annotations
 import pickle
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
+from bbzide.vm import inmsgs
 from bbzide.vm.robot import Robot
 from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
@@ -199,7 +201,7 @@ def _deliveries(outbox, sim: Simulation, comm_range: float, unit: float):
 
 def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100_000,
                  loop: str = "pop", options: dict | None = None, comm_range: float = 0.12,
-                 unit: float = 1000.0, every: int = 3) -> dict[str, int]:
+                 unit: float = 1000.0, every: int = 3) -> dict[str, Any]:
     from bbzide.vm.swarm_batch import PackedMessages, control_steps
 
     sims = _batch_swarms(program, world, robots, budget, loop, options or {})
@@ -225,6 +227,7 @@ def _run_batches(program, world: str, robots: int, steps: int, budget: int = 100
         outboxes = [a.outbox, b.outbox]
         seen["messages"] += len(a.outbox)
         seen["failed"] = int(sum(r.failure is not None for r in reference))
+    seen["fast"] = fast
     return seen
 
 
@@ -598,3 +601,65 @@ def test_batch_robot_leaving_stress_mode_is_taken_identically(tmp_path: Path) ->
     assert teams[1][1].vm._packed_live  # the compiled step took it
     for x, y in zip(*teams, strict=True):
         assert Robot.comparable(x.snapshot()) == Robot.comparable(y.snapshot())
+
+
+#: The stigmergy loop inside the compiled step (fastbatch: fastvstig on the packed entries):
+#: equal timestamps from other robots (conflicts, with a handler: the kernel hands those
+#: messages to Python), new keys learnt, repeats; a heap that fills up.
+STIGMERGY_BATCH = """
+var v
+var conflicts = 0
+var tick = 0
+var kept = {}
+var keys = {}
+function init() {
+  keys[0] = "k0"
+  keys[1] = "k1"
+  keys[2] = "k2"
+  keys[3] = "k3"
+  keys[4] = "k4"
+  keys[5] = "k5"
+  keys[6] = "k6"
+  keys[7] = "k7"
+  v = stigmergy.create(1)
+  v.onconflict(function(key, local, remote) {
+    conflicts = conflicts + 1               # a Buzz call: the kernel hands these to Python
+    return remote
+  })
+}
+function step() {
+  tick = tick + 1
+  # (fresh ints: an entry adopted later frees the object put, as BittyBuzz does)
+  v.put("shared", tick + 0)                 # the same key everywhere: conflicts
+  v.put(keys[tick % 3], tick * 2)           # puts and learnt entries, repeats
+  if (id == 4 and tick > 6) {
+    var i = 0
+    while (i < 4) {                         # this robot's heap fills up
+      kept[tick * 4 + i] = {.a = i, .b = {.c = 1}}
+      i = i + 1
+    }
+  }
+  neighbors.broadcast("x", tick)
+}
+"""
+
+
+@pytest.mark.parametrize("world", ["kilobot", "crazyflie"])
+def test_batch_stigmergy_identical(monkeypatch, tmp_path: Path, world: str) -> None:  # noqa: ANN001
+    program = _compile(tmp_path, STIGMERGY_BATCH, world)
+    handed: list[int] = []
+    kernel = inmsgs._process_vstig_compiled
+
+    def counted(vm, *args):  # noqa: ANN001, ANN002, ANN202
+        handed.append(vm.robot)
+        return kernel(vm, *args)
+
+    monkeypatch.setattr(inmsgs, "_process_vstig_compiled", counted)
+    seen = (_run_batches(program, world, 7, 30, options={"width": 0.3, "height": 0.3})
+            if world == "kilobot" else
+            _run_batches(program, world, 7, 30, comm_range=30.0, unit=1.0))
+    robots = seen["fast"]
+    assert seen["messages"] > 100
+    assert max(len(r.vm.vstig.entries) for r in robots) >= 4
+    assert robots[4].failure is not None and "MEM" in str(robots[4].failure)
+    assert len(handed) > 0  # the handler's conflicts: Python's

@@ -10,7 +10,9 @@ which stay packed between steps):
 1. receive the robot's rows of the step's deliveries (as :func:`fastreceive.receive_all`;
    a profile with the neighbor data in the heap through
    :func:`fastreceive.neighbors_add_heap`, while it has room: else ``P_RECEIVE``);
-2. ``bbzvm_process_inmsgs`` (:func:`fastinbox.process_broadcasts`);
+2. ``bbzvm_process_inmsgs`` (:func:`fastinbox.process_broadcasts`, and
+   :func:`fastvstig.process_vstigs` for the stigmergy records among them, on the packed
+   entries);
 3. ``step`` (:func:`fastinbox.call_global`, and the ``pop`` of the firmware loop "pop");
 4. ``bbzvm_process_outmsgs``: the neighbor-data GC countdown, the XTREME ring's data GC
    (``neighbors.data_gc``, ``bringToTop`` quirk included) or the heap's
@@ -66,6 +68,26 @@ from bbzide.vm.compiled.fastreceive import (
 )
 from bbzide.vm.compiled.fastring import ring_size
 from bbzide.vm.compiled.fastviews import view_i32, view_i64, view_i64_rows, view_u8, view_u16
+from bbzide.vm.compiled.fastvstig import (
+    OTHER,
+    STATE_SLOTS,
+    V_COLLECTED,
+    V_COUNT,
+    V_END,
+    V_ENTRIES,
+    V_HPOS,
+    V_MAX,
+    V_OUT_END,
+    V_OUT_SLOTS,
+    V_OUT_START,
+    V_RECORD,
+    V_ROBOT,
+    V_SLOTS,
+    V_START,
+    V_TAKEN,
+    V_THRESHOLD,
+    process_vstigs,
+)
 from bbzide.vm.compiled.packed_queues import (
     CLEAR_COUNTER,
     CLEAR_PERIOD,
@@ -74,6 +96,7 @@ from bbzide.vm.compiled.packed_queues import (
     IN_END,
     IN_SLOTS,
     IN_START,
+    LAMPORT,
     LATCH_ARGS,
     LATCH_SLOTS,
     LISTENERS,
@@ -87,6 +110,10 @@ from bbzide.vm.compiled.packed_queues import (
     OUT_START,
     RECORD,
     RING_COLUMNS,
+    ROBOT,
+    VSTIG_COLUMNS,
+    VSTIG_HPOS,
+    VSTIG_ROWS,
     XTREME,
 )
 from bbzide.vm.heap_layout import TABLE
@@ -96,6 +123,7 @@ from bbzide.vm.message_layout import (
     BROADCAST,
     PAYLOAD_SIZE,
     RID,
+    TYPE,
     VS_DATA,
     VS_KEY,
     VS_LAMPORT,
@@ -108,8 +136,9 @@ __all__ = ["COMPILED", "robot_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS"
 
 # Phases a call stopped in (its return value, plus LATCHED when a latch slot was written).
 P_DONE = 0      # everything asked for is done
-P_INMSGS = 1    # the in-queue: io[IO_STATUS] is process_broadcasts' status (PYTHON_MESSAGE
-#                 or IN_CALL), io[IO_COUNT] / io[IO_COLLECTED] / io[IO_INNER] its state
+P_INMSGS = 1    # the in-queue: io[IO_STATUS] is process_broadcasts' (or process_vstigs')
+#                 status (PYTHON_MESSAGE or IN_CALL), io[IO_COUNT] / io[IO_COLLECTED] /
+#                 io[IO_INNER] its state
 P_STEP = 2      # ``step``: io[IO_STATUS] is call_global's status (PYTHON_MESSAGE: nothing
 #                 done; CALLED with a stack it cannot pop; CALL_UNDER_WAY + run's status)
 P_OUTMSGS = 3   # process_outmsgs needs the heap (a non-XTREME data GC): Python from there
@@ -244,9 +273,52 @@ def _drain(outq: Any, ctl: Any, index: int, out_payloads: Any, out_lengths: Any,
 
 
 @_compile
+def _stigmergy_head(inq: Any, q: Any) -> bool:
+    """Is the in-queue's head a stigmergy record?"""
+    head = ((q[Q_START] & 0xFF) % q[Q_SLOTS]) * q[Q_RECORD]
+    typ = _i(inq[head + TYPE])
+    return typ == VSTIG_PUT or typ == VSTIG_QUERY
+
+
+@_compile
+def _process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: int,
+                    elems: int, reserved: int, inq: Any, q: Any, ctl: Any, vstig: Any,
+                    outq: Any) -> int:
+    """:func:`fastvstig.process_vstigs` from the head (collected for: ``V_TAKEN``) on the
+    packed queues and stigmergy entries, with the in-queue loop's state ``q``; returns
+    its status (``DONE``, ``PYTHON_MESSAGE`` or ``OTHER``)."""
+    state = np.zeros(STATE_SLOTS, np.int64)
+    state[V_START] = q[Q_START]
+    state[V_END] = q[Q_END]
+    state[V_SLOTS] = q[Q_SLOTS]
+    state[V_RECORD] = q[Q_RECORD]
+    state[V_COUNT] = q[Q_COUNT]
+    state[V_MAX] = q[Q_MAX]
+    state[V_COLLECTED] = q[Q_COLLECTED]
+    state[V_TAKEN] = 1
+    state[V_ROBOT] = ctl[ROBOT]
+    state[V_THRESHOLD] = ctl[LAMPORT]
+    state[V_HPOS] = ctl[VSTIG_HPOS]
+    state[V_ENTRIES] = ctl[VSTIG_ROWS]
+    state[V_OUT_START] = ctl[OUT_START]
+    state[V_OUT_END] = ctl[OUT_END]
+    state[V_OUT_SLOTS] = ctl[OUT_SLOTS]
+    status = process_vstigs(d, stack, regs, info, traversed, s, elems, reserved, inq, state,
+                            vstig, outq)
+    q[Q_START] = state[V_START]
+    q[Q_COUNT] = state[V_COUNT]
+    q[Q_COLLECTED] = state[V_COLLECTED]
+    ctl[VSTIG_ROWS] = state[V_ENTRIES]
+    ctl[OUT_START] = state[V_OUT_START]
+    ctl[OUT_END] = state[V_OUT_END]
+    return status
+
+
+@_compile
 def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                rules: Any, s: int, elems: int, reserved: int, inq: Any, outq: Any,
-               ring: Any, ctl: Any, latch: Any, hosts: Any, payloads: Any, lengths: Any,
+               ring: Any, ctl: Any, latch: Any, hosts: Any, vstig: Any, payloads: Any,
+               lengths: Any,
                distances: Any, azimuths: Any, elevations: Any, first: int, last: int,
                flags: int, index: int, out_payloads: Any, out_lengths: Any,
                out_robots: Any, io: Any) -> int:
@@ -277,6 +349,16 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     if q[Q_START] != q[Q_END]:
         status = process_broadcasts(d, stack, bcode, regs, info, traversed, rules, s, elems,
                                     reserved, inq, q, hosts, outq, ctl, latch)
+        # a stigmergy record at the head, collected for: the stigmergy loop goes on from
+        # its extraction, and the broadcast loop from the next record it leaves (OTHER)
+        # (a record it hands back, PYTHON_MESSAGE, is Python's: the loop ends)
+        while status == PYTHON_MESSAGE and _stigmergy_head(inq, q):
+            status = _process_vstigs(d, stack, regs, info, traversed, s, elems, reserved,
+                                     inq, q, ctl, vstig, outq)
+            if status != OTHER:
+                break
+            status = process_broadcasts(d, stack, bcode, regs, info, traversed, rules, s,
+                                        elems, reserved, inq, q, hosts, outq, ctl, latch)
         ctl[IN_START] = q[Q_START]
         q[Q_EXTRACTED] = 0
     if status != DONE:
@@ -330,8 +412,8 @@ DYNAMIC = 10
 _DYNAMIC_REGISTER = (0, 1, 2, 3, 4, 5, 6, 7, 11, 15)
 # Columns of ``addresses``/``sizes``: a robot's arrays (swarm_batch_fast._SwarmTables).
 A_HEAP, A_STACK, A_BCODE, A_INFO, A_TRAVERSED, A_INQ, A_OUTQ = range(7)
-A_RING, A_CTL, A_LATCH, A_HOSTS = 7, 8, 9, 10
-ARRAYS = 11
+A_RING, A_CTL, A_LATCH, A_HOSTS, A_VSTIG = 7, 8, 9, 10, 11
+ARRAYS = 12
 # Columns of ``geometry``: the heap geometry of each robot.
 G_OBJ, G_ELEMS, G_RESERVED = range(3)
 # Columns of a ``latched`` row: the latch group (see swarm_batch_fast), target, arguments.
@@ -369,6 +451,7 @@ def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynami
         ctl = view_i64(a[A_CTL], n[A_CTL])
         latch = view_i64_rows(a[A_LATCH], n[A_LATCH], 1 + LATCH_ARGS)
         hosts = view_i64_rows(a[A_HOSTS], n[A_HOSTS], HOST_COLUMNS)
+        vstig = view_i64_rows(a[A_VSTIG], n[A_VSTIG], VSTIG_COLUMNS)
         regs = registers[i]
         dyn = dynamic[i]
         for k in range(DYNAMIC):
@@ -377,7 +460,7 @@ def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynami
         io[IO_ROWS] = rows
         g = geometry[i]
         phase = robot_step(heap, stack, bcode, regs, info, traversed, rules, g[G_OBJ],
-                           g[G_ELEMS], g[G_RESERVED], inq, outq, ring, ctl, latch, hosts,
+                           g[G_ELEMS], g[G_RESERVED], inq, outq, ring, ctl, latch, hosts, vstig,
                            payloads, lengths, distances, azimuths, elevations, bounds[i],
                            bounds[i + 1], flags[i], i, out_payloads, out_lengths,
                            out_robots, io)

@@ -65,6 +65,7 @@ from bbzide.vm.compiled.fastloop import (
 )
 from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import table_lookup
+from bbzide.vm.compiled.packed_queues import VSTIG_COLUMNS
 from bbzide.vm.heap_layout import PERMANENT, STRING, USERDATA, VALID
 from bbzide.vm.message_layout import RID, TYPE, VS_DATA, VS_KEY, VS_LAMPORT, VSTIG_PUT, VSTIG_QUERY
 
@@ -89,7 +90,7 @@ STATE_SLOTS = 16
 
 #: columns of an ``entries`` row: ``VstigEntry``'s fields
 E_KEY, E_VALUE, E_TIMESTAMP, E_ROBOT = 0, 1, 2, 3
-ENTRY_COLUMNS = 4
+ENTRY_COLUMNS = VSTIG_COLUMNS
 
 # Results.
 DONE = 0            # the queue is empty or msg_in_proc_max messages were taken

@@ -1,4 +1,5 @@
-"""A robot's message queues and XTREME neighbor ring as arrays, for the compiled swarm step.
+"""A robot's message queues, XTREME neighbor ring and stigmergy entries as arrays, for the
+compiled swarm step.
 
 The reference routines (:mod:`messages`, :mod:`neighbors`) keep a queue as a list of
 ``bytearray`` records and the neighbor ring as a list of ``NeighborEntry`` objects: easy to
@@ -10,9 +11,10 @@ holds the truth at a time**:
 
 * ``VM.packed()`` makes the arrays the truth (packing the Python records if they were);
   the compiled step then reads and writes them across control steps with no copying;
-* any Python access to ``vm.queues`` or ``vm.neighbors`` (a reference routine a robot hands
-  back to, the inspector, a snapshot) first unpacks the arrays into the Python records and
-  makes those the truth again (``VM`` properties); the next compiled step packs again.
+* any Python access to ``vm.queues``, ``vm.neighbors`` or ``vm.vstig`` (a reference
+  routine a robot hands back to, the inspector, a snapshot) first unpacks the arrays into
+  the Python records and makes those the truth again (``VM`` properties); the next
+  compiled step packs again.
 
 So every observer sees exactly the state the reference routines would have left, and a
 swarm nobody inspects never converts. Layouts (``ctl`` slots below): ``inq``/``outq`` are a
@@ -23,6 +25,8 @@ its routines work on ``ctl`` directly) and the scalars of ``NeighborsState`` the
 Only an XTREME profile's ring rows are packed (the compiled step touches no other ring:
 those profiles keep their neighbor data in the heap, where the compiled receive writes it;
 ``NeighborsState.count``, their u8 counter, stays Python's: the step adds its adds).
+``vstig`` has a row per ``VstigStore`` entry (``VSTIG_COLUMNS``) and free rows after them
+(``VSTIG_SPARE``) for the entries the compiled stigmergy loop learns.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ if TYPE_CHECKING:
     from bbzide.vm.messages import MessageQueues
     from bbzide.vm.neighbors import NeighborsState
     from bbzide.vm.profiles import Profile
+    from bbzide.vm.vstig import VstigStore
 
 # ``ctl`` slots: fastreceive's six ring slots first, then ours.
 IN_START, IN_END, IN_SLOTS, NB_START, NB_END, NB_SLOTS = range(6)
@@ -46,8 +51,18 @@ CLEAR_COUNTER, LISTENERS, ROBOT, RECORD = 9, 10, 11, 12
 MSG_MAX, MARK_TIME, CLEAR_PERIOD, XTREME, FLOATS = 13, 14, 15, 16, 17
 #: ``neighbors.hpos``, the ``neighbors`` table (read by a heap profile's compiled receive)
 HPOS = 18
+#: the profile's ``lamport_threshold`` (set once), ``vstig.hpos`` (the stigmergy table),
+#: the rows of ``vstig`` in use
+LAMPORT, VSTIG_HPOS, VSTIG_ROWS = 19, 20, 21
 #: slots in ``ctl``
-CTL_SLOTS = 19
+CTL_SLOTS = 22
+
+#: columns of a ``vstig`` row: ``VstigEntry``'s fields (key, value, timestamp, robot) —
+#: fastvstig.ENTRY_COLUMNS
+VSTIG_COLUMNS = 4
+#: free ``vstig`` rows kept beyond the entries when packing: one step's in-queue of new
+#: keys fits (a full table hands the message to Python, which packs a larger one next)
+VSTIG_SPARE = 32
 
 #: columns of a ring row: NeighborEntry's fields (robot, distance, azimuth, elevation,
 #: mark) — fastreceive.RING_COLUMNS (not imported: fastreceive imports the VM's modules)
@@ -80,8 +95,8 @@ def arrays_changed() -> None:
 class PackedQueues:
     """One robot's queues and neighbor ring as arrays (see the module comment)."""
 
-    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "record", "xtreme", "_packed_inq",
-                 "_packed_outq")
+    __slots__ = ("inq", "outq", "ring", "ctl", "latch", "vstig", "record", "xtreme",
+                 "_packed_inq", "_packed_outq", "_packed_vstig")
 
     def __init__(self, profile: Profile, record: int) -> None:
         self.record = record
@@ -97,6 +112,11 @@ class PackedQueues:
         self.ctl[MSG_MAX:HPOS] = (profile.msg_in_proc_max, profile.neighbors_mark_time,
                                   profile.neighbors_clr_period, profile.xtreme,
                                   profile.neighbors_floats)
+        self.ctl[LAMPORT] = profile.lamport_threshold
+        #: the virtual stigmergy's entries (``VSTIG_COLUMNS``), rows ``ctl[VSTIG_ROWS]`` on
+        #: free; and the rows as packed (`vstig_changes` compares)
+        self.vstig = np.zeros((VSTIG_SPARE, VSTIG_COLUMNS), np.int64)
+        self._packed_vstig = self.vstig[:0].copy()
         #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (the robot's latched functions);
         #: then per reading slot: [READ_*, value 1 ... value LATCH_ARGS] (its readings,
         #: written by the compiled swarm step before each kernel call)
@@ -124,6 +144,35 @@ class PackedQueues:
                               neighbors.clear_counter, neighbors.listeners, robot,
                               self.record)
         self.ctl[HPOS] = neighbors.hpos
+
+    def pack_vstig(self, store: VstigStore) -> None:
+        """The stigmergy entries into ``vstig`` (they become the truth with the queues)."""
+        self.ctl[VSTIG_HPOS] = store.hpos
+        if not store.entries and not len(self._packed_vstig):  # (most robots: no stigmergy)
+            self.ctl[VSTIG_ROWS] = 0
+            return
+        rows = [(e.key, e.value, e.timestamp, e.robot) for e in store.entries]
+        if len(rows) + VSTIG_SPARE > len(self.vstig):
+            self.vstig = np.zeros((len(rows) + 2 * VSTIG_SPARE, VSTIG_COLUMNS), np.int64)
+            arrays_changed()
+        if rows:
+            self.vstig[:len(rows)] = rows
+        self._packed_vstig = self.vstig[:len(rows)].copy()
+        self.ctl[VSTIG_ROWS] = len(rows)
+
+    def vstig_in_use(self) -> np.ndarray:
+        """The rows of ``vstig`` that hold entries (in ``VstigStore.entries`` order)."""
+        return self.vstig[:int(self.ctl[VSTIG_ROWS])]
+
+    def vstig_changes(self) -> tuple[list[tuple[int, list[int]]], list[list[int]]]:
+        """What the compiled steps changed in the stigmergy entries since `pack_vstig`:
+        (index, row) of each entry whose row differs, and the rows appended."""
+        known = len(self._packed_vstig)
+        if not known and not self.ctl[VSTIG_ROWS]:
+            return [], []
+        now = self.vstig[:known]
+        changed = np.flatnonzero((now != self._packed_vstig).any(axis=1)).tolist()
+        return ([(k, now[k].tolist()) for k in changed], self.vstig_in_use()[known:].tolist())
 
     def unpack(self, queues: MessageQueues, neighbors: NeighborsState) -> None:
         """The arrays back into the Python records (they become the truth again)."""

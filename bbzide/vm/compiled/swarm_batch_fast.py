@@ -153,7 +153,6 @@ class _SwarmTables:
     (``packed_queues.GENERATION``)."""
 
     def __init__(self, robots: Sequence[Any], robot_type: type) -> None:
-        self.generation = packed_queues.GENERATION[0]
         self.robots = list(robots)
         count = len(robots)
         #: each robot's arrays (fastbatch.A_* order) by address and length (rows for the
@@ -191,7 +190,7 @@ class _SwarmTables:
                 self.hosted[i] = (np.ascontiguousarray(hosts.table[in_place]), packed.latch)
             arrays = (h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
                       h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
-                      packed.latch, np.ascontiguousarray(hosts.table, np.int64))
+                      packed.latch, np.ascontiguousarray(hosts.table, np.int64), packed.vstig)
             self.kept.extend(arrays)
             self.addresses[i] = [fastviews.address_of(array) for array in arrays]
             self.sizes[i] = [len(array) for array in arrays]
@@ -206,6 +205,8 @@ class _SwarmTables:
                 self.groups[i, slot] = self.applies.index(fn.apply)
                 self.targets[i, slot] = fn.target
             self.max_out = max(self.max_out, robot.profile.out_queue_cap + 1)
+        # after the packings above: each robot's arrays were taken after its own
+        self.generation = packed_queues.GENERATION[0]
 
     def valid_for(self, robots: Sequence[Any]) -> bool:
         return self.generation == packed_queues.GENERATION[0] \
@@ -251,6 +252,10 @@ def control_steps(robots: Sequence[Any], deliveries: PackedMessages,
     stepping = np.asarray(stepping, dtype=bool)
     covered_mask = np.array(is_covered, dtype=bool)
     todo = np.flatnonzero(covered_mask & (stepping | deferred))
+    for index in todo.tolist():  # first: a packing may allocate larger arrays
+        vm = robots[index].vm
+        if not vm._packed_live:
+            vm.packed()
     tables = _tables_for(robots, robot_type) if len(todo) else None
     if tables is not None and any(tables.machines[i] is None for i in todo.tolist()):
         # a robot the tables left out is covered now (e.g. its stress mode switched off
@@ -297,9 +302,6 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
     """The robots ``todo`` through :func:`fastbatch.swarm_step`: their registers in and
     out, latches applied, ``steps_done`` counted for those it finished."""
     chosen = [tables.machines[i] for i in todo.tolist()]
-    for vm, _heap, _robot in chosen:
-        if not vm._packed_live:
-            vm.packed()
     none = fastloop.NONE
     dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
     dynamic[todo] = [(vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms, h.gc_runs,
