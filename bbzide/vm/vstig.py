@@ -66,10 +66,17 @@ def _add_function(vm: VM, sid: int, symbol: str, fn: object) -> None:
     vm.add_function(vm.stack[vm.stackptr], sid, symbol, fn)  # type: ignore[arg-type]
 
 
-def _key_matches(vm: VM, sid: int, key: int) -> bool:
-    """``bbztype_cmp`` of a temporary string object ``sid`` with the key object."""
+def _entry_of(vm: VM, key: int) -> VstigEntry | None:
+    """The first entry whose key, as a temporary string object, ``bbztype_cmp``-equals the
+    key object ``key``: a string of the same id (any other type matches no entry)."""
     h = vm.heap
-    return h.obj_type(key) == STRING and h.u16(key) == sid
+    if h.obj_type(key) != STRING:
+        return None
+    sid = h.u16(key)
+    for e in vm.vstig.entries:
+        if e.key == sid:
+            return e
+    return None
 
 
 def _obj_bytes(vm: VM, i: int) -> bytes:
@@ -126,13 +133,13 @@ def vstig_get(vm: VM) -> None:
         return
     key = vm.lsym(1)
     vm.gc()
-    for e in vm.vstig.entries:
-        if _key_matches(vm, e.key, key):
-            queue_vstig(vm, VSTIG_QUERY, e.robot, e.key, e.value, e.timestamp)
-            vm.push(e.value)
-            vm.ret1()
-            vm.gc()
-            return
+    e = _entry_of(vm, key)
+    if e is not None:
+        queue_vstig(vm, VSTIG_QUERY, e.robot, e.key, e.value, e.timestamp)
+        vm.push(e.value)
+        vm.ret1()
+        vm.gc()
+        return
     vm.push_nil()
     queue_vstig(vm, VSTIG_QUERY, vm.robot, vm.heap.u16(key), vm.nil, 0)
     vm.ret1()
@@ -150,18 +157,18 @@ def vstig_put(vm: VM) -> None:
         vm.seterror(Error.TYPE)
         return
     vm.gc()
-    for e in vm.vstig.entries:
-        if _key_matches(vm, e.key, key):
-            e.robot = vm.robot
-            vm.unmake_permanent(e.value)
-            e.value = value
-            vm.make_permanent(value)
-            vm.gc()
-            e.timestamp = (e.timestamp + 1) & 0xFF
-            queue_vstig(vm, VSTIG_PUT, e.robot, e.key, e.value, e.timestamp)
-            vm.ret0()
-            vm.gc()
-            return
+    e = _entry_of(vm, key)
+    if e is not None:
+        e.robot = vm.robot
+        vm.unmake_permanent(e.value)
+        e.value = value
+        vm.make_permanent(value)
+        vm.gc()
+        e.timestamp = (e.timestamp + 1) & 0xFF
+        queue_vstig(vm, VSTIG_PUT, e.robot, e.key, e.value, e.timestamp)
+        vm.ret0()
+        vm.gc()
+        return
     if len(vm.vstig.entries) < vm.profile.vstig_cap:
         e = VstigEntry(key=vm.heap.u16(key), value=value, timestamp=1, robot=vm.robot)
         vm.make_permanent(key)
