@@ -44,7 +44,7 @@ import numpy as np
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout
+from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout, vstig
 from bbzide.vm.host import (
     HostCall,
     LatchedHostFunction,
@@ -244,7 +244,8 @@ class Robot:
     def compiled_hosts(self) -> CompiledHosts:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
         (address, pointer size, kind, slot, argument count, a record's field names) for the
-        closure address of ``neighbors.broadcast``, of each latched host function, of each
+        closure address of ``neighbors.broadcast`` and of a stigmergy's ``get``, of each
+        latched host function, of each
         reading and of each one the kernel computes (``HostRegistry.computed_rows``), as the
         VM's registry maps them now; the latched function of each latch slot; the reading
         of each reading slot. Cached until the registry changes."""
@@ -260,6 +261,8 @@ class Robot:
         for address, call in registry.by_address.items():
             if call.function is neighbors.neighbors_broadcast:
                 rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2, *no_keys))
+            elif call.function is vstig.vstig_get:
+                rows.append((address, ptr, fasthost.HOST_VSTIG_GET, 0, 1, *no_keys))
         for symbol, fn in self._latched.items() if self._latching else ():
             call = registry.by_symbol.get(symbol)
             if call is None or registry.by_address.get(call.address) is not call \

@@ -609,6 +609,7 @@ def test_batch_robot_leaving_stress_mode_is_taken_identically(tmp_path: Path) ->
 STIGMERGY_BATCH = """
 var v
 var conflicts = 0
+var got
 var tick = 0
 var kept = {}
 var keys = {}
@@ -629,6 +630,13 @@ function init() {
 }
 function step() {
   tick = tick + 1
+  # gets before the puts (a put is Python's, and so is the rest of that step): a held key;
+  # late, a key nobody put and a key that is not a string (their queries teach the others
+  # new keys: the stigmergy fills up)
+  got = v.get(keys[(tick + 1) % 3])
+  if (id == 6 and tick > 24) {
+    if (v.get("nobody") != nil or v.get(tick) != nil) { got = nil }
+  }
   # (fresh ints: an entry adopted later frees the object put, as BittyBuzz does)
   v.put("shared", tick + 0)                 # the same key everywhere: conflicts
   v.put(keys[tick % 3], tick * 2)           # puts and learnt entries, repeats

@@ -23,7 +23,10 @@ call back to Python with nothing done otherwise):
   ``camera()``): no argument; the value the compiled swarm step wrote in the robot's reading
   row before the kernel (``packed_queues.READ_*``) pushed as ``HostCall.ret`` pushes it —
   an int, nil, or a record of ints (:func:`push_int_record`, field names from the row's
-  ``H_KEYS``) — and ``ret1``; a row with no reading (``READ_NONE``) goes to Python.
+  ``H_KEYS``) — and ``ret1``; a row with no reading (``READ_NONE``) goes to Python;
+* a stigmergy ``v.get(key)`` (``vstig.vstig_get``) on the packed entries (``ctl``'s
+  ``VSTIG_*``: the compiled swarm step's robots only): its two collections, the QUERY
+  queued, the value (or nil) pushed, ``ret1``.
   Anything else — another
   argument count (LNUM), a non-int (TYPE), a result outside an int16, a return the
   kernel's ``_ret`` refuses, no room for the result, the budget about to run out, a
@@ -89,6 +92,7 @@ from bbzide.vm.compiled.fastloop import (
 )
 from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import darray_get, darray_size
+from bbzide.vm.compiled.fastviews import view_i64_rows
 from bbzide.vm.compiled.packed_queues import (
     CTL_SLOTS,
     LATCH_ARGS,
@@ -98,13 +102,27 @@ from bbzide.vm.compiled.packed_queues import (
     READ_NIL,
     READ_NONE,
     ROBOT,
+    VSTIG_ADDRESS,
+    VSTIG_CAPACITY,
+    VSTIG_COLUMNS,
+    VSTIG_ROWS,
 )
 from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING, TABLE
-from bbzide.vm.message_layout import BC_TOPIC, BC_VALUE, BROADCAST, RID, TYPE
+from bbzide.vm.message_layout import (
+    BC_TOPIC,
+    BC_VALUE,
+    BROADCAST,
+    RID,
+    TYPE,
+    VS_DATA,
+    VS_KEY,
+    VS_LAMPORT,
+    VSTIG_QUERY,
+)
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
-           "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD", "H_KEYS",
-           "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
+           "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD",
+           "HOST_VSTIG_GET", "H_KEYS", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
            "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
            "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
@@ -115,6 +133,7 @@ __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST"
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC, H_KEYS = range(6)
 HOST_COLUMNS = H_KEYS + LATCH_ARGS
 HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE, HOST_READ_INT, HOST_READ_RECORD = 1, 2, 3, 4, 5
+HOST_VSTIG_GET = 6
 
 
 
@@ -150,6 +169,28 @@ def out_append_broadcast(d: Any, outq: Any, ctl: Any, size: int, topic: int, val
 
 
 @_compile
+def out_append_vstig(d: Any, outq: Any, rings: Any, base: int, size: int, s: int, typ: int,
+                     rid: int, key: int, value: int, lamport: int) -> None:
+    """``messages.outmsg_append_vstig`` of heap object ``value`` (its ``s`` bytes) on the
+    packed out-queue whose start, end and slots are ``rings[base:base + 3]``: a full queue
+    gets its unused record copied over its last one and the message written into the unused
+    record (``out_template``), then the sort by type."""
+    slots = rings[base + 2]
+    m, end = out_template(outq, rings[base], rings[base + 1], slots, size)
+    rings[base + 1] = end
+    o = m * size
+    outq[o + TYPE] = typ
+    outq[o + RID] = rid & 0xFF
+    outq[o + RID + 1] = (rid >> 8) & 0xFF
+    outq[o + VS_LAMPORT] = lamport & 0xFF
+    outq[o + VS_KEY] = key & 0xFF
+    outq[o + VS_KEY + 1] = (key >> 8) & 0xFF
+    for j in range(s):
+        outq[o + VS_DATA + j] = d[value * s + j]
+    sort_ring_by_type(outq, rings[base], rings[base + 1], slots, size, outq[:0])
+
+
+@_compile
 def _address_matches(d: Any, c: int, s: int, address: int, ptr_size: int) -> bool:
     """Does C closure ``c`` hold ``address`` (``Heap.ptr_value`` masked to the pointer)?"""
     for j in range(min(ptr_size, s - 1)):
@@ -173,8 +214,8 @@ def rounded_distance(dx: int, dy: int) -> int:
 
 
 @_compile
-def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
-                   elems: int, reserved: int, hosts: Any, outq: Any, ctl: Any,
+def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, traversed: Any,
+                   s: int, elems: int, reserved: int, hosts: Any, outq: Any, ctl: Any,
                    latch: Any) -> bool:
     """The host function of the C closure ``regs[R_HOST]`` whose call ``run`` set up, and
     ``VM._loop``'s end of that step — with the next step's collection replaced by its
@@ -203,7 +244,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
         o = darray_get(d, lsyms, i, s, elems)
         if o < 0 or o >= nobj:
             return False
-        if kind != HOST_BROADCAST and _i(d[o * s]) & 7 != INT:
+        if kind != HOST_BROADCAST and kind != HOST_VSTIG_GET and _i(d[o * s]) & 7 != INT:
             return False  # TYPE (or a string id the world would read as an int): Python
     sp = regs[R_SP]
     bp = regs[R_BP]
@@ -234,12 +275,31 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
                 d, stack, regs, hosts[row, H_KEYS:H_KEYS + _record_fields(hosts, row)],
                 latch[hosts[row, H_SLOT], 1:], s, elems, reserved):
             return False
+    elif kind == HOST_VSTIG_GET:
+        if sp + 1 >= regs[R_STACK_SIZE] \
+                or not _ret_ok(d, stack, True, sp + 1, bp, lsyms, bsize, s, elems):
+            return False
     elif not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
+    # v.get(key): vstig._entry_of, before anything is written
+    entries = latch  # (an int64 matrix of the right type when there is no stigmergy get)
+    entry = -1
+    key = -1
+    if kind == HOST_VSTIG_GET:
+        entries = view_i64_rows(ctl[VSTIG_ADDRESS], ctl[VSTIG_CAPACITY], VSTIG_COLUMNS)
+        key = darray_get(d, lsyms, 1, s, elems)
+        if _i(d[key * s]) & 7 == STRING:
+            sid = _u16(d, key, s)
+            for k in range(ctl[VSTIG_ROWS]):
+                if entries[k, 0] == sid:
+                    entry = k
+                    break
+        if entry >= 0 and not 0 <= entries[entry, 1] < nobj:
+            return False
     count = regs[R_HOST_COUNT]
     # a frame is dropped only when the call made nothing (a result outlives it)
-    droppable = (kind != HOST_DISTANCE and not reading and count >= 0
-                 and host_frame_droppable(d, info, count, c, lsyms, s, elems))
+    droppable = (kind != HOST_DISTANCE and not reading and kind != HOST_VSTIG_GET
+                 and count >= 0 and host_frame_droppable(d, info, count, c, lsyms, s, elems))
     # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
     with_value = False
     if kind == HOST_DISTANCE or (kind == HOST_READ_INT and read != READ_NIL):
@@ -256,6 +316,23 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
     elif kind == HOST_READ_RECORD:
         sp += 1  # push_int_record pushed the table
         with_value = True
+    elif kind == HOST_VSTIG_GET:
+        # vstig_get: gc, the QUERY queued (the entry's, or nil at timestamp 0 under this
+        # robot), its value (or nil) pushed; after the ret1 below, gc again
+        frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+        size = len(outq) // (ctl[OUT_SLOTS] + 1)
+        if entry >= 0:
+            value = entries[entry, 1]
+            out_append_vstig(d, outq, ctl, OUT_START, size, s, VSTIG_QUERY, entries[entry, 3],
+                             entries[entry, 0], value, entries[entry, 2])
+        else:
+            value = regs[R_NIL]
+            out_append_vstig(d, outq, ctl, OUT_START, size, s, VSTIG_QUERY, ctl[ROBOT],
+                             _u16(d, key, s), value, 0)
+        sp += 1
+        stack[sp] = value
+        with_value = True
     elif kind == HOST_BROADCAST:
         size = len(outq) // (ctl[OUT_SLOTS] + 1)
         out_append_broadcast(d, outq, ctl, size, darray_get(d, lsyms, 1, s, elems),
@@ -268,6 +345,8 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, s: int,
     return_pc = _i(stack[bp - 2])
     block = _i(stack[bp])
     _ret(d, stack, regs, with_value, sp, bp, lsyms, bsize, s, elems)
+    if kind == HOST_VSTIG_GET:
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
     regs[R_N] = n + 1
     regs[R_FIXED] = 0
     regs[R_PENDING] = -1
@@ -302,8 +381,8 @@ def run_hosted(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     while True:
         status = run(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved)
         if status != HOST_CALL or len(hosts) == 0 or not _host_compiled(
-                d, stack, len(bcode), regs, info, s, elems, reserved, hosts, outq, ctl,
-                latch):
+                d, stack, len(bcode), regs, info, traversed, s, elems, reserved, hosts, outq,
+                ctl, latch):
             return status
 
 

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
-from bbzide.vm.compiled.fasthost import collect_on_registers
+from bbzide.vm.compiled.fasthost import collect_on_registers, out_append_vstig
 from bbzide.vm.compiled.fastinbox import _room_for_objects
 from bbzide.vm.compiled.fastloop import (
     R_GC_RUNS,
@@ -63,7 +63,6 @@ from bbzide.vm.compiled.fastloop import (
     R_PRIOR,
     _obj_alloc,
 )
-from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import table_lookup
 from bbzide.vm.compiled.packed_queues import VSTIG_COLUMNS
 from bbzide.vm.heap_layout import PERMANENT, STRING, USERDATA, VALID
@@ -143,27 +142,6 @@ def _adopt(d: Any, regs: Any, s: int, reserved: int, records: Any, at: int, entr
     entries[i, E_VALUE] = o
     d[o * s] |= PERMANENT
     entries[i, E_TIMESTAMP] = lamport
-
-
-@_compile
-def _out_append_vstig(d: Any, outq: Any, state: Any, size: int, s: int, typ: int, rid: int,
-                      key: int, value: int, lamport: int) -> None:
-    """``messages.outmsg_append_vstig`` of heap object ``value`` (its ``s`` bytes) on the
-    packed out-queue: a full queue gets its unused record copied over its last one and the
-    message written into the unused record (``_out_template``), then the sort by type."""
-    slots = state[V_OUT_SLOTS]
-    m, end = out_template(outq, state[V_OUT_START], state[V_OUT_END], slots, size)
-    state[V_OUT_END] = end
-    o = m * size
-    outq[o + TYPE] = typ
-    outq[o + RID] = rid & 0xFF
-    outq[o + RID + 1] = (rid >> 8) & 0xFF
-    outq[o + VS_LAMPORT] = lamport & 0xFF
-    outq[o + VS_KEY] = key & 0xFF
-    outq[o + VS_KEY + 1] = (key >> 8) & 0xFF
-    for j in range(s):
-        outq[o + VS_DATA + j] = d[value * s + j]
-    sort_ring_by_type(outq, state[V_OUT_START], state[V_OUT_END], slots, size, outq[:0])
 
 
 @_compile
@@ -257,19 +235,19 @@ def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: 
             entries[count, E_TIMESTAMP] = lamport
             entries[count, E_ROBOT] = rid
             state[V_ENTRIES] = count + 1
-            _out_append_vstig(d, outq, state, n, s, VSTIG_PUT, rid, key, o, lamport)
+            out_append_vstig(d, outq, state, V_OUT_START, n, s, VSTIG_PUT, rid, key, o, lamport)
         elif branch == _ADOPT:
             _adopt(d, regs, s, reserved, records, data, entries, i, rid, lamport)
-            _out_append_vstig(d, outq, state, n, s, VSTIG_PUT, rid, key,
+            out_append_vstig(d, outq, state, V_OUT_START, n, s, VSTIG_PUT, rid, key,
                               entries[i, E_VALUE], lamport)
         elif branch == _ANSWER:
-            _out_append_vstig(d, outq, state, n, s, VSTIG_PUT, state[V_ROBOT], key,
+            out_append_vstig(d, outq, state, V_OUT_START, n, s, VSTIG_PUT, state[V_ROBOT], key,
                               entries[i, E_VALUE], entries[i, E_TIMESTAMP])
         elif branch == _CONFLICT:
             if rid >= entries[i, E_ROBOT]:
                 _adopt(d, regs, s, reserved, records, data, entries, i, rid, lamport)
                 dirty = True
-            _out_append_vstig(d, outq, state, n, s, VSTIG_PUT, entries[i, E_ROBOT],
+            out_append_vstig(d, outq, state, V_OUT_START, n, s, VSTIG_PUT, entries[i, E_ROBOT],
                               entries[i, E_KEY], entries[i, E_VALUE],
                               entries[i, E_TIMESTAMP])
         # ---- process_vstig's closing collection (only counted on an unchanged heap)

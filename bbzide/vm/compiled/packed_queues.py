@@ -54,8 +54,10 @@ HPOS = 18
 #: the profile's ``lamport_threshold`` (set once), ``vstig.hpos`` (the stigmergy table),
 #: the rows of ``vstig`` in use
 LAMPORT, VSTIG_HPOS, VSTIG_ROWS = 19, 20, 21
+#: ``vstig``'s address and rows, for a compiled ``v.get`` (``fasthost``: ``fastviews``)
+VSTIG_ADDRESS, VSTIG_CAPACITY = 22, 23
 #: slots in ``ctl``
-CTL_SLOTS = 22
+CTL_SLOTS = 24
 
 #: columns of a ``vstig`` row: ``VstigEntry``'s fields (key, value, timestamp, robot) —
 #: fastvstig.ENTRY_COLUMNS
@@ -116,6 +118,8 @@ class PackedQueues:
         #: the virtual stigmergy's entries (``VSTIG_COLUMNS``), rows ``ctl[VSTIG_ROWS]`` on
         #: free; and the rows as packed (`vstig_changes` compares)
         self.vstig = np.zeros((VSTIG_SPARE, VSTIG_COLUMNS), np.int64)
+        self.ctl[VSTIG_ADDRESS] = self.vstig.ctypes.data
+        self.ctl[VSTIG_CAPACITY] = len(self.vstig)
         self._packed_vstig = self.vstig[:0].copy()
         #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (the robot's latched functions);
         #: then per reading slot: [READ_*, value 1 ... value LATCH_ARGS] (its readings,
@@ -154,6 +158,8 @@ class PackedQueues:
         rows = [(e.key, e.value, e.timestamp, e.robot) for e in store.entries]
         if len(rows) + VSTIG_SPARE > len(self.vstig):
             self.vstig = np.zeros((len(rows) + 2 * VSTIG_SPARE, VSTIG_COLUMNS), np.int64)
+            self.ctl[VSTIG_ADDRESS] = self.vstig.ctypes.data
+            self.ctl[VSTIG_CAPACITY] = len(self.vstig)
             arrays_changed()
         if rows:
             self.vstig[:len(rows)] = rows
