@@ -83,6 +83,8 @@ class HostRegistry:
         #: host functions a kernel computes in place, by symbol: (``fasthost.HOST_*`` kind,
         #: argument count); see `computed_rows`
         self.computed: dict[str, tuple[int, int]] = {}
+        #: a computed host function's table of values, by symbol (`LookupHostFunction`)
+        self._tables: dict[str, np.ndarray] = {}
         self._computed_rows: tuple[int, np.ndarray] | None = None
 
     def register(self, symbol: str, function: HostFunction, address: int | None = None) -> int:
@@ -123,10 +125,14 @@ class HostRegistry:
     def lookup(self, address: int) -> RegisteredHostFunction | None:
         return self.by_address.get(address & self.mask)
 
-    def mark_computed(self, symbol: str, kind: int, argc: int) -> None:
+    def mark_computed(self, symbol: str, kind: int, argc: int,
+                      values: np.ndarray | None = None) -> None:
         """The host function registered as ``symbol`` is one a kernel computes itself
-        (``fasthost`` kind ``kind``, ``argc`` arguments): e.g. a `RoundedDistanceHostFunction`."""
+        (``fasthost`` kind ``kind``, ``argc`` arguments): e.g. a `RoundedDistanceHostFunction`;
+        ``values``: a `LookupHostFunction`'s table (int64, kept here while marked)."""
         self.computed[symbol] = (kind, argc)
+        if values is not None:
+            self._tables[symbol] = values
         self._computed_rows = None
 
     def computed_rows(self) -> np.ndarray:
@@ -136,11 +142,16 @@ class HostRegistry:
         cached = self._computed_rows
         if cached is not None and cached[0] == self.version:
             return cached[1]
-        no_keys = (-1,) * (fasthost.HOST_COLUMNS - fasthost.H_KEYS)
-        rows = [(call.address, self.ptr_size, kind, 0, argc, *no_keys)
-                for symbol, (kind, argc) in self.computed.items()
-                if (call := self.by_symbol.get(symbol)) is not None
-                and self.by_address.get(call.address) is call]
+        no_keys = (-1,) * (fasthost.HOST_COLUMNS - fasthost.H_KEYS - 1)
+        rows = []
+        for symbol, (kind, argc) in self.computed.items():
+            call = self.by_symbol.get(symbol)
+            if call is None or self.by_address.get(call.address) is not call:
+                continue
+            # a table's address in the slot column and its length in the first key column
+            table = self._tables.get(symbol)
+            address, length = (0, -1) if table is None else (table.ctypes.data, len(table))
+            rows.append((call.address, self.ptr_size, kind, address, argc, length, *no_keys))
         table = np.array(rows, np.int64).reshape(-1, fasthost.HOST_COLUMNS)
         self._computed_rows = (self.version, table)
         return table
@@ -352,3 +363,24 @@ class ReadingHostFunction:
             return (packed_queues.READ_VALUE, *(v & 0xFFFF for v in value)) \
                 + (0,) * (width - len(value))
         return (packed_queues.READ_NONE,) + (0,) * width
+
+
+@dataclass(frozen=True)
+class LookupHostFunction:
+    """A world host function of one number whose result, for every int argument ``a``, is
+    ``values[min(max(a, 0), len(values) - 1)]``, an int within an int16, and nothing else
+    (an M300's ``prior(cell)``: the belief map's percentages; ``missed(flown)``: the miss
+    probability, a table long enough to reach its limit). Called from Python it is
+    ``function`` as usual; a kernel (``fasthost``, kind ``HOST_LOOKUP``) may instead look
+    the value up in place on its happy path — one int argument, room for the result — and
+    hand anything else (a float, another argument count) to ``function``. Exact because
+    the world builds ``values`` from the very computation ``function`` makes for ints.
+    """
+
+    function: Callable[[HostCall], None]
+    #: int64, C-contiguous, never changed (a kernel reads it by address)
+    values: np.ndarray
+    argc: int = 1
+
+    def __call__(self, call: HostCall) -> None:
+        self.function(call)

@@ -48,6 +48,7 @@ from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout, vstig
 from bbzide.vm.host import (
     HostCall,
     LatchedHostFunction,
+    LookupHostFunction,
     ReadingHostFunction,
     RoundedDistanceHostFunction,
 )
@@ -224,6 +225,8 @@ class Robot:
             self._readings[symbol] = fn
         elif isinstance(fn, RoundedDistanceHostFunction):
             self.vm.host.mark_computed(symbol, fasthost.HOST_DISTANCE, fn.argc)
+        elif isinstance(fn, LookupHostFunction):
+            self.vm.host.mark_computed(symbol, fasthost.HOST_LOOKUP, fn.argc, fn.values)
 
     def _symbol(self, name: str) -> str:
         return self.host_symbols.get(name, name)
@@ -244,7 +247,7 @@ class Robot:
     def compiled_hosts(self) -> CompiledHosts:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
         (address, pointer size, kind, slot, argument count, a record's field names) for the
-        closure address of ``neighbors.broadcast`` and of a stigmergy's ``get``, of each
+        closure address of ``neighbors.broadcast`` and of a stigmergy's ``get`` and ``put``, of each
         latched host function, of each
         reading and of each one the kernel computes (``HostRegistry.computed_rows``), as the
         VM's registry maps them now; the latched function of each latch slot; the reading
@@ -263,6 +266,8 @@ class Robot:
                 rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2, *no_keys))
             elif call.function is vstig.vstig_get:
                 rows.append((address, ptr, fasthost.HOST_VSTIG_GET, 0, 1, *no_keys))
+            elif call.function is vstig.vstig_put:
+                rows.append((address, ptr, fasthost.HOST_VSTIG_PUT, 0, 2, *no_keys))
         for symbol, fn in self._latched.items() if self._latching else ():
             call = registry.by_symbol.get(symbol)
             if call is None or registry.by_address.get(call.address) is not call \

@@ -82,6 +82,7 @@ import numpy as np
 
 from bbzide.vm.host import (
     LatchedHostFunction,
+    LookupHostFunction,
     ReadingHostFunction,
     RoundedDistanceHostFunction,
 )
@@ -344,6 +345,10 @@ class M300Field(World):
                                           keep_out=LAUNCH_STRIP + 1.0,
                                           floor=(self.threshold / 100
                                                  if self.targets_where == "likely" else 0.0)))
+        # the tables of prior(cell) and missed(flown) (LookupHostFunction, vm/host.py)
+        self.prior_values = np.array([int(round(100 * b)) for b in self.belief.ravel().tolist()],
+                                     dtype=np.int64)
+        self.missed_values = self._missed_table()
         self.mode = np.full(count, LANDED, dtype=np.int64)
         self.goals = sim.positions.copy()
         self.found_step = np.full(len(self.targets), -1, dtype=np.int64)
@@ -372,6 +377,16 @@ class M300Field(World):
         cx = min(max(int(x / self.field_size * n), 0), n - 1)
         cy = min(max(int(y / self.field_size * n), 0), n - 1)
         return cy * n + cx
+
+    def _missed_table(self) -> np.ndarray:
+        """`miss_percent` of flown = 0, 1, 2, ... up to its first 0 (it only falls as the
+        flight grows, and a negative flight counts as none), or over every int16 flight."""
+        values = []
+        for flown in range(INT16_MAX + 1):
+            values.append(self.miss_percent(flown))
+            if values[-1] == 0:
+                break
+        return np.array(values, dtype=np.int64)
 
     def miss_percent(self, flown_dm: float) -> int:
         """Percent of a cell's belief left after `flown_dm` dm of flight over it without a
@@ -442,8 +457,8 @@ class M300Field(World):
             cell = _number_arg(call, 1)
             if cell is None:
                 return
-            k = min(max(int(cell), 0), world.cells ** 2 - 1)
-            call.ret(int(round(100 * world.belief.ravel()[k])))
+            call.ret(int(world.prior_values[min(max(int(cell), 0),
+                                                len(world.prior_values) - 1)]))
 
         def distance(call: HostCall) -> None:
             if not call.expect_args(4):
@@ -518,10 +533,12 @@ class M300Field(World):
                 "position": ReadingHostFunction(position, ("x", "y", "z", "cell")),
                 "arrived": ReadingHostFunction(arrived), "flying": ReadingHostFunction(flying),
                 "camera": ReadingHostFunction(camera, ("x", "y")),
-                "random_goal": random_goal, "prior": prior,
+                "random_goal": random_goal,
+                "prior": LookupHostFunction(prior, self.prior_values),
                 "distance": RoundedDistanceHostFunction(distance),
                 "mission": mission, "set_role": set_role, "know_target": know_target,
-                "relay_link": relay_link, "missed": missed, "rand": random_byte,
+                "relay_link": relay_link,
+                "missed": LookupHostFunction(missed, self.missed_values), "rand": random_byte,
                 "clock": ReadingHostFunction(clock),
                 # doze's only effect is this robot's wake-up step, which the engine reads
                 # between steps: a latched host function

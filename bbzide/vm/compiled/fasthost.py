@@ -24,9 +24,15 @@ call back to Python with nothing done otherwise):
   row before the kernel (``packed_queues.READ_*``) pushed as ``HostCall.ret`` pushes it —
   an int, nil, or a record of ints (:func:`push_int_record`, field names from the row's
   ``H_KEYS``) — and ``ret1``; a row with no reading (``READ_NONE``) goes to Python;
-* a stigmergy ``v.get(key)`` (``vstig.vstig_get``) on the packed entries (``ctl``'s
-  ``VSTIG_*``: the compiled swarm step's robots only): its two collections, the QUERY
-  queued, the value (or nil) pushed, ``ret1``.
+* a **lookup** (``host.LookupHostFunction``: an M300's ``prior(cell)``, ``missed(flown)``):
+  one int argument, clamped into its table (``HostRegistry.computed_rows``: the table's
+  address and length in the row), the int pushed and ``ret1``; like the distance it touches
+  no queue;
+* a stigmergy ``v.get(key)`` and ``v.put(key, value)`` (``vstig.vstig_get``/``vstig_put``)
+  on the packed entries (``ctl``'s ``VSTIG_*``: the compiled swarm step's robots only):
+  their collections, the entry read, updated or added, the QUERY or PUT queued, the value
+  (or nil) pushed and ``ret1``, or ``ret0``; a table value (TYPE), a full stigmergy (VSTIG)
+  or a packed table without a free row goes to Python.
   Anything else — another
   argument count (LNUM), a non-int (TYPE), a result outside an int16, a return the
   kernel's ``_ret`` refuses, no room for the result, the budget about to run out, a
@@ -92,7 +98,7 @@ from bbzide.vm.compiled.fastloop import (
 )
 from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
 from bbzide.vm.compiled.fasttables import darray_get, darray_size
-from bbzide.vm.compiled.fastviews import view_i64_rows
+from bbzide.vm.compiled.fastviews import view_i64, view_i64_rows
 from bbzide.vm.compiled.packed_queues import (
     CTL_SLOTS,
     LATCH_ARGS,
@@ -103,11 +109,21 @@ from bbzide.vm.compiled.packed_queues import (
     READ_NONE,
     ROBOT,
     VSTIG_ADDRESS,
+    VSTIG_CAP,
     VSTIG_CAPACITY,
     VSTIG_COLUMNS,
     VSTIG_ROWS,
 )
-from bbzide.vm.heap_layout import CLOSURE, FLAG2, FLOAT, INT, NO_ACTREC, STRING, TABLE
+from bbzide.vm.heap_layout import (
+    CLOSURE,
+    FLAG2,
+    FLOAT,
+    INT,
+    NO_ACTREC,
+    PERMANENT,
+    STRING,
+    TABLE,
+)
 from bbzide.vm.message_layout import (
     BC_TOPIC,
     BC_VALUE,
@@ -117,12 +133,14 @@ from bbzide.vm.message_layout import (
     VS_DATA,
     VS_KEY,
     VS_LAMPORT,
+    VSTIG_PUT,
     VSTIG_QUERY,
 )
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD",
-           "HOST_VSTIG_GET", "H_KEYS", "HOST_COLUMNS", "NO_HOST_ARGS", "xtreme_walk",
+           "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "H_KEYS", "HOST_COLUMNS",
+           "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
            "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
            "WALK_DONE", "WALK_PYTHON", "WALK_IN_CALL", "WALK_AFTER_CALL", "table_walk",
@@ -133,7 +151,7 @@ __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST"
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC, H_KEYS = range(6)
 HOST_COLUMNS = H_KEYS + LATCH_ARGS
 HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE, HOST_READ_INT, HOST_READ_RECORD = 1, 2, 3, 4, 5
-HOST_VSTIG_GET = 6
+HOST_VSTIG_GET, HOST_LOOKUP, HOST_VSTIG_PUT = 6, 7, 8
 
 
 
@@ -244,7 +262,8 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         o = darray_get(d, lsyms, i, s, elems)
         if o < 0 or o >= nobj:
             return False
-        if kind != HOST_BROADCAST and kind != HOST_VSTIG_GET and _i(d[o * s]) & 7 != INT:
+        if kind != HOST_BROADCAST and kind != HOST_VSTIG_GET and kind != HOST_VSTIG_PUT \
+                and _i(d[o * s]) & 7 != INT:
             return False  # TYPE (or a string id the world would read as an int): Python
     sp = regs[R_SP]
     bp = regs[R_BP]
@@ -262,11 +281,15 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
             _int_arg(d, lsyms, 2, s, elems) - _int_arg(d, lsyms, 4, s, elems))
         if result > 0x7FFF:
             return False
-    if kind == HOST_DISTANCE or reading:
+    elif kind == HOST_LOOKUP:  # the table: address in H_SLOT, length in H_KEYS
+        length = hosts[row, H_KEYS]
+        values = view_i64(hosts[row, H_SLOT], length)
+        result = values[min(max(_int_arg(d, lsyms, 1, s, elems), 0), length - 1)] & 0xFFFF
+    if kind == HOST_DISTANCE or kind == HOST_LOOKUP or reading:
         # ret1 of a pushed value: an int (one object), nil (none), a record (push_int_record
         # checks its own room, and is the last check: it writes only when it succeeds)
-        objects = 1 if kind == HOST_DISTANCE or (read != READ_NIL and kind == HOST_READ_INT) \
-            else 0
+        objects = 1 if kind == HOST_DISTANCE or kind == HOST_LOOKUP \
+            or (read != READ_NIL and kind == HOST_READ_INT) else 0
         if (sp + 1 >= regs[R_STACK_SIZE]
                 or not _ret_ok(d, stack, True, sp + 1, bp, lsyms, bsize, s, elems)
                 or not _room(d, regs, s, reserved, elems, objects, 0)):
@@ -281,11 +304,12 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
             return False
     elif not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
-    # v.get(key): vstig._entry_of, before anything is written
-    entries = latch  # (an int64 matrix of the right type when there is no stigmergy get)
+    # v.get(key), v.put(key, value): vstig._entry_of, before anything is written
+    entries = latch  # (an int64 matrix of the right type when there is no stigmergy call)
     entry = -1
     key = -1
-    if kind == HOST_VSTIG_GET:
+    stigmergy = kind == HOST_VSTIG_GET or kind == HOST_VSTIG_PUT
+    if stigmergy:
         entries = view_i64_rows(ctl[VSTIG_ADDRESS], ctl[VSTIG_CAPACITY], VSTIG_COLUMNS)
         key = darray_get(d, lsyms, 1, s, elems)
         if _i(d[key * s]) & 7 == STRING:
@@ -296,13 +320,22 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
                     break
         if entry >= 0 and not 0 <= entries[entry, 1] < nobj:
             return False
+    if kind == HOST_VSTIG_PUT:
+        put = darray_get(d, lsyms, 2, s, elems)
+        if _i(d[put * s]) & 7 == TABLE:
+            return False  # TYPE: Python reports it
+        rows = ctl[VSTIG_ROWS]
+        if entry < 0 and (rows >= ctl[VSTIG_CAP] or rows >= ctl[VSTIG_CAPACITY]):
+            return False  # VSTIG (the stigmergy is full), or no packed row left: Python
     count = regs[R_HOST_COUNT]
     # a frame is dropped only when the call made nothing (a result outlives it)
-    droppable = (kind != HOST_DISTANCE and not reading and kind != HOST_VSTIG_GET
-                 and count >= 0 and host_frame_droppable(d, info, count, c, lsyms, s, elems))
+    droppable = (kind != HOST_DISTANCE and kind != HOST_LOOKUP and not reading
+                 and not stigmergy and count >= 0
+                 and host_frame_droppable(d, info, count, c, lsyms, s, elems))
     # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
     with_value = False
-    if kind == HOST_DISTANCE or (kind == HOST_READ_INT and read != READ_NIL):
+    if kind == HOST_DISTANCE or kind == HOST_LOOKUP or (kind == HOST_READ_INT
+                                                        and read != READ_NIL):
         o = _obj_alloc(d, regs, s, reserved, INT, 0)  # push_int(result)
         d[o * s + 1] = result & 0xFF
         d[o * s + 2] = result >> 8
@@ -333,6 +366,32 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         sp += 1
         stack[sp] = value
         with_value = True
+    elif kind == HOST_VSTIG_PUT:
+        # vstig_put: gc; a held key's entry takes the value (robot, PERMANENT bits moved,
+        # gc, timestamp + 1) or a new entry is made (key and value made PERMANENT); the PUT
+        # queued; after the ret0 below, gc again
+        frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+        size = len(outq) // (ctl[OUT_SLOTS] + 1)
+        if entry >= 0:
+            entries[entry, 3] = ctl[ROBOT]
+            old = entries[entry, 1]
+            d[old * s] = _i(d[old * s]) & (0xFF ^ PERMANENT)
+            entries[entry, 1] = put
+            d[put * s] = _i(d[put * s]) | PERMANENT
+            _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+            entries[entry, 2] = (entries[entry, 2] + 1) & 0xFF
+        else:
+            entry = ctl[VSTIG_ROWS]
+            entries[entry, 0] = _u16(d, key, s)
+            entries[entry, 1] = put
+            entries[entry, 2] = 1
+            entries[entry, 3] = ctl[ROBOT]
+            d[key * s] = _i(d[key * s]) | PERMANENT
+            d[put * s] = _i(d[put * s]) | PERMANENT
+            ctl[VSTIG_ROWS] = entry + 1
+        out_append_vstig(d, outq, ctl, OUT_START, size, s, VSTIG_PUT, entries[entry, 3],
+                         entries[entry, 0], entries[entry, 1], entries[entry, 2])
     elif kind == HOST_BROADCAST:
         size = len(outq) // (ctl[OUT_SLOTS] + 1)
         out_append_broadcast(d, outq, ctl, size, darray_get(d, lsyms, 1, s, elems),
@@ -345,7 +404,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
     return_pc = _i(stack[bp - 2])
     block = _i(stack[bp])
     _ret(d, stack, regs, with_value, sp, bp, lsyms, bsize, s, elems)
-    if kind == HOST_VSTIG_GET:
+    if stigmergy:
         _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
     regs[R_N] = n + 1
     regs[R_FIXED] = 0

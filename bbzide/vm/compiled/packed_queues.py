@@ -54,10 +54,11 @@ HPOS = 18
 #: the profile's ``lamport_threshold`` (set once), ``vstig.hpos`` (the stigmergy table),
 #: the rows of ``vstig`` in use
 LAMPORT, VSTIG_HPOS, VSTIG_ROWS = 19, 20, 21
-#: ``vstig``'s address and rows, for a compiled ``v.get`` (``fasthost``: ``fastviews``)
-VSTIG_ADDRESS, VSTIG_CAPACITY = 22, 23
+#: ``vstig``'s address and rows, for a compiled ``v.get``/``v.put`` (``fasthost``:
+#: ``fastviews``), and the profile's ``vstig_cap`` (set once: a local put's limit)
+VSTIG_ADDRESS, VSTIG_CAPACITY, VSTIG_CAP = 22, 23, 24
 #: slots in ``ctl``
-CTL_SLOTS = 24
+CTL_SLOTS = 25
 
 #: columns of a ``vstig`` row: ``VstigEntry``'s fields (key, value, timestamp, robot) —
 #: fastvstig.ENTRY_COLUMNS
@@ -115,6 +116,7 @@ class PackedQueues:
                                   profile.neighbors_clr_period, profile.xtreme,
                                   profile.neighbors_floats)
         self.ctl[LAMPORT] = profile.lamport_threshold
+        self.ctl[VSTIG_CAP] = profile.vstig_cap
         #: the virtual stigmergy's entries (``VSTIG_COLUMNS``), rows ``ctl[VSTIG_ROWS]`` on
         #: free; and the rows as packed (`vstig_changes` compares)
         self.vstig = np.zeros((VSTIG_SPARE, VSTIG_COLUMNS), np.int64)

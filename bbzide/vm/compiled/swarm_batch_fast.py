@@ -66,7 +66,7 @@ from bbzide.vm.states import State
 #: the host functions a kernel entered from Python may run in place (``VM.hosted``): they
 #: touch no queue (the queues are Python's then) and latch nothing
 _IN_PLACE_FROM_PYTHON = (fasthost.HOST_READ_INT, fasthost.HOST_READ_RECORD,
-                         fasthost.HOST_DISTANCE)
+                         fasthost.HOST_DISTANCE, fasthost.HOST_LOOKUP)
 
 #: outbox rows allocated beyond what the kernel's drains can write (each robot at most its
 #: out-queue's capacity, ``_SwarmTables.max_out``): room for a few Python rows before the
