@@ -170,3 +170,19 @@ def test_readings_switched_off_with_latching_identical(tmp_path: Path) -> None:
         for a, b in zip(sims[0].robots, sims[1].robots, strict=True):
             assert Robot.comparable(a.robot.snapshot()) == Robot.comparable(b.robot.snapshot())
     assert np.any(sims[0].world.asleep_until > 0)
+
+
+@pytest.mark.parametrize("size", [12.0, 40.0])
+def test_missed_table_clamped_gives_every_flight_its_value(tmp_path: Path, size: float) -> None:
+    """`missed(flown)` as a lookup (kernel: the argument clamped into the table) equals the
+    world's computation for every int16 flight, negative ones and those past the table."""
+    sim = Simulation("m300", _compile(tmp_path, READINGS), robots=2, seed=4,
+                     world_options={"size": size}, watch=())
+    world = sim.world
+    table = world.missed_values
+    flights = np.arange(-32768, 32768)
+    looked_up = table[np.clip(flights, 0, len(table) - 1)]
+    step = 97  # every 97th flight, and the table's ends (the world's exp is per call)
+    for flown in list(flights[::step]) + [len(table) - 2, len(table) - 1, len(table), 32767]:
+        assert looked_up[flown + 32768] == world.miss_percent(int(flown)), flown
+    assert 1 < len(table) < 32768 and table[-1] == 0
