@@ -285,9 +285,11 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         length = hosts[row, H_KEYS]
         values = view_i64(hosts[row, H_SLOT], length)
         result = values[min(max(_int_arg(d, lsyms, 1, s, elems), 0), length - 1)] & 0xFFFF
-    if kind == HOST_DISTANCE or kind == HOST_LOOKUP or reading:
-        # ret1 of a pushed value: an int (one object), nil (none), a record (push_int_record
-        # checks its own room, and is the last check: it writes only when it succeeds)
+    stigmergy = kind == HOST_VSTIG_GET or kind == HOST_VSTIG_PUT
+    if kind == HOST_DISTANCE or kind == HOST_LOOKUP or reading or kind == HOST_VSTIG_GET:
+        # ret1 of a pushed value: an int (one object), nil or an existing object (none), a
+        # record (push_int_record checks its own room, and is the last check: it writes only
+        # when it succeeds)
         objects = 1 if kind == HOST_DISTANCE or kind == HOST_LOOKUP \
             or (read != READ_NIL and kind == HOST_READ_INT) else 0
         if (sp + 1 >= regs[R_STACK_SIZE]
@@ -298,26 +300,17 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
                 d, stack, regs, hosts[row, H_KEYS:H_KEYS + _record_fields(hosts, row)],
                 latch[hosts[row, H_SLOT], 1:], s, elems, reserved):
             return False
-    elif kind == HOST_VSTIG_GET:
-        if sp + 1 >= regs[R_STACK_SIZE] \
-                or not _ret_ok(d, stack, True, sp + 1, bp, lsyms, bsize, s, elems):
-            return False
     elif not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
     # v.get(key), v.put(key, value): vstig._entry_of, before anything is written
     entries = latch  # (an int64 matrix of the right type when there is no stigmergy call)
     entry = -1
     key = -1
-    stigmergy = kind == HOST_VSTIG_GET or kind == HOST_VSTIG_PUT
     if stigmergy:
         entries = view_i64_rows(ctl[VSTIG_ADDRESS], ctl[VSTIG_CAPACITY], VSTIG_COLUMNS)
         key = darray_get(d, lsyms, 1, s, elems)
         if _i(d[key * s]) & 7 == STRING:
-            sid = _u16(d, key, s)
-            for k in range(ctl[VSTIG_ROWS]):
-                if entries[k, 0] == sid:
-                    entry = k
-                    break
+            entry = find_entry(entries, ctl[VSTIG_ROWS], _u16(d, key, s))
         if entry >= 0 and not 0 <= entries[entry, 1] < nobj:
             return False
     if kind == HOST_VSTIG_PUT:
@@ -334,6 +327,10 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
                  and host_frame_droppable(d, info, count, c, lsyms, s, elems))
     # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
     with_value = False
+    out_record = len(outq) // (ctl[OUT_SLOTS] + 1)  # (for the kinds that queue a message)
+    if stigmergy:  # its first gc (the collector's mark stack kept for the last one)
+        frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
+        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
     if kind == HOST_DISTANCE or kind == HOST_LOOKUP or (kind == HOST_READ_INT
                                                         and read != READ_NIL):
         o = _obj_alloc(d, regs, s, reserved, INT, 0)  # push_int(result)
@@ -350,29 +347,23 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         sp += 1  # push_int_record pushed the table
         with_value = True
     elif kind == HOST_VSTIG_GET:
-        # vstig_get: gc, the QUERY queued (the entry's, or nil at timestamp 0 under this
-        # robot), its value (or nil) pushed; after the ret1 below, gc again
-        frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
-        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
-        size = len(outq) // (ctl[OUT_SLOTS] + 1)
+        # vstig_get (after its gc): the QUERY queued (the entry's, or nil at timestamp 0
+        # under this robot), its value (or nil) pushed; after the ret1 below, gc again
         if entry >= 0:
             value = entries[entry, 1]
-            out_append_vstig(d, outq, ctl, OUT_START, size, s, VSTIG_QUERY, entries[entry, 3],
-                             entries[entry, 0], value, entries[entry, 2])
+            out_append_vstig(d, outq, ctl, OUT_START, out_record, s, VSTIG_QUERY,
+                             entries[entry, 3], entries[entry, 0], value, entries[entry, 2])
         else:
             value = regs[R_NIL]
-            out_append_vstig(d, outq, ctl, OUT_START, size, s, VSTIG_QUERY, ctl[ROBOT],
+            out_append_vstig(d, outq, ctl, OUT_START, out_record, s, VSTIG_QUERY, ctl[ROBOT],
                              _u16(d, key, s), value, 0)
         sp += 1
         stack[sp] = value
         with_value = True
     elif kind == HOST_VSTIG_PUT:
-        # vstig_put: gc; a held key's entry takes the value (robot, PERMANENT bits moved,
-        # gc, timestamp + 1) or a new entry is made (key and value made PERMANENT); the PUT
-        # queued; after the ret0 below, gc again
-        frames = np.empty((4, regs[R_MARK_DEPTH] + 2), np.int64)
-        _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
-        size = len(outq) // (ctl[OUT_SLOTS] + 1)
+        # vstig_put (after its gc): a held key's entry takes the value (robot, PERMANENT
+        # bits moved, gc, timestamp + 1) or a new entry is made (key and value made
+        # PERMANENT); the PUT queued; after the ret0 below, gc again
         if entry >= 0:
             entries[entry, 3] = ctl[ROBOT]
             old = entries[entry, 1]
@@ -390,11 +381,11 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
             d[key * s] = _i(d[key * s]) | PERMANENT
             d[put * s] = _i(d[put * s]) | PERMANENT
             ctl[VSTIG_ROWS] = entry + 1
-        out_append_vstig(d, outq, ctl, OUT_START, size, s, VSTIG_PUT, entries[entry, 3],
-                         entries[entry, 0], entries[entry, 1], entries[entry, 2])
+        out_append_vstig(d, outq, ctl, OUT_START, out_record, s, VSTIG_PUT,
+                         entries[entry, 3], entries[entry, 0], entries[entry, 1],
+                         entries[entry, 2])
     elif kind == HOST_BROADCAST:
-        size = len(outq) // (ctl[OUT_SLOTS] + 1)
-        out_append_broadcast(d, outq, ctl, size, darray_get(d, lsyms, 1, s, elems),
+        out_append_broadcast(d, outq, ctl, out_record, darray_get(d, lsyms, 1, s, elems),
                              darray_get(d, lsyms, 2, s, elems), s)
     else:
         slot = hosts[row, H_SLOT]
@@ -414,6 +405,16 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
                        reserved)
         regs[R_FIXED] = 1
     return True
+
+
+@_compile
+def find_entry(entries: Any, count: int, key: int) -> int:
+    """The first of ``count`` stigmergy entry rows (``packed_queues.VSTIG_COLUMNS``: the
+    key first) with ``key``, or -1."""
+    for i in range(count):
+        if entries[i, 0] == key:
+            return i
+    return -1
 
 
 @_compile

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
-from bbzide.vm.compiled.fasthost import collect_on_registers, out_append_vstig
+from bbzide.vm.compiled.fasthost import collect_on_registers, find_entry, out_append_vstig
 from bbzide.vm.compiled.fastinbox import _room_for_objects
 from bbzide.vm.compiled.fastloop import (
     R_GC_RUNS,
@@ -107,15 +107,6 @@ _APPEND, _ADOPT, _ANSWER, _CONFLICT, _NOTHING = range(5)
 def _newer(lamport: int, old: int, threshold: int) -> bool:
     """``bbzlamport_isnewer``: circular u8 comparison within the threshold."""
     return lamport != old and ((lamport - old) & 0xFF) < threshold
-
-
-@_compile
-def _find(entries: Any, count: int, key: int) -> int:
-    """The first entry row with ``key``, or -1."""
-    for i in range(count):
-        if entries[i, E_KEY] == key:
-            return i
-    return -1
 
 
 @_compile
@@ -185,7 +176,7 @@ def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: 
         key = _i(records[head + VS_KEY]) | (_i(records[head + VS_KEY + 1]) << 8)
         lamport = _i(records[head + VS_LAMPORT])
         count = state[V_ENTRIES]
-        i = _find(entries, count, key)
+        i = find_entry(entries, count, key)
         objects = 0
         if i < 0:
             branch = _APPEND
