@@ -247,11 +247,11 @@ class Robot:
     def compiled_hosts(self) -> CompiledHosts:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
         (address, pointer size, kind, slot, argument count, a record's field names) for the
-        closure address of ``neighbors.broadcast`` and of a stigmergy's ``get`` and ``put``, of each
-        latched host function, of each
-        reading and of each one the kernel computes (``HostRegistry.computed_rows``), as the
-        VM's registry maps them now; the latched function of each latch slot; the reading
-        of each reading slot. Cached until the registry changes."""
+        closure address of ``neighbors.broadcast``, of a stigmergy's ``get`` and ``put``, of
+        each latched host function, of each reading and of each one the kernel computes
+        (``HostRegistry.computed_rows``), as the VM's registry maps them now; the latched
+        function of each latch slot; the reading of each reading slot. Cached until the
+        registry changes."""
         registry = self.vm.host
         cached = self._hosts
         if cached is not None and cached[0] == registry.version:

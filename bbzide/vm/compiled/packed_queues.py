@@ -119,9 +119,7 @@ class PackedQueues:
         self.ctl[VSTIG_CAP] = profile.vstig_cap
         #: the virtual stigmergy's entries (``VSTIG_COLUMNS``), rows ``ctl[VSTIG_ROWS]`` on
         #: free; and the rows as packed (`vstig_changes` compares)
-        self.vstig = np.zeros((VSTIG_SPARE, VSTIG_COLUMNS), np.int64)
-        self.ctl[VSTIG_ADDRESS] = self.vstig.ctypes.data
-        self.ctl[VSTIG_CAPACITY] = len(self.vstig)
+        self._allocate_vstig(VSTIG_SPARE)
         self._packed_vstig = self.vstig[:0].copy()
         #: per latch slot: [set, arg 1 ... arg LATCH_ARGS] (the robot's latched functions);
         #: then per reading slot: [READ_*, value 1 ... value LATCH_ARGS] (its readings,
@@ -159,14 +157,18 @@ class PackedQueues:
             return
         rows = [(e.key, e.value, e.timestamp, e.robot) for e in store.entries]
         if len(rows) + VSTIG_SPARE > len(self.vstig):
-            self.vstig = np.zeros((len(rows) + 2 * VSTIG_SPARE, VSTIG_COLUMNS), np.int64)
-            self.ctl[VSTIG_ADDRESS] = self.vstig.ctypes.data
-            self.ctl[VSTIG_CAPACITY] = len(self.vstig)
+            self._allocate_vstig(len(rows) + 2 * VSTIG_SPARE)
             arrays_changed()
         if rows:
             self.vstig[:len(rows)] = rows
         self._packed_vstig = self.vstig[:len(rows)].copy()
         self.ctl[VSTIG_ROWS] = len(rows)
+
+    def _allocate_vstig(self, rows: int) -> None:
+        """A new ``vstig`` of ``rows`` rows, its address and rows noted in ``ctl``."""
+        self.vstig = np.zeros((rows, VSTIG_COLUMNS), np.int64)
+        self.ctl[VSTIG_ADDRESS] = self.vstig.ctypes.data
+        self.ctl[VSTIG_CAPACITY] = rows
 
     def vstig_in_use(self) -> np.ndarray:
         """The rows of ``vstig`` that hold entries (in ``VstigStore.entries`` order)."""
