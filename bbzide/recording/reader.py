@@ -199,9 +199,7 @@ def read_recording(path: Path | str, isolated: bool = False) -> Recording:
         if f"{layout.MISSION}:meta" not in columns[1]:  # the first flush did not survive
             raise RecordingError(f"{path} holds no complete data (cut off before its first "
                                  "flush, or not a bbzide recording)")
-    recording = _assemble(path, columns)
-    recording.truncated = not ended
-    return recording
+    return _assemble(path, columns, truncated=not ended)
 
 
 Columns = dict[tuple[str, str], list[tuple[np.ndarray, Any]]]
@@ -323,7 +321,7 @@ def _dense(parts: list[tuple[np.ndarray, Any]], first: int, last: int, width: in
     return block[first_index]
 
 
-def _assemble(path: Path, read: tuple[Columns, dict[str, Any]]) -> Recording:
+def _assemble(path: Path, read: tuple[Columns, dict[str, Any]], truncated: bool) -> Recording:
     columns, static = read
     meta = _meta(static, path)
     n = int(meta["robots"])
@@ -364,7 +362,7 @@ def _assemble(path: Path, read: tuple[Columns, dict[str, Any]]) -> Recording:
                        (lambda v: v) if per_flush else lambda v: (v.as_py() or [b""])[0])
     recording = Recording(
         path, meta, np.arange(first, last + 1, dtype=np.int64), positions, headings, leds,
-        failed, labels, heap, messages, totals, links, inputs)
+        failed, labels, heap, messages, totals, links, inputs, truncated=truncated)
     _rare_rows(recording, columns, last)
     return recording
 
@@ -413,6 +411,22 @@ def _per_step(steps: np.ndarray, rows: list[Any], first: int, last: int, convert
     return out
 
 
+def _row_group(recording: Recording, columns: Columns, entity: str, names: tuple[str, ...]
+               ) -> tuple[np.ndarray, list[list[Any]]]:
+    """The rows of one entity's columns, by step: (their steps, one list of values per name).
+
+    The recorder sends some entities as more than one chunk a flush (an event's text, then its
+    kind and robot), and a writer killed between two of them leaves the flush's rows in the
+    first only. Those are the newest rows of the file, so a truncated recording keeps the rows
+    every column holds, as if the writer had died a moment earlier; in a whole recording the
+    columns must hold as many rows each."""
+    read = [_rows(columns.get((entity, name), [])) for name in names]
+    held = min(len(rows) for _, rows in read)
+    if not recording.truncated and any(len(rows) != held for _, rows in read):
+        raise ValueError(f"{entity}'s columns do not hold the same rows")
+    return read[0][0][:held], [rows[:held] for _, rows in read]
+
+
 def _rare_rows(recording: Recording, columns: Columns, last: int) -> None:
     try:
         for parts in (columns.get((layout.PROGRAMS, "program"), []),):
@@ -420,10 +434,8 @@ def _rare_rows(recording: Recording, columns: Columns, last: int) -> None:
             for value in rows:
                 record = json.loads(value.as_py()[0])
                 recording.programs[int(record["id"])] = record
-        steps, robots = _rows(columns.get((layout.KEYFRAMES, "robots"), []))
-        _, snapshots = _rows(columns.get((layout.KEYFRAMES, "snapshots"), []))
-        _, programs = _rows(columns.get((layout.KEYFRAMES, "programs"), []))
-        _, bases = _rows(columns.get((layout.KEYFRAMES, "bases"), []))
+        steps, (robots, snapshots, programs, bases) = _row_group(
+            recording, columns, layout.KEYFRAMES, ("robots", "snapshots", "programs", "bases"))
         for step, who, snaps, progs, base in zip(steps.tolist(), robots, snapshots, programs,
                                                  bases, strict=True):
             if step > last:
@@ -432,9 +444,8 @@ def _rare_rows(recording: Recording, columns: Columns, last: int) -> None:
                     who.as_py(), snaps.as_py(), progs.as_py(), base.as_py(), strict=True):
                 recording.keyframes.setdefault(int(index), []).append(
                     Keyframe(int(step), snapshot, int(program), int(based_on)))
-        steps, texts = _rows(columns.get((layout.EVENTS, "TextLog:text"), []))
-        _, kinds = _rows(columns.get((layout.EVENTS, "kind"), []))
-        _, robots = _rows(columns.get((layout.EVENTS, "robot"), []))
+        steps, (texts, kinds, robots) = _row_group(
+            recording, columns, layout.EVENTS, ("TextLog:text", "kind", "robot"))
         for step, text, kind, robot in zip(steps.tolist(), texts, kinds, robots, strict=True):
             if step <= last:
                 recording.events.append(Event(int(step), kind.as_py()[0], int(robot.as_py()[0]),

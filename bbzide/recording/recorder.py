@@ -894,6 +894,10 @@ class MissionRecorder:
         radius = float(self.sim.world.robot_radius)
         watch = list(b.labels[0])
         send = self.rec.send_columns
+        # The keyframes and events first: a writer killed mid-flush then leaves the flush's
+        # per-step rows only with them (a step whose reload keyframe is lost would rebuild
+        # with the old program), so the reader's last complete step is complete in both.
+        self._send_rare_rows()
         self._send_viewer_labels(steps, b.labels, radius)
         # Arrow arrays, not numpy: rerun turns a 1-D numpy column into a Python list of
         # one-element lists (a third of the flush time of a 25-drone recording).
@@ -951,7 +955,6 @@ class MissionRecorder:
             send(f"{layout.HEAP}/{figure}", indexes=indexes,
                  columns=self._scalars(values.reshape(-1).astype(np.float64), lengths))
         self._send_inputs(steps, indexes, b.inputs)
-        self._send_rare_rows()
         self._steps = []
         self.rec.flush()
         self._last_flush = time.monotonic()

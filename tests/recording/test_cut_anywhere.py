@@ -23,6 +23,8 @@ from tests.recording.test_recording import toy_swarm
 
 #: Enough steps for several flushes (every 8 steps) and two keyframe periods (every 20).
 STEPS = 40
+#: A reload mid-run, so that a flush also holds an event.
+RELOAD_AT = 13
 #: Robots whose rebuilt VM state is compared at each cut (rebuilding all 12 at ~150 cuts is slow).
 CHECKED_ROBOTS = (0, 7)
 
@@ -45,7 +47,9 @@ def full(tmp_path_factory: pytest.TempPathFactory) -> dict:
     sim, recordable = toy_swarm()
     path = tmp_path_factory.mktemp("cut") / "mission.rrd"
     with MissionRecorder(path, sim, recordable, keyframe_every=20, flush_every=8) as recorder:
-        for _ in range(STEPS):
+        for step in range(STEPS):
+            if step == RELOAD_AT:  # an event: its text and its kind are two chunks of a flush
+                sim.load_program(sim.robots[0].program, keep_state=True)
             sim.step()
             recorder.record_step()
     recording = read_recording(path)
@@ -87,6 +91,7 @@ def test_every_cut_opens_up_to_its_last_step_or_is_refused_clearly(full: dict,
         np.testing.assert_array_equal(recording.positions, whole.positions[:rows])
         np.testing.assert_array_equal(recording.leds, whole.leds[:rows])
         assert recording.inputs == whole.inputs[:rows], offset
+        assert recording.events == whole.events[:len(recording.events)], offset
         rebuilder = RobotRebuilder(recording, build=ToyRobot)
         for index in CHECKED_ROBOTS:
             step = recording.last_step
