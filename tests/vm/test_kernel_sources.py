@@ -34,27 +34,17 @@ def test_makefile_kernel_sources_are_the_digests_sources() -> None:
 
 
 @pytest.mark.skipif(not fastgc.COMPILED, reason="numba compiles nothing without numba")
-def test_a_kernel_is_compiled_for_its_argument_types_never_for_constant_values() -> None:
-    """A kernel that another calls with a constant (`_obj_alloc(..., 1, 0)`) gets one machine
-    code, not one per constant: each would cost the set-up its compile time again."""
+def test_a_kernel_called_with_constants_is_compiled_for_their_types_not_their_values() -> None:
+    """A kernel that another calls with constants (`first_free(..., 4, 0)`) gets one machine
+    code, not one per constant: each would cost the set-up its compile time again. numba
+    resolves a call made from compiled code with `get_call_template`, a constant typed as a
+    `Literal`; the kernel must come out compiled (or loaded from the cache) for plain ints."""
     from numba.core import types
-    from numba.core.registry import CPUDispatcher
 
-    from bbzide.vm.compiled import fastbatch, fasthost, fastinbox, fastloop, fastreceive
-    from bbzide.worlds.commands import load_script
-    from bbzide.worlds.engine import Simulation
-    from bbzide.worlds.registry import WORLDS
-
-    for world in ("kilobot", "m300"):
-        spec = WORLDS[world]
-        program = load_script(REPO / spec.example, spec.host_names, [])
-        Simulation(world, program, robots=4, seed=1, watch=()).run(3)
-    modules = (fastgc, fastloop, fastbatch, fasthost, fastinbox, fastreceive)
-    kernels = [kernel for module in modules for kernel in vars(module).values()
-               if isinstance(kernel, CPUDispatcher)]
-    compiled = [(kernel.py_func.__qualname__, signature)
-                for kernel in kernels for signature in kernel.signatures]
-    assert "_obj_alloc" in {name for name, _ in compiled}  # called from compiled code only
-    by_value = [(name, signature) for name, signature in compiled
-                if any(isinstance(argument, types.Literal) for argument in signature)]
-    assert by_value == []
+    heap = types.Array(types.uint8, 1, "C")
+    constants = (types.literal(4), types.literal(0))
+    fastgc.first_free.get_call_template((heap, types.int64, types.int64, types.int64,
+                                         *constants), {})
+    signatures = fastgc.first_free.signatures
+    assert (heap, types.int64, types.int64, types.int64, types.int64, types.int64) in signatures
+    assert [s for s in signatures if any(isinstance(a, types.Literal) for a in s)] == []
