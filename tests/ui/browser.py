@@ -26,6 +26,16 @@ CHROMIUM_ARGS = [
     "--disable-component-update",
     "--disable-sync",
 ]
+#: Pages draw at most ~15 frames a second. viser draws continuously for 250 ms after every
+#: scene update, so a running swarm keeps its page drawing as fast as it can; in software WebGL
+#: (no GPU) that took ~1.7 of the machine's 2 cores, starving the tests that run beside it.
+#: Every frame a test waits for still comes (`get_render`, screenshots), only fewer of them.
+FRAME_INTERVAL_MS = 66
+FRAME_PACING = f"""
+window.requestAnimationFrame = (draw) => setTimeout(() => draw(performance.now()),
+                                                    {FRAME_INTERVAL_MS});
+window.cancelAnimationFrame = (id) => clearTimeout(id);
+"""
 #: First frame in software WebGL takes 3-13 s on 2 shared cores (ui-stack-notes §3).
 FIRST_RENDER_TIMEOUT_MS = 60_000
 #: How long a UI reaction (a save, a compile, a robots' reload, an error marker, a pause) may
@@ -78,6 +88,7 @@ def chromium_context(
             if not url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
                 foreign.append(url)
 
+        context.add_init_script(FRAME_PACING)
         context.on("request", record)
         context.foreign_requests = foreign  # type: ignore[attr-defined]
         try:

@@ -47,6 +47,19 @@ def test_page_loads_and_scene_renders(ide: IdeSession) -> None:
     assert ide.context.foreign_requests == []  # nothing leaves the machine
 
 
+def test_the_scene_is_lit_without_a_shadow_pass(ide: IdeSession) -> None:
+    """Nothing in the scene casts a shadow, so no light renders a shadow map each frame."""
+    lights = ide.page.evaluate("""() => {
+        const lights = [];
+        window.__viserMutable.scene.traverse((node) => {
+            if (node.isLight) lights.push({ type: node.type, shadow: node.castShadow });
+        });
+        return lights;
+    }""")
+    assert any(light["type"] == "DirectionalLight" for light in lights), lights
+    assert [light for light in lights if light["shadow"]] == []
+
+
 def test_play_advances_the_step_counter(ide: IdeSession) -> None:
     ide.page.get_by_role("button", name="Pause").click()
     wait_until(lambda: "paused" in ide.status_text(), UI_WAIT_S, message="paused")
