@@ -53,7 +53,7 @@ $(STAMP): pyproject.toml $(LOCK)
 
 # The kernels' machine code (scripts/warm_kernels.py): compiled again whenever a source it is
 # built from changes (a pull, an edit), not only with a new venv, so the first swarm after a
-# pull does not stall 30-60 s compiling. These are the files fastgc._kernel_sources_digest reads.
+# pull does not stall a minute compiling. These are the files fastgc._kernel_sources_digest reads.
 KERNEL_SOURCES := $(wildcard bbzide/vm/compiled/*.py) $(addprefix bbzide/vm/,heap_layout.py \
 	message_layout.py packed_messages.py states.py)
 KERNELS_WARM := $(VENV)/.kernels-warm-stamp

@@ -3,8 +3,8 @@
 The fast VM mode runs its hot loops as numba kernels cached on disk (`cache=True`, in
 bbzide/vm/compiled/__pycache__/kernels-DIGEST, one folder per version of the kernels' sources:
 see fastgc._kernel_sources_digest). Without a cache, the first control step of the
-first swarm compiles them all: ~30 s on an idle 2-core machine, ~65 s under load (measured on a
-2-core machine) — long enough for a student running `make run` to think the IDE is broken. `make
+first swarm compiles them all: about a minute on an idle 2-core machine (119 kernels, 65 s
+measured) — long enough for a student running `make run` to think the IDE is broken. `make
 setup` runs this once after installing: a few steps of each world's default example, which
 reaches every kernel a world run uses; later runs load the cached code in about a second.
 Without numba (an optional dependency) there is nothing to compile: it says so and stops.
@@ -33,7 +33,7 @@ def main() -> None:
               "nothing to compile", flush=True)
         return
     started = time.perf_counter()
-    print("compiling the VM's machine code once (numba cache; ~30-60 s the first time)...",
+    print("compiling the VM's machine code once (numba cache; about a minute the first time)...",
           flush=True)
     for name, spec in WORLDS.items():
         program = load_script(REPO / spec.example, spec.host_names, [])
