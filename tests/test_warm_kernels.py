@@ -1,0 +1,31 @@
+"""`scripts/warm_kernels.py` leaves one kernel cache: the folders of earlier kernel sources go."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _warm_kernels() -> object:
+    spec = importlib.util.spec_from_file_location("warm_kernels", REPO / "scripts/warm_kernels.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_only_the_current_sources_cache_stays(tmp_path: Path) -> None:
+    current = tmp_path / "kernels-0123456789abcdef"
+    for folder in (current, tmp_path / "kernels-old1", tmp_path / "kernels-old2"):
+        (folder / "compiled").mkdir(parents=True)
+        (folder / "compiled" / "fastloop.run-1.py311.nbi").write_bytes(b"index")
+    (tmp_path / "fastgc.cpython-311.pyc").write_bytes(b"bytecode")
+
+    removed = _warm_kernels().remove_stale_caches(current)  # type: ignore[attr-defined]
+
+    assert sorted(folder.name for folder in removed) == ["kernels-old1", "kernels-old2"]
+    assert sorted(path.name for path in tmp_path.iterdir()) == [
+        "fastgc.cpython-311.pyc", "kernels-0123456789abcdef"]
+    assert (current / "compiled" / "fastloop.run-1.py311.nbi").read_bytes() == b"index"
