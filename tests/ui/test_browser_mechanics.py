@@ -22,6 +22,7 @@ from ide_harness import IdeSession, editor_text, running_ide
 from PIL import Image
 
 from bbzide.ui.program_session import write_atomically
+from bbzide.ui.viser_server import AMBIENT_INTENSITY
 
 SCRIPT = "# demo\nfunction init() {\n  x = 1\n}\n\nfunction step() {\n  x = x + 1\n}\n"
 
@@ -58,6 +59,18 @@ def test_the_scene_is_lit_without_a_shadow_pass(ide: IdeSession) -> None:
     }""")
     assert any(light["type"] == "DirectionalLight" for light in lights), lights
     assert [light for light in lights if light["shadow"]] == []
+
+
+def test_the_scene_is_lit_without_an_environment_map(ide: IdeSession) -> None:
+    """An ambient light stands in for the environment map, which a page without a GPU spent
+    seconds filtering before its first frame."""
+    lighting = ide.page.evaluate("""() => {
+        const ambient = [];
+        const scene = window.__viserMutable.scene;
+        scene.traverse((node) => { if (node.isAmbientLight) ambient.push(node.intensity); });
+        return { environment: scene.environment !== null, ambient };
+    }""")
+    assert lighting == {"environment": False, "ambient": [AMBIENT_INTENSITY]}
 
 
 def test_play_advances_the_step_counter(ide: IdeSession) -> None:
