@@ -16,6 +16,7 @@ index past the heap is ignored, and a chain stops after as many segments as the 
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Sequence
 
 from bbzide.vm.heap import (
@@ -35,6 +36,8 @@ from bbzide.vm.heap import (
     Heap,
 )
 
+#: the types whose objects refer to others (a table's elements, a closure's activation record)
+REFERRING = (TABLE, CLOSURE)
 #: byte translation table clearing the GC mark bit of every metadata byte
 _CLEAR_MARK = bytes(b & ~GC_MARK & 0xFF for b in range(256))
 
@@ -52,6 +55,8 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
     depth_limit = heap.profile.gcmark_depth
     nobj = size // s
     max_chain = size // g + 1
+    # a segment's 2 * elems little-endian 16-bit words (its keys, then its values)
+    unpack_words = struct.Struct(f"<{nwords}H").unpack_from
     heap.gc_runs += 1
 
     # 1. clear marks
@@ -72,18 +77,22 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
             if t == TABLE:
                 seg = d[o + 1] | (d[o + 2] << 8)
                 walked = 0
+                # a child is marked only below the depth limit (the same for every word)
+                children = depth < depth_limit
                 while (seg + 1) * g <= size and walked < max_chain:
                     walked += 1
                     base = size - (seg + 1) * g
                     d[base + mo + 1] |= SEG_MARK >> 8
-                    for w in range(nwords):
-                        word = d[base + 2 * w] | (d[base + 2 * w + 1] << 8)
-                        # Calling mark on an already-marked object, or beyond the depth
-                        # limit, has no effect: skip the call (hot path).
-                        if word & ELEM_VALID and depth < depth_limit and \
-                                (word & ELEM_INDEX) < nobj and \
-                                not d[(word & ELEM_INDEX) * s] & GC_MARK:
-                            mark(word & ELEM_INDEX)
+                    if children:
+                        for word in unpack_words(d, base):  # the keys, then the values
+                            child = word & ELEM_INDEX
+                            if not word & ELEM_VALID or child >= nobj or \
+                                    d[child * s] & GC_MARK:
+                                continue  # mark would do nothing (hot path: no call)
+                            if d[child * s] & TYPE_MASK in REFERRING:
+                                mark(child)
+                            else:  # a leaf: its mark bit is all that mark would set
+                                d[child * s] |= GC_MARK
                     seg = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
                     if seg == SEG_NEXT:
                         break
