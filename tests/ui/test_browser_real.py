@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
-from ide_harness import IdeSession, running_ide
+from ide_harness import IdeSession, editor_text, running_ide
 
 from bbzide.ui.program_session import write_atomically
 from bbzide.ui.world_adapter import WorldsBackend
@@ -135,6 +135,10 @@ def test_external_save_reloads(ide: IdeSession) -> None:
     # How fast against the ~0.5 s goal: benchmarks/editor_bench.py (a timed assert here would
     # fail on a loaded CI machine and measure nothing the benchmark does not).
     print(f"external save -> recompiled in {time.monotonic() - saved:.2f} s")
+    # and the page's editor shows the saved text (until it does, a user's typing would meet
+    # the newer disk version as an edit conflict)
+    source = ide.editor.locator("#source")
+    wait_until(lambda: editor_text(source) == text, UI_WAIT_S, message="the editor reloaded")
 
 
 def test_infinite_loop_stops_at_its_line_and_the_controls_answer(ide: IdeSession) -> None:
