@@ -28,6 +28,7 @@ sys.path.insert(0, str(REPO / "tests" / "ui"))
 from browser import (  # noqa: E402
     UI_WAIT_S,
     chromium_context,
+    close_browsers,
     dismiss_software_gl_notice,
     free_port,
     open_app_page,
@@ -302,5 +303,8 @@ def main(out_dir: Path, only: set[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else REPO / "docs" / "screenshots",
-         set(sys.argv[2:]))
+    try:
+        main(Path(sys.argv[1]) if len(sys.argv) > 1 else REPO / "docs" / "screenshots",
+             set(sys.argv[2:]))
+    finally:
+        close_browsers()

@@ -1,7 +1,14 @@
 """Headless Chromium for the browser tests (recipe: ui-stack-notes §3).
 
-Debian's /usr/bin/chromium through Playwright's Python package; a fresh profile per browser;
-every request the pages make is recorded in `context.foreign_requests` when it goes anywhere but
+Debian's /usr/bin/chromium through Playwright's Python package. One Chromium per process and
+set of flags serves one module after another: each `chromium_context` is a fresh browser
+context of it (its own cookies, storage and cache, as a new profile has), so a module does not
+pay for starting a browser (~1.3 s on an idle machine, over 2 s in a full parallel run).
+`close_browsers` ends them; tests/ui/conftest.py calls it before a module of another kind runs,
+since between its calls Playwright's sync API leaves its event loop marked as running in the
+test thread.
+
+Every request the pages make is recorded in `context.foreign_requests` when it goes anywhere but
 127.0.0.1 (tests assert that list stays empty). Requests are only observed, never routed: a
 Playwright route handler runs only while the test thread is inside a Playwright call, so routing
 would stall the editor's fetches whenever a test sleeps or polls the server.
@@ -11,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import socket
-import tempfile
 import time
 from collections.abc import Callable, Iterator
 
@@ -66,35 +72,52 @@ def wait_until(
     raise AssertionError(f"timed out after {timeout} s waiting for {message}")
 
 
+#: the Playwright driver and its browsers, by their extra flags (`shared_browser`)
+_playwright: list[object] = []
+_browsers: dict[tuple[str, ...], object] = {}
+
+
+def shared_browser(extra_args: tuple[str, ...] = ()) -> object:
+    """This process's Chromium started with `extra_args`, started on first use."""
+    if not _playwright:
+        from playwright.sync_api import sync_playwright
+
+        _playwright.append(sync_playwright().start())
+    if extra_args not in _browsers:
+        _browsers[extra_args] = _playwright[0].chromium.launch(  # type: ignore[attr-defined]
+            executable_path=CHROMIUM, headless=True, args=[*CHROMIUM_ARGS, *extra_args])
+    return _browsers[extra_args]
+
+
+def close_browsers() -> None:
+    """Close every shared Chromium and stop the Playwright driver (nothing if none runs)."""
+    for browser in _browsers.values():
+        browser.close()  # type: ignore[attr-defined]
+    _browsers.clear()
+    if _playwright:
+        _playwright.pop().stop()  # type: ignore[attr-defined]
+
+
 @contextlib.contextmanager
 def chromium_context(
     width: int = 1400, height: int = 900, extra_args: tuple[str, ...] = ()
 ) -> Iterator[object]:
-    from playwright.sync_api import sync_playwright
+    context = shared_browser(tuple(extra_args)).new_context(  # type: ignore[attr-defined]
+        viewport={"width": width, "height": height})
+    foreign: list[str] = []
 
-    with sync_playwright() as playwright, tempfile.TemporaryDirectory() as profile:
-        context = playwright.chromium.launch_persistent_context(
-            profile,
-            executable_path=CHROMIUM,
-            headless=True,
-            args=[*CHROMIUM_ARGS, *extra_args],
-            viewport={"width": width, "height": height},
-        )
+    def record(request: object) -> None:
+        url = request.url  # type: ignore[attr-defined]
+        if not url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
+            foreign.append(url)
 
-        foreign: list[str] = []
-
-        def record(request: object) -> None:
-            url = request.url  # type: ignore[attr-defined]
-            if not url.startswith(("http://127.0.0.1", "ws://127.0.0.1", "data:", "blob:")):
-                foreign.append(url)
-
-        context.add_init_script(FRAME_PACING)
-        context.on("request", record)
-        context.foreign_requests = foreign  # type: ignore[attr-defined]
-        try:
-            yield context
-        finally:
-            context.close()
+    context.add_init_script(FRAME_PACING)
+    context.on("request", record)
+    context.foreign_requests = foreign  # type: ignore[attr-defined]
+    try:
+        yield context
+    finally:
+        context.close()
 
 
 #: How long a page may take to show viser's "Software WebGL rendering detected" notice after
