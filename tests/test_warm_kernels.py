@@ -1,9 +1,16 @@
-"""`scripts/warm_kernels.py` leaves one kernel cache: the folders of earlier kernel sources go."""
+"""`scripts/warm_kernels.py` leaves one kernel cache (the folders of earlier kernel sources go),
+and its extra runs reach the kernels the world examples do not: the neighbour walks' and a
+replay's receive."""
 
 from __future__ import annotations
 
 import importlib.util
+from collections import Counter
 from pathlib import Path
+
+import pytest
+
+from bbzide.vm.compiled import fasthost, fastreceive
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -29,3 +36,30 @@ def test_only_the_current_sources_cache_stays(tmp_path: Path) -> None:
     assert sorted(path.name for path in tmp_path.iterdir()) == [
         "fastgc.cpython-311.pyc", "kernels-0123456789abcdef"]
     assert (current / "compiled" / "fastloop.run-1.py311.nbi").read_bytes() == b"index"
+
+
+def _counting(monkeypatch: pytest.MonkeyPatch, module: object, names: list[str]) -> Counter:
+    calls: Counter = Counter()
+    for name in names:
+        kernel = getattr(module, name)
+
+        def counted(*args: object, _kernel: object = kernel, _name: str = name) -> object:
+            calls[_name] += 1
+            return _kernel(*args)  # type: ignore[operator]
+
+        monkeypatch.setattr(module, name, counted)
+    return calls
+
+
+def test_the_walking_script_runs_the_walk_kernels(monkeypatch: pytest.MonkeyPatch,
+                                                  tmp_path: Path) -> None:
+    calls = _counting(monkeypatch, fasthost, ["xtreme_walk", "add_functions"])
+    _warm_kernels().walk_neighbours(tmp_path)  # type: ignore[attr-defined]
+    assert calls["xtreme_walk"] > 0 and calls["add_functions"] > 0, calls
+
+
+def test_the_rebuilt_recording_receives_through_the_kernel(monkeypatch: pytest.MonkeyPatch,
+                                                           tmp_path: Path) -> None:
+    calls = _counting(monkeypatch, fastreceive, ["receive_all"])
+    _warm_kernels().record_and_rebuild(tmp_path)  # type: ignore[attr-defined]
+    assert calls["receive_all"] > 0, calls
