@@ -86,13 +86,15 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
                     if children:
                         for word in unpack_words(d, base):  # the keys, then the values
                             child = word & ELEM_INDEX
-                            if not word & ELEM_VALID or child >= nobj or \
-                                    d[child * s] & GC_MARK:
+                            if not word & ELEM_VALID or child >= nobj:
+                                continue
+                            cm = d[child * s]
+                            if cm & GC_MARK:
                                 continue  # mark would do nothing (hot path: no call)
-                            if d[child * s] & TYPE_MASK in REFERRING:
+                            if cm & TYPE_MASK in REFERRING:
                                 mark(child)
                             else:  # a leaf: its mark bit is all that mark would set
-                                d[child * s] |= GC_MARK
+                                d[child * s] = cm | GC_MARK
                     seg = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
                     if seg == SEG_NEXT:
                         break
