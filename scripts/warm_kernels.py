@@ -45,8 +45,7 @@ def main() -> None:
     print("compiling the VM's machine code once (numba cache; a minute or more the first time)...",
           flush=True)
     for name, spec in WORLDS.items():
-        program = load_script(REPO / spec.example, spec.host_names, [])
-        Simulation(name, program, robots=ROBOTS, seed=1, watch=()).run(STEPS)
+        run_briefly(name, REPO / spec.example)
     with tempfile.TemporaryDirectory() as folder:
         walk_neighbours(Path(folder))
         record_and_rebuild(Path(folder))
@@ -72,12 +71,16 @@ function step() {
 """
 
 
+def run_briefly(world: str, script: Path) -> None:
+    """`STEPS` steps of `ROBOTS` robots running `script` in `world`."""
+    program = load_script(script, WORLDS[world].host_names, [])
+    Simulation(world, program, robots=ROBOTS, seed=1, watch=()).run(STEPS)
+
+
 def walk_neighbours(folder: Path) -> None:
     script = folder / "walks.bzz"
     script.write_text(WALKING_SCRIPT)
-    spec = WORLDS["kilobot"]
-    program = load_script(script, spec.host_names, [])
-    Simulation("kilobot", program, robots=ROBOTS, seed=1, watch=()).run(STEPS)
+    run_briefly("kilobot", script)
 
 
 def record_and_rebuild(folder: Path) -> None:
