@@ -1305,7 +1305,7 @@ class VM:
             self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
             fastloop.NONE if budget is None else budget, self.profile.float_ops,
             self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
-            0, call_first, 0, 0, 0, -1), np.int64)
+            0, call_first, 0, 0, 0, -1, 0), np.int64)
 
     def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
         """Copy a kernel's registers back into the VM and its heap; the loop's own
@@ -1390,6 +1390,7 @@ class VM:
                                       heap.ltseg, self.lsyms, heap.gc_runs,
                                       self.instructions_executed, n, fixed, pending,
                                       heap.peak_used)
+                        regs[fastloop.R_VALID_BELOW] = 0  # Python ran: it may have freed
                     fresh = False
                     status = kernel(*kernel_args)
                     n, fixed, pending = self.take_kernel_registers(regs)

@@ -82,6 +82,7 @@ from bbzide.vm.compiled.fastloop import (
     R_SAVED,
     R_SP,
     R_STACK_SIZE,
+    R_VALID_BELOW,
     _obj_alloc,
     _ret,
     _ret_ok,
@@ -582,6 +583,7 @@ def collect_on_registers(d: Any, stack: Any, regs: Any, info: Any, traversed: An
                      frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
     regs[R_RTOBJ] = r >> 16
     regs[R_LTSEG] = r & 0xFFFF
+    regs[R_VALID_BELOW] = 0
 
 
 @_compile

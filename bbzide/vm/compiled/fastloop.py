@@ -80,8 +80,14 @@ R_OLD_CHANGED = 25
 #: took a slot the last collection reached (then the collection after the host function's
 #: return must run; else :func:`host_frame_droppable` decides)
 R_HOST_COUNT = 26
+#: every object slot from the reserved ones up to this index is valid (0: nothing known),
+#: so an allocation's first-fit scan may start there; a string's does not (it looks for a
+#: twin among the valid strings below the first free slot). Allocations raise it, every
+#: free lowers it (:func:`_slot_freed`, a collection to 0); Python's registers start at 0,
+#: and the swarm step sets it to 0 for each robot: Python may have freed objects since.
+R_VALID_BELOW = 27
 #: registers in the array
-REGISTERS = 27
+REGISTERS = 28
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -182,16 +188,20 @@ def _note_usage(regs: Any, size: int) -> None:
 def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> int:
     """``Heap.obj_alloc`` for a non-table type; -1 (and nothing written) when full."""
     rtobj = regs[R_RTOBJ]
-    found = first_free(d, rtobj, s, reserved, typ, sid)
+    start = reserved if typ == _STRING else max(reserved, regs[R_VALID_BELOW])
+    found = first_free(d, rtobj, s, start, typ, sid)
     if found < -1:
-        regs[R_PRIOR] = d[(-2 - found) * s]
-        return -2 - found
+        twin = -2 - found
+        regs[R_PRIOR] = d[twin * s]
+        regs[R_VALID_BELOW] = max(regs[R_VALID_BELOW], twin + 1)
+        return twin
     if found < 0:
         if rtobj + s > regs[R_LTSEG]:
             return -1
         found = rtobj // s
         regs[R_RTOBJ] = rtobj + s
         _note_usage(regs, len(d))
+    regs[R_VALID_BELOW] = found + 1
     o = found * s
     regs[R_PRIOR] = d[o]  # Heap.prior_mdata
     if _i(d[o]) & (_VALID | _GC_MARK) == _GC_MARK:
@@ -200,6 +210,13 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
     if typ == _CLOSURE:
         d[o + 2] = _NO_ACTREC
     return found
+
+
+@_compile
+def _slot_freed(regs: Any, x: int) -> None:
+    """Object slot ``x`` was freed: the valid run below ``R_VALID_BELOW`` ends there."""
+    if x < regs[R_VALID_BELOW]:
+        regs[R_VALID_BELOW] = x
 
 
 @_compile
@@ -690,6 +707,7 @@ def _pushl(d: Any, regs: Any, lsyms: int, addr: int, s: int, elems: int,
         _darray_push(d, regs, flist, x, s, elems)
     else:
         d[x * s] = _i(d[x * s]) & (0xFF ^ _VALID)
+        _slot_freed(regs, x)
     d[o * s + 1] = pos & 0xFF
     if lsyms != 0:  # lambda_alloc(lsyms)
         m = _i(d[slot * s])
@@ -852,6 +870,7 @@ def _ret(d: Any, stack: Any, regs: Any, with_value: bool, sp: int, bp: int, lsym
         seg = nxt
         length += 1
     d[lsyms * s] = _i(d[lsyms * s]) & (0xFF ^ _VALID)
+    _slot_freed(regs, lsyms)
     regs[R_LSYMS] = _i(stack[bp - 1])
     stack[bp - 2] = value
     regs[R_SP] = bp - 2
@@ -1283,7 +1302,7 @@ def end_host_frame(d: Any, regs: Any, info: Any, count: int, closure: int, frame
         for p in range(n):
             w = _word(d, seg, p, g)
             if w & 0x8000 and _i(info[w & 0x7FFF]) == FRESH:
-                _free_object(d, info, w & 0x7FFF, s)
+                _free_object(d, regs, info, w & 0x7FFF, s)
         w = _word(d, seg, n, g)
         _set_word(d, seg, n, g, w & (0xFFFF ^ 0x4000))
         seg = w & _NO_NEXT
@@ -1291,18 +1310,19 @@ def end_host_frame(d: Any, regs: Any, info: Any, count: int, closure: int, frame
             break
     for x in (count, closure):
         if _i(info[x]) == FRESH:
-            _free_object(d, info, x, s)
-    _free_object(d, info, return_pc, s)
-    _free_object(d, info, block, s)
-    _free_object(d, info, frame, s)
+            _free_object(d, regs, info, x, s)
+    _free_object(d, regs, info, return_pc, s)
+    _free_object(d, regs, info, block, s)
+    _free_object(d, regs, info, frame, s)
     _retreat(d, regs, s, elems, reserved)
 
 
 @_compile
-def _free_object(d: Any, info: Any, x: int, s: int) -> None:
+def _free_object(d: Any, regs: Any, info: Any, x: int, s: int) -> None:
     """The sweep's effect on an unreached object: mark and validity cleared, no ``info``."""
     d[x * s] = _i(d[x * s]) & (0xFF ^ (_VALID | _GC_MARK))
     info[x] = 0
+    _slot_freed(regs, x)
 
 
 @_compile
@@ -1368,7 +1388,7 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
                 # a table the caller made for the call (a walk's data table, marked with
                 # its segments by _mark_new_table): its segments are its own, freed with it
                 _clear_segment_flags(d, _u16(d, i, s), 0xC000, elems)  # SEG_VALID, SEG_MARK
-            _free_object(d, info, i, s)
+            _free_object(d, regs, info, i, s)
         elif m & _GC_MARK:
             # a returned activation record: its segments, freed by the return, keep marks
             d[o] = m & (0xFF ^ _GC_MARK)
@@ -1384,9 +1404,9 @@ def _free_dropped(d: Any, regs: Any, info: Any, a: int, b: int, s: int,
     """A skipped collection's effect on the fresh leaves ``a`` and ``b`` (-1: none) the
     last instruction dropped: unreached, they lose their mark and validity, and the object
     end retreats over invalid slots (``fastgc.collect_with``'s steps 1, 4 and 5 for them)."""
-    _free_object(d, info, a, s)
+    _free_object(d, regs, info, a, s)
     if b >= 0:
-        _free_object(d, info, b, s)
+        _free_object(d, regs, info, b, s)
     _retreat_objects(d, regs, s, reserved)
 
 
@@ -1469,6 +1489,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             regs[R_RTOBJ] = r >> 16
             regs[R_LTSEG] = r & 0xFFFF
             regs[R_OLD_CHANGED] = 1
+            regs[R_VALID_BELOW] = 0
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
             owned_pushed = -1

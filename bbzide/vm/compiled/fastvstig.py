@@ -62,6 +62,7 @@ from bbzide.vm.compiled.fastloop import (
     R_MARK_DEPTH,
     R_PRIOR,
     _obj_alloc,
+    _slot_freed,
 )
 from bbzide.vm.compiled.fasttables import table_lookup
 from bbzide.vm.compiled.packed_queues import VSTIG_COLUMNS
@@ -128,6 +129,7 @@ def _adopt(d: Any, regs: Any, s: int, reserved: int, records: Any, at: int, entr
     entries[i, E_ROBOT] = rid
     old = entries[i, E_VALUE]
     d[old * s] &= 0xFF ^ VALID
+    _slot_freed(regs, old)
     o = _alloc_copy(d, regs, s, reserved, records, at)
     d[old * s] &= 0xFF ^ PERMANENT
     entries[i, E_VALUE] = o
