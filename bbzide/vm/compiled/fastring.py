@@ -38,35 +38,53 @@ def out_template(records: Any, start: int, end: int, slots: int, size: int) -> t
 
 
 @_compile
+def _slot(start: int, i: int, slots: int) -> int:
+    """The slot of the ``i``-th queued record: ``((i + start) & 0xFF) % slots``, the
+    division skipped when the wrapped index is already below ``slots``."""
+    u = (i + start) & 0xFF
+    return u if u < slots else u % slots
+
+
+@_compile
 def sort_ring_by_type(records: Any, start: int, end: int, slots: int, size: int,
                       spare: Any) -> None:
     """``RingBuffer.sort_by_type``: a stable sort of the queued records by their type byte
-    (the first of each record). ``spare`` is scratch room for the moved copies; when it is
-    shorter than the queue (pass an empty slice) a buffer is allocated, only if the records
-    are out of order — they rarely are, and most queues hold 0 or 1 record."""
+    (the first of each record), as an insertion sort from the first record out of order:
+    a queue is sorted after every append, so an append costs one pass over the types and
+    the moves of its own record (a full 255-record out-queue was re-sorted whole on every
+    append). ``spare`` is scratch room for one record; when it is shorter (pass an empty
+    slice) a buffer is allocated, only if a record is out of order."""
     count = ring_size(start, end, slots)
-    ordered = True
-    for i in range(1, count):
-        a = ((i - 1 + start) & 0xFF) % slots
-        b = ((i + start) & 0xFF) % slots
-        if records[a * size] > records[b * size]:
-            ordered = False
+    first = 1
+    previous = records[_slot(start, 0, slots) * size] if count else 0
+    while first < count:
+        typ = records[_slot(start, first, slots) * size]
+        if previous > typ:
             break
-    if ordered:
+        previous = typ
+        first += 1
+    if first >= count:
         return
-    if len(spare) < count * size:
-        spare = np.empty(count * size, np.uint8)
-    for i in range(count):
-        k = ((i + start) & 0xFF) % slots
-        for j in range(size):
-            spare[i * size + j] = records[k * size + j]
-    placed = 0
-    for typ in range(256):  # types are bytes: a counting pass per type keeps the order
-        for i in range(count):
-            if spare[i * size] == typ:
-                k = ((placed + start) & 0xFF) % slots
-                for j in range(size):
-                    records[k * size + j] = spare[i * size + j]
-                placed += 1
-        if placed == count:
-            break
+    if len(spare) < size:
+        spare = np.empty(size, np.uint8)
+    for i in range(first, count):
+        k = _slot(start, i, slots) * size
+        typ = records[k]
+        j = i
+        below = _slot(start, j - 1, slots) * size
+        if records[below] <= typ:
+            continue
+        for b in range(size):
+            spare[b] = records[k + b]
+        while True:  # move the greater records up one slot, stably
+            for b in range(size):
+                records[k + b] = records[below + b]
+            k = below
+            j -= 1
+            if j == 0:
+                break
+            below = _slot(start, j - 1, slots) * size
+            if records[below] <= typ:
+                break
+        for b in range(size):
+            records[k + b] = spare[b]
