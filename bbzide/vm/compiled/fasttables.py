@@ -30,39 +30,27 @@ _NO_NEXT = 0x3FFF
 
 
 @_compile
-def _equal(d: bytearray, a: int, b: int, s: int) -> bool:
-    """``bbztype_cmp(a, b) == 0`` (spec §D.6): the cases that can compare equal."""
-    nobj = len(d) // s
-    if not (0 <= a < nobj and 0 <= b < nobj):
-        return False
-    oa = a * s
-    ob = b * s
-    ta = _i(d[oa]) & 7
-    tb = _i(d[ob]) & 7
-    if ta == _NIL or tb == _NIL:
-        return ta == tb
-    ua = _i(d[oa + 1]) | (_i(d[oa + 2]) << 8)
-    ub = _i(d[ob + 1]) | (_i(d[ob + 2]) << 8)
-    if ta == _INT and tb == _INT:
-        return ua == ub
-    if (ta == _FLOAT and (tb == _INT or tb == _FLOAT)) or (tb == _FLOAT and ta == _INT):
-        return ua == ub
-    if ta == tb and (ta == _STRING or ta == _TABLE):
-        return ua == ub
-    if ta == tb and ta == _USERDATA:
-        for j in range(1, s):
-            if d[oa + j] != d[ob + j]:
-                return False
-        return True
-    return False
-
-
-@_compile
 def table_lookup(d: bytearray, t: int, k: int, s: int, elems: int) -> int:
-    """``bbztable_get``: the value index under key object ``k``; -1 if absent/not a table."""
+    """``bbztable_get``: the value index under key object ``k``; -1 if absent/not a table.
+
+    A key matches when ``bbztype_cmp(key, k) == 0`` (spec §D.6). ``k``'s type and payload
+    are read once, before the walk, and each valid key is compared with them in the loop
+    (a call per key was a tenth of a Kilobot's kernel time), by the cases that can compare
+    equal: nil with nil; int or float with int or float, same 16 payload bits; string with
+    string and table with table, same payload; userdata with userdata, every payload byte.
+    A closure (or a key index past the heap) equals nothing."""
     size = len(d)
     g = 4 * elems + 2
-    if not 0 <= t < size // s or _i(d[t * s]) & 7 != _TABLE:
+    nobj = size // s
+    if not 0 <= t < nobj or _i(d[t * s]) & 7 != _TABLE:
+        return -1
+    if not 0 <= k < nobj:
+        return -1
+    ok = k * s
+    tk = _i(d[ok]) & 7
+    uk = _i(d[ok + 1]) | (_i(d[ok + 2]) << 8)
+    numeric = tk == _INT or tk == _FLOAT
+    if not (tk == _NIL or numeric or tk == _STRING or tk == _TABLE or tk == _USERDATA):
         return -1
     seg = _i(d[t * s + 1]) | (_i(d[t * s + 2]) << 8)
     for _ in range(size // g + 1):
@@ -71,7 +59,25 @@ def table_lookup(d: bytearray, t: int, k: int, s: int, elems: int) -> int:
         base = size - (seg + 1) * g
         for slot in range(elems):
             kw = _i(d[base + 2 * slot]) | (_i(d[base + 2 * slot + 1]) << 8)
-            if kw & _VALID_WORD and _equal(d, kw & 0x7FFF, k, s):
+            a = kw & 0x7FFF
+            if not kw & _VALID_WORD or a >= nobj:
+                continue
+            oa = a * s
+            ta = _i(d[oa]) & 7
+            if tk == _NIL:
+                hit = ta == _NIL
+            elif numeric:
+                hit = (ta == _INT or ta == _FLOAT) and \
+                    (_i(d[oa + 1]) | (_i(d[oa + 2]) << 8)) == uk
+            elif tk == _USERDATA:
+                hit = ta == _USERDATA
+                for j in range(1, s):
+                    if d[oa + j] != d[ok + j]:
+                        hit = False
+                        break
+            else:
+                hit = ta == tk and (_i(d[oa + 1]) | (_i(d[oa + 2]) << 8)) == uk
+            if hit:
                 vo = base + 2 * (slot + elems)
                 return (_i(d[vo]) | (_i(d[vo + 1]) << 8)) & 0x7FFF
         seg = (_i(d[base + 4 * elems]) | (_i(d[base + 4 * elems + 1]) << 8)) & _NO_NEXT
