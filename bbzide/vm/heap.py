@@ -72,6 +72,9 @@ class Heap:
         #: metadata byte the slot returned by the last obj_alloc held before it (the fast
         #: VM's skip rule for new leaves needs to know whether the marker reached it)
         self.prior_mdata = 0
+        #: the last compiled collection was not a fixed point of the collector
+        #: (``fastgc.UNSETTLED``): the fast mode must run the next one, not skip it
+        self.unsettled = False
         #: how the last compiled collection marked (fastgc.collect's info/traversed)
         nobj = self.objects = self.size // self.obj_size  # object slots the heap can hold
         self.gc_info = np.zeros(nobj, np.uint8)

@@ -141,6 +141,7 @@ def go_on_inmsgs(vm: VM, count: int, collected: bool, taken: bool = False) -> No
     # nothing (the fast mode's PC_ONLY rule, vm._SKIP_RULES): fast mode counts it only
     compiled = _INBOX_KERNEL and not vm.stress_gc
     while taken or (not q.inbox.empty() and count < vm.profile.msg_in_proc_max):
+        collected = collected and not vm.heap.unsettled  # (not a fixed point: collect)
         # the head's type, for a kernel to take it (None: the reference routines only)
         head = q.inbox.at(0)[TYPE] if compiled and vm.state == State.READY else None
         if head in _STIGMERGY:

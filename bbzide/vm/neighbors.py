@@ -159,7 +159,7 @@ def _neighborlike_foreach(vm: VM, fun: Callable[[int, int], None],
         i = ring.size()
         if walk is not None and kernels_now(vm):
             i, collected = _walk_compiled(vm, walk)
-            if i == 0 and collected:
+            if i == 0 and collected and not vm.heap.unsettled:
                 # the walk's last act was a collection of these very roots: the one below
                 # would change nothing but the count (a collected heap is a fixed point)
                 vm.heap.gc_runs += 1

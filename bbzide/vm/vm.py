@@ -307,8 +307,9 @@ class VM:
         sp = self.stackptr
         r = fastgc.collect(h.view, self._stack_view, sp, h.rtobj, h.ltseg,
                      h.gc_info, h.gc_traversed, *self._geometry)
-        h.rtobj = r >> 16
+        h.rtobj = (r >> 16) & 0xFFFF
         h.ltseg = r & 0xFFFF
+        h.unsettled = bool(r & fastgc.UNSETTLED)
 
     def settle(self) -> None:
         """Make every observable byte exact now. A no-op: the fast mode defers nothing
@@ -1305,12 +1306,13 @@ class VM:
             self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
             fastloop.NONE if budget is None else budget, self.profile.float_ops,
             self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
-            0, call_first, 0, 0, 0, -1, 0), np.int64)
+            0, call_first, 0, 0, 0, -1, 0, int(heap.unsettled)), np.int64)
 
     def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
         """Copy a kernel's registers back into the VM and its heap; the loop's own
         (instructions counted, heap known fixed, pending mark) are returned."""
         heap = self.heap
+        heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
         (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
          heap.gc_runs, self.instructions_executed, n, fixed, pending, heap.peak_used) = \
             regs[0:12].tolist()
@@ -1368,6 +1370,7 @@ class VM:
                 resumed, regs = resume
                 n, fixed, pending = (int(regs[fastloop.R_N]), bool(regs[fastloop.R_FIXED]),
                                      int(regs[fastloop.R_PENDING]))
+                heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
                 # a callc the kernel handed back is still to be made: enter the loop
                 call_first = resumed == fastloop.CALL_IN_PYTHON
                 fresh = False
@@ -1391,6 +1394,7 @@ class VM:
                                       self.instructions_executed, n, fixed, pending,
                                       heap.peak_used)
                         regs[fastloop.R_VALID_BELOW] = 0  # Python ran: it may have freed
+                        regs[fastloop.R_UNSETTLED] = heap.unsettled  # or collected
                     fresh = False
                     status = kernel(*kernel_args)
                     n, fixed, pending = self.take_kernel_registers(regs)
@@ -1446,6 +1450,8 @@ class VM:
                     fixed = bool(info[top] & fastgc.PERMANENT_PHASE)
             else:
                 fixed = rule == _PC_ONLY
+            if heap.unsettled:
+                fixed = False  # the last collection is not a fixed point (fastgc.UNSETTLED)
             n += 1
             if budget is not None:
                 if saved is None:

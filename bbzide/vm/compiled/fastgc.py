@@ -107,6 +107,14 @@ _SEG_VALID_HI = 0x80  # SEG_VALID (bit 15) in the high byte
 _SEG_NEXT = 0x3FFF
 #: flag in a collect() ``info`` entry: first marked from a permanent root (depth < 64)
 PERMANENT_PHASE = 64
+#: flag in :func:`collect_with`'s result: the collection is not a fixed point of itself, so
+#: the next one must run. It marked an object at or above the object end it left (an invalid
+#: slot a stale reference reached, past which the end then retreated, or one already above
+#: it): a second collection does not clear that object's mark bit (step 1 clears below the
+#: end only), so it does not walk the object again, and the segment marks and children that
+#: object alone reached come out different (a nest deeper than ``gcmark_depth`` leaves such
+#: references).
+UNSETTLED = 1 << 32
 
 
 @_compile
@@ -132,7 +140,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
     the depth at which x was first marked (0: not marked) plus ``PERMANENT_PHASE`` if that
     happened while marking from the permanent roots; ``traversed[1..traversed[0]]`` = the
     tables whose elements were visited (first marked at a depth below the limit).
-    Returns the new ``rtobj * 65536 + ltseg`` (numba returns one int fastest).
+    Returns the new ``rtobj * 65536 + ltseg``, plus :data:`UNSETTLED` when a second
+    collection would not be a no-op (numba returns one int fastest).
     """
     n = rtobj // s
     k = (size - ltseg) // g
@@ -154,6 +163,7 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
     f_walk = frames[3]
     nobj = size // s
     nroots = n + top + 1
+    highest = -1  # the highest object index this collection marked
     for r in range(nroots):
         # 2. permanent objects from n-1 down, 3. stack from top down
         if r < n:
@@ -172,6 +182,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                 o = x * s
                 d[o] |= _GC_MARK
                 info[x] = depth + phase
+                if x > highest:
+                    highest = x
                 m = _i(d[o])
                 t = m & _TYPE_MASK
                 if t == _TABLE:
@@ -213,6 +225,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                                     # children are leaves: -25 % per collection)
                                     d[y * s] = my | _GC_MARK
                                     info[y] = fd + 1 + phase
+                                    if y > highest:
+                                        highest = y
                                     continue
                                 x = y
                                 break
@@ -255,7 +269,9 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
         rtobj -= s
     while ltseg < size and not _i(d[ltseg + mo + 1]) & _SEG_VALID_HI:
         ltseg += g
-    return rtobj * 65536 + ltseg
+    if highest * s >= rtobj:
+        return UNSETTLED | (rtobj << 16) | ltseg
+    return (rtobj << 16) | ltseg
 
 
 @_compile

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
+from bbzide.vm.compiled.fastgc import COMPILED, UNSETTLED, _compile, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
@@ -82,6 +82,7 @@ from bbzide.vm.compiled.fastloop import (
     R_SAVED,
     R_SP,
     R_STACK_SIZE,
+    R_UNSETTLED,
     R_VALID_BELOW,
     _obj_alloc,
     _ret,
@@ -581,9 +582,10 @@ def collect_on_registers(d: Any, stack: Any, regs: Any, info: Any, traversed: An
     ``rtobj`` and ``ltseg`` updated; the caller counts it."""
     r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
                      frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
-    regs[R_RTOBJ] = r >> 16
+    regs[R_RTOBJ] = (r >> 16) & 0xFFFF
     regs[R_LTSEG] = r & 0xFFFF
     regs[R_VALID_BELOW] = 0
+    regs[R_UNSETTLED] = 1 if r & UNSETTLED else 0
 
 
 @_compile
@@ -815,11 +817,15 @@ def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
         if not _end_of_call(d, stack, regs, info, traversed, frames, s, elems, reserved,
                             kind, result_table, w, fixed):
             return WALK_AFTER_CALL
-        fixed = True
         # the walk's own collection (``vm.gc()`` after ``fun``) follows the one that ended
         # ``fun``, on the same roots: a collection of a collected heap changes nothing (its
-        # marks, ``info`` and ``traversed`` come out the same), so only its count is kept
-        regs[R_GC_RUNS] += 1
+        # marks, ``info`` and ``traversed`` come out the same), so only its count is kept,
+        # unless that collection was not a fixed point of itself (``fastgc.UNSETTLED``)
+        if regs[R_UNSETTLED]:
+            _collect(d, stack, regs, info, traversed, frames, s, elems, reserved)
+        else:
+            regs[R_GC_RUNS] += 1
+        fixed = regs[R_UNSETTLED] == 0
     w[W_INDEX] = len(ring)
     return WALK_DONE
 

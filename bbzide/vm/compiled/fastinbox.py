@@ -70,6 +70,7 @@ from bbzide.vm.compiled.fastloop import (
     R_RTOBJ,
     R_SP,
     R_STACK_SIZE,
+    R_UNSETTLED,
     _obj_alloc,
 )
 from bbzide.vm.compiled.fasttables import table_lookup
@@ -182,7 +183,7 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         stack[sp + 6] = argc
         status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems,
                              reserved, sp + _PUSHES, hosts, outq, ctl, latch,
-                             CALL_ON_FIXED_HEAP)
+                             CALL if regs[R_UNSETTLED] else CALL_ON_FIXED_HEAP)
         if status != EXIT or regs[R_SP] < 0:
             inq[Q_INNER] = status
             return IN_CALL
@@ -190,7 +191,7 @@ def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
         regs[R_SP] -= 1
         end_of_call_collection(d, stack, regs, info, traversed, frames, s, elems, reserved,
                                True)
-        inq[Q_COLLECTED] = 1
+        inq[Q_COLLECTED] = 1 - regs[R_UNSETTLED]
 
 
 #: pushes of a global's call: the name (then popped), nil, the closure, the argument count
@@ -223,7 +224,8 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     regs[R_REACHED] = 0
     regs[R_OLD_CHANGED] = 0
     name = _obj_alloc(d, regs, s, reserved, STRING, sid)
-    entry = CALL_ON_FIXED_HEAP if fixed and regs[R_PRIOR] & VALID else CALL
+    entry = CALL_ON_FIXED_HEAP if fixed and regs[R_PRIOR] & VALID \
+        and not regs[R_UNSETTLED] else CALL
     d[name * s + 1] = sid & 0xFF
     d[name * s + 2] = sid >> 8
     stack[sp + 1] = name  # push + pop: the slot above the top keeps it

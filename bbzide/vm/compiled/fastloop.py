@@ -34,7 +34,9 @@ the collector (``_SKIP_RULES``, repeated here as :data:`RULES`), then counts ``g
 A skipped collection may owe more than a mark bit: the *fresh* leaves (:data:`FRESH`) the
 last instruction dropped, which it frees as that collection would (:func:`_free_dropped`);
 in a real swarm script most temporaries (``pushi 33`` of ``d / 33``, a comparison's result
-popped by ``jumpz``) die that way, a collection saved each.
+popped by ``jumpz``) die that way, a collection saved each. Every such rule rests on a
+collection being a fixed point of itself, which one that marked a slot at or above the
+object end it left is not (``fastgc.UNSETTLED``, :data:`R_UNSETTLED`): the one after it runs.
 Calls have their own shortcuts, each checked before it writes anything: a listener or
 ``step`` called by a compiled entry on a heap its caller vouches for
 (:data:`CALL_ON_FIXED_HEAP`) skips the collection after its ``callc``
@@ -57,6 +59,7 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import (
     COMPILED,
     PERMANENT_PHASE,
+    UNSETTLED,
     _compile,
     _i,
     collect_with,
@@ -86,8 +89,11 @@ R_HOST_COUNT = 26
 #: free lowers it (:func:`_slot_freed`, a collection to 0); Python's registers start at 0,
 #: and the swarm step sets it to 0 for each robot: Python may have freed objects since.
 R_VALID_BELOW = 27
+#: 1 when the last collection was not a fixed point of the collector (``fastgc.UNSETTLED``):
+#: until the next one runs, no rule may take the heap for a fixed point and skip it
+R_UNSETTLED = 28
 #: registers in the array
-REGISTERS = 28
+REGISTERS = 29
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -1486,10 +1492,11 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         else:
             r = collect_with(d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
                              frames, size, s, g, elems, reserved, limit)
-            regs[R_RTOBJ] = r >> 16
+            regs[R_RTOBJ] = (r >> 16) & 0xFFFF
             regs[R_LTSEG] = r & 0xFFFF
             regs[R_OLD_CHANGED] = 1
             regs[R_VALID_BELOW] = 0
+            regs[R_UNSETTLED] = 1 if r & UNSETTLED else 0
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
             owned_pushed = -1
@@ -1880,6 +1887,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             fixed = _old_kept(d, info, _i(stack[sp]), s)
         else:
             fixed = rule == _PC_ONLY
+        if regs[R_UNSETTLED]:
+            fixed = False
         n += 1
         status = EXIT
         if budget != NONE:

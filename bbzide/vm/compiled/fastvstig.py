@@ -61,6 +61,7 @@ from bbzide.vm.compiled.fastloop import (
     R_GC_RUNS,
     R_MARK_DEPTH,
     R_PRIOR,
+    R_UNSETTLED,
     _obj_alloc,
     _slot_freed,
 )
@@ -245,6 +246,6 @@ def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: 
                               entries[i, E_TIMESTAMP])
         # ---- process_vstig's closing collection (only counted on an unchanged heap)
         regs[R_GC_RUNS] += 1
-        if dirty:
+        if dirty or regs[R_UNSETTLED]:
             collect_on_registers(d, stack, regs, info, traversed, frames, s, elems, reserved)
-        state[V_COLLECTED] = 1
+        state[V_COLLECTED] = 1 - regs[R_UNSETTLED]
