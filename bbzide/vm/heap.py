@@ -75,6 +75,9 @@ class Heap:
         #: the last compiled collection was not a fixed point of the collector
         #: (``fastgc.UNSETTLED``): the fast mode must run the next one, not skip it
         self.unsettled = False
+        #: a compiled collection of this heap stopped at the depth limit
+        #: (``fastgc.TRUNCATED``): from then on every collection leaves it unsettled
+        self.truncated = False
         #: how the last compiled collection marked (fastgc.collect's info/traversed)
         nobj = self.objects = self.size // self.obj_size  # object slots the heap can hold
         self.gc_info = np.zeros(nobj, np.uint8)

@@ -309,7 +309,8 @@ class VM:
                      h.gc_info, h.gc_traversed, *self._geometry)
         h.rtobj = (r >> 16) & 0xFFFF
         h.ltseg = r & 0xFFFF
-        h.unsettled = bool(r & fastgc.UNSETTLED)
+        h.truncated = h.truncated or bool(r & fastgc.TRUNCATED)
+        h.unsettled = h.truncated or bool(r & fastgc.UNSETTLED)
 
     def settle(self) -> None:
         """Make every observable byte exact now. A no-op: the fast mode defers nothing
@@ -1306,13 +1307,15 @@ class VM:
             self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
             fastloop.NONE if budget is None else budget, self.profile.float_ops,
             self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
-            0, call_first, 0, 0, 0, -1, 0, int(heap.unsettled)), np.int64)
+            0, call_first, 0, 0, 0, -1, 0, int(heap.unsettled), int(heap.truncated)),
+            np.int64)
 
     def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
         """Copy a kernel's registers back into the VM and its heap; the loop's own
         (instructions counted, heap known fixed, pending mark) are returned."""
         heap = self.heap
         heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
+        heap.truncated = heap.truncated or bool(regs[fastloop.R_TRUNCATED])
         (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
          heap.gc_runs, self.instructions_executed, n, fixed, pending, heap.peak_used) = \
             regs[0:12].tolist()
@@ -1371,6 +1374,7 @@ class VM:
                 n, fixed, pending = (int(regs[fastloop.R_N]), bool(regs[fastloop.R_FIXED]),
                                      int(regs[fastloop.R_PENDING]))
                 heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
+                heap.truncated = heap.truncated or bool(regs[fastloop.R_TRUNCATED])
                 # a callc the kernel handed back is still to be made: enter the loop
                 call_first = resumed == fastloop.CALL_IN_PYTHON
                 fresh = False
@@ -1395,6 +1399,7 @@ class VM:
                                       heap.peak_used)
                         regs[fastloop.R_VALID_BELOW] = 0  # Python ran: it may have freed
                         regs[fastloop.R_UNSETTLED] = heap.unsettled  # or collected
+                        regs[fastloop.R_TRUNCATED] = heap.truncated
                     fresh = False
                     status = kernel(*kernel_args)
                     n, fixed, pending = self.take_kernel_registers(regs)

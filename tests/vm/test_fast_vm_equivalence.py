@@ -269,3 +269,39 @@ def test_a_collection_that_is_not_a_fixed_point_of_itself_is_not_skipped_after()
     program = compile_source(_UNSETTLING, "unsettling.bzz").to_bbo()
     assert _run(program.bbo, program.strings, PC, False, None) == \
         _run(program.bbo, program.strings, PC, True, None)
+
+
+#: a nest deeper than the Kilobot's depth limit: the collector frees a table a global still
+#: names, the slot is reused by a number that a global then holds, and the fast mode took that
+#: number for the global's alone (freed when the global changed) while the stale word kept it
+_TRUNCATING = """g = 0
+i = 0
+t = {.x = 1}
+function helper(v) { var w = v t.h = w return w }
+function init() {
+  var a = 1 var b = 2 var c = 3 var f = nil
+if (((not i) < (a and t.y))) { i = 0 while (i < 7) { g = (not t.n) i = i + 1 } } else { g = g }
+}
+function step() {
+  var a = g var b = 1 var c = t var f = nil
+b = {.x = function(p) { return p + 0 }, .y = 0}
+g = function(p) { return p + 20420 }
+b = 1024
+c = 0
+t.n = {.n = {.n = {.n = {.n = {.n = {.n = {.n = {.n = {.n = {.n = 1, .x = 2}, .x = 2}, .x = 2},
+  .x = 2}, .x = 2}, .x = 2}, .x = 2}, .x = 2}, .x = 2}, .x = 2}
+i = 0 while (i < 3) {
+  if (((90 or c) - g)) { g = (i and (not t.y)) } else { c = ((t.n >= (i or 25356)) >= 153) }
+  g = (((514 == 'a') and 817) ^ 3)
+  g = {.x = b, .y = ((not t.h) <= 128)}
+  c = {.x = 524, .y = (t.x - 64)}
+  i = i + 1
+}
+}
+"""
+
+
+def test_a_heap_whose_collector_stopped_at_the_depth_limit_is_never_taken_for_settled() -> None:
+    program = compile_source(_TRUNCATING, "truncating.bzz").to_bbo()
+    assert _run(program.bbo, program.strings, KILOBOT, False, None) == \
+        _run(program.bbo, program.strings, KILOBOT, True, None)

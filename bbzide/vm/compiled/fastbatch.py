@@ -407,9 +407,10 @@ __all__ += ["F_RECEIVE", "F_STEP", "F_POP", "IO_STATUS", "IO_COUNT", "IO_COLLECT
 #: columns of ``dynamic``: the VM registers Python keeps as attributes (``VM``/``Heap``),
 #: copied in before a robot's step and out after it
 D_PC, D_SP, D_BP, D_RTOBJ, D_LTSEG, D_LSYMS, D_GC_RUNS, D_EXECUTED, D_PEAK, D_BUDGET = range(10)
-DYNAMIC = 10
+D_TRUNCATED = 10
+DYNAMIC = 11
 #: ``fastloop``'s register slot of each ``dynamic`` column
-_DYNAMIC_REGISTER = (0, 1, 2, 3, 4, 5, 6, 7, 11, 15)
+_DYNAMIC_REGISTER = (0, 1, 2, 3, 4, 5, 6, 7, 11, 15, 29)
 # Columns of ``addresses``/``sizes``: a robot's arrays (swarm_batch_fast._SwarmTables).
 A_HEAP, A_STACK, A_BCODE, A_INFO, A_TRAVERSED, A_INQ, A_OUTQ = range(7)
 A_RING, A_CTL, A_LATCH, A_HOSTS, A_VSTIG = 7, 8, 9, 10, 11
@@ -484,5 +485,5 @@ def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynami
     return count
 
 
-__all__ += ["swarm_step", "ARRAYS", "DYNAMIC", "D_BUDGET", "G_OBJ", "G_ELEMS", "G_RESERVED",
-            "L_GROUP", "L_TARGET", "L_ARGS"]
+__all__ += ["swarm_step", "ARRAYS", "DYNAMIC", "D_BUDGET", "D_TRUNCATED", "G_OBJ", "G_ELEMS",
+            "G_RESERVED", "L_GROUP", "L_TARGET", "L_ARGS"]

@@ -115,6 +115,12 @@ PERMANENT_PHASE = 64
 #: object alone reached come out different (a nest deeper than ``gcmark_depth`` leaves such
 #: references).
 UNSETTLED = 1 << 32
+#: flag in :func:`collect_with`'s result: the depth limit stopped the marker short of an
+#: unmarked object (a child of a table at ``gcmark_depth``, or a lambda's record past it),
+#: which the sweep may free while that table still refers to it. From then on a freed slot
+#: may have a word pointing at it whose collection will mark what is allocated there, so no
+#: "fresh object" is sure to be unreferenced: the heap stays unsettled for the fast mode.
+TRUNCATED = 1 << 33
 
 
 @_compile
@@ -141,7 +147,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
     happened while marking from the permanent roots; ``traversed[1..traversed[0]]`` = the
     tables whose elements were visited (first marked at a depth below the limit).
     Returns the new ``rtobj * 65536 + ltseg``, plus :data:`UNSETTLED` when a second
-    collection would not be a no-op (numba returns one int fastest).
+    collection would not be a no-op and :data:`TRUNCATED` when the depth limit stopped it
+    (numba returns one int fastest).
     """
     n = rtobj // s
     k = (size - ltseg) // g
@@ -164,6 +171,7 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
     nobj = size // s
     nroots = n + top + 1
     highest = -1  # the highest object index this collection marked
+    truncated = False
     for r in range(nroots):
         # 2. permanent objects from n-1 down, 3. stack from top down
         if r < n:
@@ -178,6 +186,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
         fp = -1
         while True:
             # enter mark(x) at `depth` (a lambda's actrec is entered in this same loop)
+            if 0 <= x < nobj and depth > limit and not _i(d[x * s]) & _GC_MARK:
+                truncated = True
             if 0 <= x < nobj and depth <= limit and not _i(d[x * s]) & _GC_MARK:
                 o = x * s
                 d[o] |= _GC_MARK
@@ -212,7 +222,11 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                 while w < nwords:
                     word = _i(d[base + 2 * w]) | (_i(d[base + 2 * w + 1]) << 8)
                     w += 1
-                    if word & 0x8000 and fd < limit:
+                    if word & 0x8000 and fd >= limit:
+                        y = word & 0x7FFF
+                        if y < nobj and not _i(d[y * s]) & _GC_MARK:
+                            truncated = True
+                    elif word & 0x8000:
                         y = word & 0x7FFF
                         if y < nobj:
                             my = _i(d[y * s])
@@ -269,9 +283,12 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
         rtobj -= s
     while ltseg < size and not _i(d[ltseg + mo + 1]) & _SEG_VALID_HI:
         ltseg += g
+    result = (rtobj << 16) | ltseg
     if highest * s >= rtobj:
-        return UNSETTLED | (rtobj << 16) | ltseg
-    return (rtobj << 16) | ltseg
+        result |= UNSETTLED
+    if truncated:
+        result |= TRUNCATED
+    return result
 
 
 @_compile

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, UNSETTLED, _compile, _i, collect_with
+from bbzide.vm.compiled.fastgc import COMPILED, TRUNCATED, UNSETTLED, _compile, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
@@ -82,6 +82,7 @@ from bbzide.vm.compiled.fastloop import (
     R_SAVED,
     R_SP,
     R_STACK_SIZE,
+    R_TRUNCATED,
     R_UNSETTLED,
     R_VALID_BELOW,
     _obj_alloc,
@@ -325,7 +326,7 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
     count = regs[R_HOST_COUNT]
     # a frame is dropped only when the call made nothing (a result outlives it)
     droppable = (kind != HOST_DISTANCE and kind != HOST_LOOKUP and not reading
-                 and not stigmergy and count >= 0
+                 and not stigmergy and count >= 0 and not regs[R_UNSETTLED]
                  and host_frame_droppable(d, info, count, c, lsyms, s, elems))
     # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
     with_value = False
@@ -585,7 +586,9 @@ def collect_on_registers(d: Any, stack: Any, regs: Any, info: Any, traversed: An
     regs[R_RTOBJ] = (r >> 16) & 0xFFFF
     regs[R_LTSEG] = r & 0xFFFF
     regs[R_VALID_BELOW] = 0
-    regs[R_UNSETTLED] = 1 if r & UNSETTLED else 0
+    if r & TRUNCATED:
+        regs[R_TRUNCATED] = 1
+    regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
 
 
 @_compile

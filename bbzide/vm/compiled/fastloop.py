@@ -37,6 +37,9 @@ in a real swarm script most temporaries (``pushi 33`` of ``d / 33``, a compariso
 popped by ``jumpz``) die that way, a collection saved each. Every such rule rests on a
 collection being a fixed point of itself, which one that marked a slot at or above the
 object end it left is not (``fastgc.UNSETTLED``, :data:`R_UNSETTLED`): the one after it runs.
+They also rest on a fresh object being referenced only where the code put it, which a heap
+whose collector once stopped at the depth limit cannot promise (a freed slot may still be
+named by a table's word: ``fastgc.TRUNCATED``): every collection of such a heap runs.
 Calls have their own shortcuts, each checked before it writes anything: a listener or
 ``step`` called by a compiled entry on a heap its caller vouches for
 (:data:`CALL_ON_FIXED_HEAP`) skips the collection after its ``callc``
@@ -59,6 +62,7 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import (
     COMPILED,
     PERMANENT_PHASE,
+    TRUNCATED,
     UNSETTLED,
     _compile,
     _i,
@@ -92,8 +96,11 @@ R_VALID_BELOW = 27
 #: 1 when the last collection was not a fixed point of the collector (``fastgc.UNSETTLED``):
 #: until the next one runs, no rule may take the heap for a fixed point and skip it
 R_UNSETTLED = 28
+#: 1 once a collection of this heap stopped at the depth limit (``fastgc.TRUNCATED``); it
+#: stays 1, and so does :data:`R_UNSETTLED` after every collection
+R_TRUNCATED = 29
 #: registers in the array
-REGISTERS = 29
+REGISTERS = 30
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -1496,7 +1503,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             regs[R_LTSEG] = r & 0xFFFF
             regs[R_OLD_CHANGED] = 1
             regs[R_VALID_BELOW] = 0
-            regs[R_UNSETTLED] = 1 if r & UNSETTLED else 0
+            if r & TRUNCATED:
+                regs[R_TRUNCATED] = 1
+            regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
             owned_pushed = -1

@@ -308,7 +308,8 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
     for vm, h, _robot in chosen:
         budget = vm.instruction_budget
         add((vm.pc, vm.stackptr, vm.blockptr, h.rtobj, h.ltseg, vm.lsyms, h.gc_runs,
-             vm.instructions_executed, h.peak_used, none if budget is None else budget))
+             vm.instructions_executed, h.peak_used, none if budget is None else budget,
+             h.truncated))
     before = np.array(values, np.int64).reshape(len(chosen), fastbatch.DYNAMIC)
     dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
     dynamic[todo] = before
@@ -369,9 +370,10 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
 
 
 #: where each ``dynamic`` column (``fastbatch.D_*``) lives: (0 the VM, 1 its heap; attribute)
+#: (the budget, column 9, is not the kernel's to change: None)
 _REGISTER_HOMES = ((0, "pc"), (0, "stackptr"), (0, "blockptr"), (1, "rtobj"), (1, "ltseg"),
                    (0, "lsyms"), (1, "gc_runs"), (0, "instructions_executed"),
-                   (1, "peak_used"))
+                   (1, "peak_used"), None, (1, "truncated"))
 
 
 def _write_back(chosen: list[tuple[Any, Any, Any]], before: np.ndarray,
@@ -382,10 +384,16 @@ def _write_back(chosen: list[tuple[Any, Any, Any]], before: np.ndarray,
     block pointers are what they were, and each attribute written is a store into an object
     the kernel's work has pushed out of the cache (a whole row per robot was ~1.6 µs)."""
     changed = after != before
-    for column in np.flatnonzero(changed[:, :len(_REGISTER_HOMES)].any(axis=0)).tolist():
-        home, name = _REGISTER_HOMES[column]
+    for column in np.flatnonzero(changed.any(axis=0)).tolist():
+        place = _REGISTER_HOMES[column]
+        if place is None:
+            continue
+        home, name = place
         rows = np.flatnonzero(changed[:, column])
-        for row, value in zip(rows.tolist(), after[rows, column].tolist(), strict=True):
+        values = after[rows, column].tolist()
+        if column == fastbatch.D_TRUNCATED:
+            values = [bool(value) for value in values]
+        for row, value in zip(rows.tolist(), values, strict=True):
             setattr(chosen[row][home], name, value)
 
 
