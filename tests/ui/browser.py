@@ -141,6 +141,16 @@ def dismiss_software_gl_notice(page: object) -> bool:
     return True
 
 
+def render_barrier(page: object, client: object) -> None:
+    """Return once `client`'s tab has rendered a frame (`get_render`), rendered at half its
+    canvas's size: a render of another shape makes the tab report a camera of that shape, and
+    the scene frames a tab whose canvas changed shape again (`SwarmScene.aim_camera`), moving
+    a camera a test has just set."""
+    box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
+    client.get_render(  # type: ignore[attr-defined]
+        height=max(1, round(box["height"] / 2)), width=max(1, round(box["width"] / 2)))
+
+
 def open_app_page(context: object, app: object) -> object:
     """A new tab on `app` (IdeApp or ReplayApp), returned once the websocket is up and a
     first frame has been rendered: what a user sees when the page has loaded."""

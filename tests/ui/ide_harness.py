@@ -12,7 +12,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from browser import UI_WAIT_S, chromium_context, free_port, open_app_page, wait_until
+from browser import (
+    UI_WAIT_S,
+    chromium_context,
+    free_port,
+    open_app_page,
+    render_barrier,
+    wait_until,
+)
 
 from bbzide.ui.app import IdeApp
 from bbzide.ui.run_controller import RunSettings
@@ -98,15 +105,18 @@ class IdeSession:
             raise AssertionError(f"robot {index} stayed under other robots")
         x, y = spot
         height, shift = 0.25, 0.06
-        client.camera.up_direction = (0.0, 1.0, 0.0)  # type: ignore[attr-defined]
-        client.camera.position = (x + shift, y, height)  # type: ignore[attr-defined]
-        client.camera.look_at = (x + shift, y, 0.0)  # type: ignore[attr-defined]
         page.bring_to_front()  # type: ignore[attr-defined]  # background tabs stop drawing
         inspector = self.app._inspectors[client.client_id]  # type: ignore[attr-defined]
         for _attempt in range(4):  # a loaded machine may not have drawn the new view yet
+            # The view is set on every attempt: a tab that was in the background may report
+            # its canvas only now, and a canvas of another shape than the one its camera was
+            # aimed for is framed again (`SwarmScene.aim_camera`), which moves the camera.
+            client.camera.up_direction = (0.0, 1.0, 0.0)  # type: ignore[attr-defined]
+            client.camera.position = (x + shift, y, height)  # type: ignore[attr-defined]
+            client.camera.look_at = (x + shift, y, 0.0)  # type: ignore[attr-defined]
             # barrier: the client rendered a frame after the camera messages above, so it
             # took the new view (messages reach it in order)
-            client.get_render(height=200, width=300)  # type: ignore[attr-defined]
+            render_barrier(page, client)
             box = page.locator("canvas").first.bounding_box()  # type: ignore[attr-defined]
             fov = float(client.camera.fov)  # type: ignore[attr-defined]
             pixels_per_metre = box["height"] / (2 * height * math.tan(fov / 2))

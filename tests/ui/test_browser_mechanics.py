@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
+from browser import UI_WAIT_MS, UI_WAIT_S, render_barrier, wait_until
 from doubles import FakeBackend
 from ide_harness import IdeSession, editor_text, running_ide
 from PIL import Image
@@ -174,7 +174,7 @@ def test_two_tabs_keep_their_own_selection(ide: IdeSession) -> None:
         clients = app.server.get_clients()
         first = next(c for c in clients.values() if c.client_id != client2.client_id)
         page2.wait_for_selector("canvas")
-        client2.get_render(height=200, width=300)
+        render_barrier(page2, client2)
         ide.click_robot(ide.page, first, 3)
         ide.page.get_by_text("Robot 3").first.wait_for(timeout=UI_WAIT_MS)
         ide.click_robot(page2, client2, 7)
