@@ -1314,12 +1314,18 @@ class VM:
         """Copy a kernel's registers back into the VM and its heap; the loop's own
         (instructions counted, heap known fixed, pending mark) are returned."""
         heap = self.heap
-        heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
-        heap.truncated = heap.truncated or bool(regs[fastloop.R_TRUNCATED])
+        self._take_heap_flags(regs)
         (self.pc, self.stackptr, self.blockptr, heap.rtobj, heap.ltseg, self.lsyms,
          heap.gc_runs, self.instructions_executed, n, fixed, pending, heap.peak_used) = \
             regs[0:12].tolist()
         return n, bool(fixed), pending
+
+    def _take_heap_flags(self, regs: np.ndarray) -> None:
+        """Whether the kernel's last collection left the heap settled, and whether one ever
+        stopped at the depth limit (``Heap.unsettled``, ``Heap.truncated``)."""
+        heap = self.heap
+        heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
+        heap.truncated = heap.truncated or bool(regs[fastloop.R_TRUNCATED])
 
     def _loop(self, saved: int | None, budget: int | None, call_first: bool = False,
               resume: tuple[int, np.ndarray] | None = None) -> None:
@@ -1373,8 +1379,7 @@ class VM:
                 resumed, regs = resume
                 n, fixed, pending = (int(regs[fastloop.R_N]), bool(regs[fastloop.R_FIXED]),
                                      int(regs[fastloop.R_PENDING]))
-                heap.unsettled = bool(regs[fastloop.R_UNSETTLED])
-                heap.truncated = heap.truncated or bool(regs[fastloop.R_TRUNCATED])
+                self._take_heap_flags(regs)
                 # a callc the kernel handed back is still to be made: enter the loop
                 call_first = resumed == fastloop.CALL_IN_PYTHON
                 fresh = False

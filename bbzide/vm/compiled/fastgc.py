@@ -186,9 +186,10 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
         fp = -1
         while True:
             # enter mark(x) at `depth` (a lambda's actrec is entered in this same loop)
-            if 0 <= x < nobj and depth > limit and not _i(d[x * s]) & _GC_MARK:
+            unmarked = 0 <= x < nobj and not _i(d[x * s]) & _GC_MARK
+            if unmarked and depth > limit:
                 truncated = True
-            if 0 <= x < nobj and depth <= limit and not _i(d[x * s]) & _GC_MARK:
+            if unmarked and depth <= limit:
                 o = x * s
                 d[o] |= _GC_MARK
                 info[x] = depth + phase

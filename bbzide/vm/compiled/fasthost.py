@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, TRUNCATED, UNSETTLED, _compile, _i, collect_with
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
@@ -82,9 +82,7 @@ from bbzide.vm.compiled.fastloop import (
     R_SAVED,
     R_SP,
     R_STACK_SIZE,
-    R_TRUNCATED,
     R_UNSETTLED,
-    R_VALID_BELOW,
     _obj_alloc,
     _ret,
     _ret_ok,
@@ -97,6 +95,7 @@ from bbzide.vm.compiled.fastloop import (
     end_host_frame,
     host_frame_droppable,
     run,
+    take_collection,
     undo_to_fixed_point,
 )
 from bbzide.vm.compiled.fastring import out_template, sort_ring_by_type
@@ -579,16 +578,11 @@ _NO_NEXT_SEGMENT = 0x3FFF
 @_compile
 def collect_on_registers(d: Any, stack: Any, regs: Any, info: Any, traversed: Any,
                          frames: Any, s: int, elems: int, reserved: int) -> None:
-    """One collection (``fastgc.collect_with``) of the heap the registers describe, their
-    ``rtobj`` and ``ltseg`` updated; the caller counts it."""
-    r = collect_with(d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
-                     frames, len(d), s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH])
-    regs[R_RTOBJ] = (r >> 16) & 0xFFFF
-    regs[R_LTSEG] = r & 0xFFFF
-    regs[R_VALID_BELOW] = 0
-    if r & TRUNCATED:
-        regs[R_TRUNCATED] = 1
-    regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
+    """One collection (``fastgc.collect_with``) of the heap the registers describe, the
+    registers updated (``fastloop.take_collection``); the caller counts it."""
+    take_collection(regs, collect_with(
+        d, stack, regs[R_SP], regs[R_RTOBJ], regs[R_LTSEG], info, traversed, frames, len(d),
+        s, 4 * elems + 2, elems, reserved, regs[R_MARK_DEPTH]))
 
 
 @_compile

@@ -226,6 +226,19 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
 
 
 @_compile
+def take_collection(regs: Any, r: int) -> None:
+    """The registers after a collection that returned ``r`` (``fastgc.collect_with``):
+    both heap ends, no valid run known below any slot, and whether the heap is settled
+    (``R_UNSETTLED``, ``R_TRUNCATED``); the caller counts it."""
+    regs[R_RTOBJ] = (r >> 16) & 0xFFFF
+    regs[R_LTSEG] = r & 0xFFFF
+    regs[R_VALID_BELOW] = 0
+    if r & TRUNCATED:
+        regs[R_TRUNCATED] = 1
+    regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
+
+
+@_compile
 def _slot_freed(regs: Any, x: int) -> None:
     """Object slot ``x`` was freed: the valid run below ``R_VALID_BELOW`` ends there."""
     if x < regs[R_VALID_BELOW]:
@@ -1497,15 +1510,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             if free_a >= 0:
                 _free_dropped(d, regs, info, free_a, free_b, s, reserved)
         else:
-            r = collect_with(d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed,
-                             frames, size, s, g, elems, reserved, limit)
-            regs[R_RTOBJ] = (r >> 16) & 0xFFFF
-            regs[R_LTSEG] = r & 0xFFFF
+            take_collection(regs, collect_with(
+                d, stack, sp, regs[R_RTOBJ], regs[R_LTSEG], info, traversed, frames, size, s,
+                g, elems, reserved, limit))
             regs[R_OLD_CHANGED] = 1
-            regs[R_VALID_BELOW] = 0
-            if r & TRUNCATED:
-                regs[R_TRUNCATED] = 1
-            regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
             owned_pushed = -1
