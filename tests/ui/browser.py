@@ -162,6 +162,6 @@ def open_app_page(context: object, app: object) -> object:
     page.wait_for_selector("canvas")
     client = next(iter(server.get_clients().values()))
     started = time.monotonic()
-    client.get_render(height=200, width=300)  # barrier: a frame was rendered
+    render_barrier(page, client)
     print(f"first render after {time.monotonic() - started:.1f} s")
     return page
