@@ -36,10 +36,20 @@ from bbzide.vm.heap import (
     Heap,
 )
 
-#: the types whose objects refer to others (a table's elements, a closure's activation record)
-REFERRING = (TABLE, CLOSURE)
 #: byte translation table clearing the GC mark bit of every metadata byte
 _CLEAR_MARK = bytes(b & ~GC_MARK & 0xFF for b in range(256))
+
+
+def _swept(b: int) -> bool:
+    """Whether the sweep frees an object of metadata byte ``b``: valid and not marked."""
+    return bool(b & VALID) and not b & GC_MARK
+
+
+#: byte translation table clearing the mark bit of a segment's mdata high byte
+_CLEAR_SEGMENT_MARK = bytes(b & ~(SEG_MARK >> 8) & 0xFF for b in range(256))
+#: byte translation tables of the sweep: a metadata byte after it, and 1 for a table it frees
+_SWEEP = bytes(b & ~VALID & 0xFF if _swept(b) else b for b in range(256))
+_FREED_TABLE = bytes(int(_swept(b) and b & TYPE_MASK == TABLE) for b in range(256))
 
 
 def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
@@ -59,9 +69,9 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
     unpack_words = struct.Struct(f"<{nwords}H").unpack_from
     heap.gc_runs += 1
 
-    # 1. clear marks
-    for j in range(k - 1, -1, -1):
-        d[size - (j + 1) * g + mo + 1] &= ~(SEG_MARK >> 8) & 0xFF
+    # 1. clear marks: the high byte of each of the k segments' mdata word, g bytes apart
+    segment_flags = slice(size - k * g + mo + 1, size, g)
+    d[segment_flags] = d[segment_flags].translate(_CLEAR_SEGMENT_MARK)
     d[0:n * s:s] = d[0:n * s:s].translate(_CLEAR_MARK)
 
     depth = 1
@@ -84,17 +94,21 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
                     base = size - (seg + 1) * g
                     d[base + mo + 1] |= SEG_MARK >> 8
                     if children:
-                        for word in unpack_words(d, base):  # the keys, then the values
-                            child = word & ELEM_INDEX
-                            if not word & ELEM_VALID or child >= nobj:
+                        # the keys, then the values: each valid word names a child
+                        for child in [word & ELEM_INDEX for word in unpack_words(d, base)
+                                      if word & ELEM_VALID]:
+                            if child >= nobj:
                                 continue
-                            cm = d[child * s]
+                            co = child * s
+                            cm = d[co]
                             if cm & GC_MARK:
                                 continue  # mark would do nothing (hot path: no call)
-                            if cm & TYPE_MASK in REFERRING:
+                            ct = cm & TYPE_MASK
+                            if ct == TABLE or (ct == CLOSURE and cm & FLAG2
+                                               and d[co + 2] != NO_ACTREC):
                                 mark(child)
-                            else:  # a leaf: its mark bit is all that mark would set
-                                d[child * s] = cm | GC_MARK
+                            else:  # its mark bit is all that mark would set
+                                d[co] = cm | GC_MARK
                     seg = (d[base + mo] | (d[base + mo + 1] << 8)) & SEG_NEXT
                     if seg == SEG_NEXT:
                         break
@@ -102,24 +116,38 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
                 mark(d[o + 2])
         depth -= 1
 
-    # 2. permanent roots, 3. stack roots
-    for i in range(n - 1, -1, -1):
-        if d[i * s] & PERMANENT:
-            mark(i)
-    for j in range(stack_top, -1, -1):
-        mark(stack[j])
+    # 2. permanent roots, 3. stack roots, in this order; a root's mark sits at depth 2, so
+    # a leaf root (or a closure without a record) is marked without the call where the
+    # limit allows depth 2
+    roots = [i for i in range(n - 1, -1, -1) if d[i * s] & PERMANENT]
+    roots += [stack[j] for j in range(stack_top, -1, -1)]
+    leaf_roots_marked = depth_limit >= 2
+    for x in roots:
+        if 0 <= x < nobj and leaf_roots_marked:
+            m = d[x * s]
+            if m & GC_MARK:
+                continue  # mark would do nothing
+            t = m & TYPE_MASK
+            if t != TABLE and not (t == CLOSURE and m & FLAG2 and d[x * s + 2] != NO_ACTREC):
+                d[x * s] = m | GC_MARK
+                continue
+        mark(x)
 
-    # 4. sweep
-    for i in range(n - 1, -1, -1):
+    # 4. sweep: every valid object left unmarked becomes invalid, and so does the segment
+    # chain of such a table unless the chain's first segment was marked (through another
+    # table). Only SEG_VALID bits change, never a SEG_MARK bit or a next index, so the
+    # tables may be freed in any order.
+    metadata = d[0:n * s:s]
+    d[0:n * s:s] = metadata.translate(_SWEEP)
+    freed = metadata.translate(_FREED_TABLE)
+    i = freed.find(1)
+    while i >= 0:
         o = i * s
-        m = d[o]
-        if not m & GC_MARK and m & VALID:
-            d[o] = m & ~VALID & 0xFF
-            if m & TYPE_MASK == TABLE:
-                seg = d[o + 1] | (d[o + 2] << 8)
-                if (seg + 1) * g <= size and not heap.seg_mdata(seg) & SEG_MARK:
-                    for sj in heap.segment_chain(seg):
-                        heap.set_seg_mdata(sj, heap.seg_mdata(sj) & ~SEG_VALID)
+        seg = d[o + 1] | (d[o + 2] << 8)
+        if (seg + 1) * g <= size and not heap.seg_mdata(seg) & SEG_MARK:
+            for sj in heap.segment_chain(seg):
+                heap.set_seg_mdata(sj, heap.seg_mdata(sj) & ~SEG_VALID)
+        i = freed.find(1, i + 1)
 
     # 5-6. shrink both ends over invalid slots
     low = heap.reserved * s

@@ -42,6 +42,9 @@ from bbzide.vm.heap_layout import (  # noqa: F401 - the layout's names, re-expor
 from bbzide.vm.kernels import fastgc
 from bbzide.vm.profiles import Profile
 
+#: byte translation table of an object's metadata byte: 1 for a free slot (VALID clear)
+_INVALID_FLAG = bytes(int(not b & VALID) for b in range(256))
+
 
 class HeapFull(Exception):
     """An allocation found no room (the VM turns it into BBZVM_ERROR_MEM)."""
@@ -187,6 +190,9 @@ class Heap:
         as ``-2 - index`` (deduplication)."""
         d = self.data
         s = self.obj_size
+        if typ != STRING:  # no deduplication: the first metadata byte without VALID
+            found = d[self.reserved * s:self.rtobj:s].translate(_INVALID_FLAG).find(1)
+            return -1 if found < 0 else self.reserved + found
         for i in range(self.reserved, self.rtobj // s):
             mdata = d[i * s]
             if not mdata & VALID:
