@@ -45,6 +45,8 @@ def _swept(b: int) -> bool:
     return bool(b & VALID) and not b & GC_MARK
 
 
+#: byte translation table of a metadata byte: 1 for a permanent object (a root)
+_PERMANENT_FLAG = bytes(int(bool(b & PERMANENT)) for b in range(256))
 #: byte translation table clearing the mark bit of a segment's mdata high byte
 _CLEAR_SEGMENT_MARK = bytes(b & ~(SEG_MARK >> 8) & 0xFF for b in range(256))
 #: byte translation tables of the sweep: a metadata byte after it, and 1 for a table it frees
@@ -119,7 +121,12 @@ def collect(heap: Heap, stack: Sequence[int], stack_top: int) -> None:
     # 2. permanent roots, 3. stack roots, in this order; a root's mark sits at depth 2, so
     # a leaf root (or a closure without a record) is marked without the call where the
     # limit allows depth 2
-    roots = [i for i in range(n - 1, -1, -1) if d[i * s] & PERMANENT]
+    permanent = d[0:n * s:s].translate(_PERMANENT_FLAG)
+    roots = []
+    i = permanent.rfind(1)
+    while i >= 0:
+        roots.append(i)
+        i = permanent.rfind(1, 0, i)
     roots += [stack[j] for j in range(stack_top, -1, -1)]
     leaf_roots_marked = depth_limit >= 2
     for x in roots:
