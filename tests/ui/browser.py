@@ -72,6 +72,27 @@ def wait_until(
     raise AssertionError(f"timed out after {timeout} s waiting for {message}")
 
 
+#: Clicks `set_checkbox` makes before it calls a checkbox deaf to them.
+CHECKBOX_CLICKS = 3
+
+
+def set_checkbox(box: object, checked: bool) -> None:
+    """Click checkbox `box` (a Playwright locator) until the page shows it `checked`, as a user
+    clicks again a box that did not tick. Playwright's `set_checked` raises when its click left
+    the state as it was: a click that landed while the control panel was still laying out a
+    folder just opened around the box (the panel and the folder's wrapper were reported
+    covering it). The box is clicked again only while it still shows the old state."""
+    from playwright.sync_api import Error as PlaywrightError
+
+    for _click in range(CHECKBOX_CLICKS):
+        if box.is_checked() == checked:  # type: ignore[attr-defined]
+            return
+        with contextlib.suppress(PlaywrightError):
+            box.set_checked(checked)  # type: ignore[attr-defined]
+    if box.is_checked() != checked:  # type: ignore[attr-defined]
+        raise AssertionError(f"{CHECKBOX_CLICKS} clicks left the checkbox at {not checked}")
+
+
 #: the Playwright driver and its browsers, by their extra flags (`shared_browser`)
 _playwright: list[object] = []
 _browsers: dict[tuple[str, ...], object] = {}

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from browser import UI_WAIT_MS, UI_WAIT_S, wait_until
+from browser import UI_WAIT_MS, UI_WAIT_S, set_checkbox, wait_until
 from ide_harness import IdeSession, running_ide
 
 from bbzide.ui.world_adapter import WorldsBackend
@@ -66,7 +66,7 @@ def test_a_click_on_a_heap_block_names_its_object(ide: IdeSession) -> None:
 def test_robot_ids_and_world_options_from_the_world_setup_folder(ide: IdeSession) -> None:
     app, page = ide.app, ide.page
     page.get_by_text("World setup").click()  # type: ignore[attr-defined]
-    page.get_by_label("Robot ids").check()  # type: ignore[attr-defined]
+    set_checkbox(page.get_by_label("Robot ids"), True)  # type: ignore[attr-defined]
     labels = app.world_setup.labels
     wait_until(lambda: len(labels._labels) == DRONES, UI_WAIT_S,  # noqa: SLF001
                message="one label per drone")

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from browser import UI_WAIT_S, wait_until
+from browser import UI_WAIT_S, set_checkbox, wait_until
 from ide_harness import IdeSession, running_ide
 
 from bbzide.ui.world_adapter import WorldsBackend
@@ -31,7 +31,7 @@ def test_record_moves_nothing_and_its_path_stays(ide: IdeSession) -> None:
     record = page.get_by_label("Record")  # type: ignore[attr-defined]
     below = page.get_by_label("Keep world on reload")  # type: ignore[attr-defined]
     before = (record.bounding_box()["y"], below.bounding_box()["y"])
-    record.check()
+    set_checkbox(record, True)
     wait_until(lambda: app.controller.status.recording is not None, UI_WAIT_S,
                message="the recording")
     name = Path(app.controller.status.recording).name
@@ -40,7 +40,7 @@ def test_record_moves_nothing_and_its_path_stays(ide: IdeSession) -> None:
                f"● recording to recordings/{name}", UI_WAIT_S, message="the note")
     assert (record.bounding_box()["y"], below.bounding_box()["y"]) == before
     ide.screenshot("record-on")
-    record.uncheck()
+    set_checkbox(record, False)
     wait_until(lambda: app.controller.status.recording is None, UI_WAIT_S, message="the stop")
     wait_until(lambda: " ".join(note.inner_text().split()) ==
                f"last recording: recordings/{name}", UI_WAIT_S, message="the path kept")
