@@ -36,7 +36,7 @@ from bbzide.recording.reader import Keyframe, Recording
 from bbzide.recording.recorder import RecordingError, build_robot
 from bbzide.vm.snapshot_layout import (
     ROBOT_MAGIC,
-    VM_MAGIC,
+    VM_MAGICS,
     SnapshotError,
     decode_robot,
     decode_vm,
@@ -77,7 +77,7 @@ def check_snapshot(snapshot: bytes, what: str, depth: int = 0) -> None:
     `Robot.restore` unpickles; a recording is a file from anywhere, and unpickling can run any
     code a crafted file names. This loads it with an allow-list first (nested pickles too).
     """
-    if depth == 0 and snapshot.startswith((ROBOT_MAGIC, VM_MAGIC)):
+    if depth == 0 and snapshot.startswith((ROBOT_MAGIC, *VM_MAGICS)):
         # the flat layout holds no pickle; decoding it checks every length
         try:
             if snapshot.startswith(ROBOT_MAGIC):

@@ -16,6 +16,8 @@ Object byte 0 is the metadata (type bits 0-2, valid 3, permanent 4, GC mark 5, t
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from bbzide.vm.heap_layout import (  # noqa: F401 - the layout's names, re-exported
@@ -300,9 +302,13 @@ class Heap:
         return chain
 
     # ---- snapshots --------------------------------------------------------------------
-    def snapshot(self) -> tuple[bytes, int, int, int, int]:
-        return (bytes(self.data), self.rtobj, self.ltseg, self.peak_used, self.gc_runs)
+    def snapshot(self) -> tuple[bytes, int, int, int, int, bool, bool]:
+        return (bytes(self.data), self.rtobj, self.ltseg, self.peak_used, self.gc_runs,
+                self.unsettled, self.truncated)
 
-    def restore(self, snap: tuple[bytes, int, int, int, int]) -> None:
-        data, self.rtobj, self.ltseg, self.peak_used, self.gc_runs = snap
+    def restore(self, snap: tuple[Any, ...]) -> None:
+        """Take over a `snapshot()`, or one of the five values a snapshot held before it held
+        the two flags (neither set then)."""
+        data, self.rtobj, self.ltseg, self.peak_used, self.gc_runs = snap[:5]
+        self.unsettled, self.truncated = snap[5:] or (False, False)
         self.data[:] = data

@@ -488,8 +488,13 @@ class Robot:
         """A `snapshot()` decoded and pickled again the plain way, for comparing two robots'
         states: equal states give equal bytes here whatever layout or encoding the
         snapshots used (an earlier pickled version picked a list layout by
-        `sys.getrefcount`, so equal states could differ in snapshot bytes)."""
-        return pickle.dumps(Robot.decode_snapshot(snapshot))
+        `sys.getrefcount`, so equal states could differ in snapshot bytes). The heap's two
+        flags are left out: they are the fast mode's note of which collections it may skip
+        (`Heap.unsettled`, `Heap.truncated`), which the reference mode never sets, not state
+        the robot's program sees."""
+        vm_state, *rest = Robot.decode_snapshot(snapshot)
+        heap, *registers = vm_state
+        return pickle.dumps(((heap[:5], *registers), *rest))
 
     def restore(self, snapshot: bytes) -> None:
         """Restore a snapshot (either layout) of a robot with the same program, profile and

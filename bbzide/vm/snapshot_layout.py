@@ -18,6 +18,11 @@ the heap and the rest keep their offsets (keyframe deltas, recording/keyframes.p
 little-endian. Equal states give equal bytes: every byte follows from a value of the state,
 whichever form (packed or Python records) holds it.
 
+The header's last field, ``heap_flags``, holds the fast mode's two notes on the heap
+(`Heap.unsettled`, `Heap.truncated`: which of its collections may be skipped), so that a
+restored robot skips no collection its heap forbids; snapshots written before it (magic
+`VM_MAGIC_WITHOUT_FLAGS`) are still read, with neither flag set.
+
 A state outside this shape — a record of another class, an attribute beyond a record's
 fields, a value that is not an int (or does not fit in an int64) — is not written here:
 `vm_bytes` returns None and `VM.snapshot` pickles it (`snapshot_pickle`), as every snapshot
@@ -58,8 +63,11 @@ if TYPE_CHECKING:
     from bbzide.vm.vm import VM
 
 #: first bytes of a flat VM / robot snapshot (a pickle starts with 0x80, protocol 2+)
-VM_MAGIC = b"BZV\x01"
+VM_MAGIC = b"BZV\x02"
 ROBOT_MAGIC = b"BZR\x01"
+#: a flat VM snapshot written before the header held ``heap_flags`` (read as flags 0)
+VM_MAGIC_WITHOUT_FLAGS = b"BZV\x01"
+VM_MAGICS = (VM_MAGIC, VM_MAGIC_WITHOUT_FLAGS)
 
 #: the header's int64 fields, in order
 VM_FIELDS = (
@@ -73,9 +81,13 @@ VM_FIELDS = (
     "in_capacity", "out_capacity", "obj_size", "record_bytes",
     "inbox_capacity", "inbox_start", "inbox_end", "inbox_records",
     "outbox_capacity", "outbox_start", "outbox_end", "outbox_records",
-    "bcode_bytes", "error_events",
+    "bcode_bytes", "error_events", "heap_flags",
 )
 _VM_HEAD = struct.Struct(f"<4s{len(VM_FIELDS)}q")
+_VM_HEAD_WITHOUT_FLAGS = struct.Struct(f"<4s{len(VM_FIELDS) - 1}q")
+#: ``heap_flags``' bits: the fast mode's `Heap.unsettled` and `Heap.truncated` (which rules
+#: its collections may skip; the reference never sets them)
+HEAP_UNSETTLED, HEAP_TRUNCATED = 1, 2
 #: magic, steps done, booted, failed, VM snapshot bytes
 _ROBOT_HEAD = struct.Struct("<4sqBBI")
 #: a failure: pc, then (has location, line, column), then reason, message, file as strings
@@ -225,6 +237,7 @@ def vm_parts(vm: VM) -> tuple[list[Any], int] | None:
         inbox.capacity, in_start, in_end, in_count,
         outbox.capacity, out_start, out_end, out_count,
         len(bcode), len(events),
+        HEAP_UNSETTLED * heap.unsettled + HEAP_TRUNCATED * heap.truncated,
     )
     if not _only_ints(values) or (tail and not _only_ints([e[1] for e in events])):
         return None
@@ -277,12 +290,19 @@ def decode_vm(data: bytes, at: int = 0, end: int | None = None) -> tuple[Any, ..
 
 
 def _decode_vm(data: bytes, at: int, end: int) -> tuple[Any, ...]:
-    if data[at:at + len(VM_MAGIC)] != VM_MAGIC:
+    magic = data[at:at + len(VM_MAGIC)]
+    if magic not in VM_MAGICS:
         raise SnapshotError("not a flat VM snapshot")
-    magic, *values = _VM_HEAD.unpack_from(data, at)
-    f = dict(zip(VM_FIELDS, values, strict=True))
-    reader = _Reader(data[:end], at + _VM_HEAD.size)
-    heap = (reader.take(f["heap_bytes"]), f["rtobj"], f["ltseg"], f["peak_used"], f["gc_runs"])
+    head, fields = (_VM_HEAD, VM_FIELDS) if magic == VM_MAGIC else \
+        (_VM_HEAD_WITHOUT_FLAGS, VM_FIELDS[:-1])
+    magic, *values = head.unpack_from(data, at)
+    f = dict(zip(fields, values, strict=True))
+    flags = f.get("heap_flags", 0)
+    if not 0 <= flags <= HEAP_UNSETTLED | HEAP_TRUNCATED:
+        raise SnapshotError("unknown heap flags")
+    reader = _Reader(data[:end], at + head.size)
+    heap = (reader.take(f["heap_bytes"]), f["rtobj"], f["ltseg"], f["peak_used"], f["gc_runs"],
+            bool(flags & HEAP_UNSETTLED), bool(flags & HEAP_TRUNCATED))
     stack = reader.ints(f["stack_entries"], "H")
     record = f["record_bytes"]
     if record != record_size(f["obj_size"]) or f["obj_size"] <= 0:

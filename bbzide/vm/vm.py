@@ -523,7 +523,7 @@ class VM:
 
         from bbzide.vm import snapshot_layout
 
-        if snapshot.startswith(snapshot_layout.VM_MAGIC):
+        if snapshot.startswith(snapshot_layout.VM_MAGICS):
             return snapshot_layout.decode_vm(snapshot)
         if not snapshot.startswith(b"\x80"):  # not a pickle of ours (protocol 2+)
             raise snapshot_layout.SnapshotError("neither a flat nor a pickled VM snapshot")
@@ -570,11 +570,14 @@ class VM:
         objects and segments; the stack pointers stay in the stack; the message queues and
         the neighbor ring keep this profile's sizes, with ``start``/``end`` inside them."""
         heap = self.heap
-        (_, rtobj, ltseg, _, _), stackptr, blockptr = snap[0], snap[2], snap[3]
+        held, stackptr, blockptr = snap[0], snap[2], snap[3]
+        rtobj, ltseg, flags = held[1], held[2], held[5:]
         # every scalar register an int (a pickled keyframe could hold any allowed value: a
-        # list as the pc escaped as a TypeError from the debug map), the state and error kinds
+        # list as the pc escaped as a TypeError from the debug map), the state and error kinds;
+        # the heap's two flags bools (a snapshot of five values predates them)
         ints = (rtobj, ltseg, stackptr, blockptr, snap[4], *snap[7:13], snap[14])
-        if set(map(type, ints)) != {int} or type(snap[5]) is not State \
+        if set(map(type, ints)) != {int} or len(held) not in (5, 7) \
+                or set(map(type, flags)) - {bool} or type(snap[5]) is not State \
                 or type(snap[6]) is not Error \
                 or not heap.reserved * heap.obj_size <= rtobj <= ltseg <= heap.size \
                 or rtobj % heap.obj_size or (heap.size - ltseg) % heap.seg_size \

@@ -180,19 +180,29 @@ def programs(draw: st.DrawFn) -> str:
     ]) + "\n"
 
 
-def _run(bbo: bytes, strings: list[str], profile: Profile, stress: bool,
-         budget: int | None) -> list[tuple]:
-    """Top level, init, 4 steps; observed after each phase. ``budget`` stops every phase
-    after that many instructions (a mid-step observation)."""
+def _new_vm(profile: Profile, stress: bool, budget: int | None) -> VM:
     vm = VM(profile, stress_gc=stress)
     # nested loops may share their counter and never end: always bounded
     vm.instruction_budget = budget if budget is not None else 5_000
     vm.construct()
+    return vm
+
+
+def _run(bbo: bytes, strings: list[str], profile: Profile, stress: bool,
+         budget: int | None, snapshots: list[bytes] | None = None) -> list[tuple]:
+    """Top level, init, 4 steps; observed after each phase. ``budget`` stops every phase
+    after that many instructions (a mid-step observation). ``snapshots``: after init and
+    each step, the VM is replaced by a new one restored from its snapshot (kept there)."""
+    vm = _new_vm(profile, stress, budget)
     vm.set_bcode(bbo)
     out = [_observe(vm)]
     vm.run()
     out.append(_observe(vm))
     for name in ["init"] + ["step"] * 4:
+        if snapshots is not None:
+            snapshots.append(vm.snapshot())
+            vm = _new_vm(profile, stress, budget)
+            vm.restore(snapshots[-1])
         if vm.state == State.ERROR:
             break
         if name not in strings:
@@ -305,3 +315,17 @@ def test_a_heap_whose_collector_stopped_at_the_depth_limit_is_never_taken_for_se
     program = compile_source(_TRUNCATING, "truncating.bzz").to_bbo()
     assert _run(program.bbo, program.strings, KILOBOT, False, None) == \
         _run(program.bbo, program.strings, KILOBOT, True, None)
+
+
+@pytest.mark.parametrize("source, profile, flag", [(_UNSETTLING, PC, 5),
+                                                   (_TRUNCATING, KILOBOT, 6)],
+                         ids=["unsettled", "truncated"])
+def test_a_vm_restored_from_a_snapshot_keeps_its_heap_flags(source: str, profile: Profile,
+                                                             flag: int) -> None:
+    """A VM restored from a snapshot of such a heap (a recording's keyframe, a debugger's
+    checkpoint) still takes no shortcut: it goes on exactly as the reference."""
+    program = compile_source(source, "flags.bzz").to_bbo()
+    snapshots: list[bytes] = []
+    assert _run(program.bbo, program.strings, profile, False, None, snapshots) == \
+        _run(program.bbo, program.strings, profile, True, None)
+    assert any(VM.decode_snapshot(snapshot)[0][flag] for snapshot in snapshots)

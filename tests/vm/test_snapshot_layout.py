@@ -121,6 +121,49 @@ def test_old_pickled_snapshots_still_restore() -> None:
         assert fresh.snapshot() == robot.snapshot()
 
 
+@pytest.mark.parametrize("unsettled, truncated", [(True, False), (False, True), (True, True)])
+def test_the_heap_flags_restore_in_both_layouts(unsettled: bool, truncated: bool) -> None:
+    """`Heap.unsettled` and `Heap.truncated` (which collections the fast mode may skip) come
+    back with the state; two states that differ only in them compare equal."""
+    robots = swarm(KILOBOT, 2)
+    run(robots, 4)
+    robot = robots[0]
+    plain = Robot.comparable(robot.snapshot())
+    robot.vm.heap.unsettled, robot.vm.heap.truncated = unsettled, truncated
+    for snapshot in (robot.snapshot(), robot.pickled_snapshot()):
+        fresh = swarm(KILOBOT, 1)[0]
+        fresh.restore(snapshot)
+        assert (fresh.vm.heap.unsettled, fresh.vm.heap.truncated) == (unsettled, truncated)
+        assert Robot.comparable(snapshot) == plain
+
+
+def test_a_flat_snapshot_without_heap_flags_restores_with_none_set() -> None:
+    """A flat VM snapshot written before the header held the flags (magic BZV 1, one field
+    fewer): every recording made then."""
+    robots = swarm(KILOBOT, 2)
+    run(robots, 4)
+    robot = robots[0]
+    robot.vm.heap.truncated = True
+    vm_at = snapshot_layout._ROBOT_HEAD.size
+    flat = robot.snapshot()
+    flags_at = vm_at + len(snapshot_layout.VM_MAGIC) + 8 * snapshot_layout.VM_FIELDS.index(
+        "heap_flags")
+    vm_bytes = (snapshot_layout.VM_MAGIC_WITHOUT_FLAGS + flat[vm_at + 4:flags_at]
+                + flat[flags_at + 8:])
+    _magic, steps, booted, failed, _length = snapshot_layout._ROBOT_HEAD.unpack_from(flat)
+    old = snapshot_layout._ROBOT_HEAD.pack(snapshot_layout.ROBOT_MAGIC, steps, booted, failed,
+                                           len(vm_bytes)) + vm_bytes
+    fresh = swarm(KILOBOT, 1)[0]
+    fresh.restore(old)
+    assert not fresh.vm.heap.truncated and not fresh.vm.heap.unsettled
+    assert Robot.comparable(old) == Robot.comparable(flat)
+    for value in (4, -1, 2 ** 40):  # bits that mean nothing
+        crafted = flat[:flags_at] + value.to_bytes(8, "little", signed=True) + \
+            flat[flags_at + 8:]
+        with pytest.raises(SnapshotError, match="heap flags"):
+            fresh.restore(crafted)
+
+
 def test_a_state_of_another_shape_is_pickled_and_restores() -> None:
     robot = swarm(KILOBOT, 1)[0]
     robot.control_step()  # robot 0 puts into its stigmergy
