@@ -72,9 +72,15 @@ function step() {
 
 
 def run_briefly(world: str, script: Path) -> None:
-    """`STEPS` steps of `ROBOTS` robots running `script` in `world`."""
+    """`STEPS` steps of `ROBOTS` robots running `script` in `world`; a robot that failed (a
+    kernel numba did not compile fails its robot) stops the set-up with its reason."""
     program = load_script(script, WORLDS[world].host_names, [])
-    Simulation(world, program, robots=ROBOTS, seed=1, watch=()).run(STEPS)
+    simulation = Simulation(world, program, robots=ROBOTS, seed=1, watch=())
+    simulation.run(STEPS)
+    for state in simulation.failures:
+        first_line = state.failure.message.splitlines()[0]
+        raise SystemExit(f"warm-up: robot {state.robot_id} of {script.name} failed: "
+                         f"{state.failure.reason}: {first_line[:300]}")
 
 
 def walk_neighbours(folder: Path) -> None:

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
 from bbzide.vm.compiled.fasthost import HOST_COLUMNS
 from bbzide.vm.compiled.fastinbox import (
     CALLED,
@@ -160,7 +160,7 @@ _STR_STEP = 5
 _MARK = 0x01
 
 
-@_compile
+@_compile_owning
 def _receive(d: Any, stack: Any, regs: Any, s: int, elems: int, reserved: int, inq: Any,
              ring: Any, ctl: Any, payloads: Any, lengths: Any, distances: Any,
              azimuths: Any, elevations: Any, first: int, last: int, io: Any) -> int:
@@ -280,7 +280,7 @@ def _stigmergy_head(inq: Any, q: Any) -> bool:
     return typ == VSTIG_PUT or typ == VSTIG_QUERY
 
 
-@_compile
+@_compile_owning
 def _process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: int,
                     elems: int, reserved: int, inq: Any, q: Any, ctl: Any, vstig: Any,
                     outq: Any) -> int:
@@ -314,7 +314,7 @@ def _process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s:
     return status
 
 
-@_compile
+@_compile_owning
 def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                rules: Any, s: int, elems: int, reserved: int, inq: Any, outq: Any,
                ring: Any, ctl: Any, latch: Any, hosts: Any, vstig: Any, payloads: Any,
@@ -421,7 +421,7 @@ G_OBJ, G_ELEMS, G_RESERVED = range(3)
 L_GROUP, L_TARGET, L_ARGS = 0, 1, 2
 
 
-@_compile
+@_compile_owning
 def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynamic: Any,
                todo: Any, flags: Any, rules: Any, payloads: Any, lengths: Any,
                distances: Any, azimuths: Any, elevations: Any, bounds: Any,

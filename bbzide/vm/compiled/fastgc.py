@@ -64,16 +64,23 @@ try:  # numba is optional: the kernels are plain Python that numba compiles when
     _numba_config.CACHE_DIR = str(Path(__file__).parent / "__pycache__"
                                   / f"kernels-{_kernel_sources_digest()}")
 
-    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
-        """numba's dispatcher for `fn`, typed by its arguments' types only, never their values.
+    def _compile(fn: Callable[..., Any], owning: bool = False) -> Callable[..., Any]:
+        """numba's dispatcher for `fn`, typed by its arguments' types only, never their values,
+        and without numba's reference counting (NRT) unless `owning` (:func:`_compile_owning`).
 
         A kernel called from another with a constant argument (`_obj_alloc(..., 1, 0)`) would
         otherwise be compiled once more for every distinct constant (numba types a constant
         as a `Literal`): the set-up compiled 189 machine codes instead of 119, a quarter more
         time (scripts/warm_kernels.py: 88 s against 65 s), and the swarm and VM benchmarks,
         run alternately, are as fast with one code per kernel.
-        `get_call_template` is where numba resolves a call made from compiled code."""
-        dispatcher = _njit(cache=True, nogil=True)(fn)
+        `get_call_template` is where numba resolves a call made from compiled code.
+
+        A kernel without NRT neither counts references to the arrays it is passed nor may it
+        make one (numba refuses to compile an `np.empty`, or an array returned to it, there):
+        the kernels are many small functions called per instruction, each of which counted
+        its array arguments in and out; without that the kernel part of a step of 1,000
+        Kilobots took 15.2-15.4 ms instead of 18.2-19.9 (three alternating runs)."""
+        dispatcher = _njit(cache=True, nogil=True, _nrt=owning)(fn)
         typed_by_values = dispatcher.get_call_template
 
         def get_call_template(args: tuple[Any, ...], kws: dict[str, Any]) -> Any:
@@ -83,12 +90,18 @@ try:  # numba is optional: the kernels are plain Python that numba compiles when
         dispatcher.get_call_template = get_call_template
         return dispatcher
 
+    def _compile_owning(fn: Callable[..., Any]) -> Callable[..., Any]:
+        """:func:`_compile` for a kernel that owns arrays: it makes one (its scratch space, a
+        view it returns) or is handed one a kernel made; numba counts its references."""
+        return _compile(fn, owning=True)
+
     _i = np.int64  # numba's int() of a uint8 is unsigned: mixing it with int64 gives floats
     COMPILED = True
 except ImportError:  # pragma: no cover - exercised only on machines without numba
-    def _compile(fn: Callable[..., Any]) -> Callable[..., Any]:
+    def _compile(fn: Callable[..., Any], owning: bool = False) -> Callable[..., Any]:
         return fn
 
+    _compile_owning = _compile
     _i = int
     COMPILED = False
 
@@ -123,7 +136,7 @@ UNSETTLED = 1 << 32
 TRUNCATED = 1 << 33
 
 
-@_compile
+@_compile_owning
 def collect(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, info: Any,
             traversed: Any, size: int, s: int, g: int, elems: int, reserved: int,
             limit: int) -> int:

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i, collect_with
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
@@ -233,7 +233,7 @@ def rounded_distance(dx: int, dy: int) -> int:
     return r + 1 if n > r * r + r else r
 
 
-@_compile
+@_compile_owning
 def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, traversed: Any,
                    s: int, elems: int, reserved: int, hosts: Any, outq: Any, ctl: Any,
                    latch: Any) -> bool:
@@ -757,7 +757,7 @@ def _call_element_fun(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
                        sp, hosts, outq, ctl, latch, entry)
 
 
-@_compile
+@_compile_owning
 def xtreme_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 rules: Any, s: int, elems: int, reserved: int, ring: Any, start: int,
                 kind: int, closure: int, result_table: int, floats: bool, w: Any,
@@ -833,7 +833,7 @@ W_SEGMENT, W_SLOT, W_VISIT = 3, 4, 5
 WALK_SLOTS = 9
 
 
-@_compile
+@_compile_owning
 def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                rules: Any, s: int, elems: int, reserved: int, kind: int, closure: int,
                result_table: int, w: Any, hosts: Any, outq: Any, ctl: Any,

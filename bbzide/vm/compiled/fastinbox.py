@@ -48,7 +48,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
 from bbzide.vm.compiled.fasthost import (
     call_pushed,
     collect_on_registers,
@@ -111,7 +111,7 @@ def _room_for_objects(d: Any, regs: Any, s: int, reserved: int, wanted: int) -> 
     return free >= wanted
 
 
-@_compile
+@_compile_owning
 def process_broadcasts(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
                        traversed: Any, rules: Any, s: int, elems: int, reserved: int,
                        records: Any, inq: Any, hosts: Any, outq: Any, ctl: Any,

@@ -65,6 +65,7 @@ from bbzide.vm.compiled.fastgc import (
     TRUNCATED,
     UNSETTLED,
     _compile,
+    _compile_owning,
     _i,
     collect_with,
     first_free,
@@ -1436,7 +1437,7 @@ def _free_dropped(d: Any, regs: Any, info: Any, a: int, b: int, s: int,
     _retreat_objects(d, regs, s, reserved)
 
 
-@_compile
+@_compile_owning
 def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         rules: Any, s: int, elems: int, reserved: int) -> int:
     """Run steps (collection or skip, then one instruction) from ``regs[R_PC]``.

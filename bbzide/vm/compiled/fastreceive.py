@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
 from bbzide.vm.compiled.fastloop import (
     R_LTSEG,
     R_RTOBJ,
@@ -197,7 +197,7 @@ def _inmsg_append(records: Any, rings: Any, size: int, payload: Any, p: int, n: 
                       spare)
 
 
-@_compile
+@_compile_owning
 def _neighbors_add(ring: Any, rings: Any, robot: int, distance: int, azimuth: int,
                    elevation: int, mark: bool) -> None:
     """``neighbors.add`` on the XTREME ring (rows of ``ring``: NeighborEntry fields)."""
@@ -237,7 +237,7 @@ def _neighbors_add(ring: Any, rings: Any, robot: int, distance: int, azimuth: in
         ring[k, NB_MARK] |= _MARK
 
 
-@_compile
+@_compile_owning
 def receive_all(records: Any, ring: Any, rings: Any, size: int, payloads: Any,
                 lengths: Any, situated: Any, mark: bool) -> None:
     """Message ``i`` (the next ``lengths[i]`` bytes of ``payloads``, at most the wire's)

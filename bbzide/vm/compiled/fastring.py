@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import _compile
+from bbzide.vm.compiled.fastgc import _compile, _compile_owning
 
 
 @_compile
@@ -45,7 +45,7 @@ def _slot(start: int, i: int, slots: int) -> int:
     return u if u < slots else u % slots
 
 
-@_compile
+@_compile_owning
 def sort_ring_by_type(records: Any, start: int, end: int, slots: int, size: int,
                       spare: Any) -> None:
     """``RingBuffer.sort_by_type``: a stable sort of the queued records by their type byte

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile
+from bbzide.vm.compiled.fastgc import COMPILED, _compile_owning
 
 __all__ = ["COMPILED", "view_u8", "view_u16", "view_i32", "view_i64", "view_i64_rows",
            "address_of"]
@@ -48,23 +48,23 @@ if COMPILED:
     _pointer_i32 = _make_pointer(types.int32)
     _pointer_i64 = _make_pointer(types.int64)
 
-    @_compile
+    @_compile_owning
     def view_u8(address: int, length: int) -> Any:
         return carray(_pointer_u8(address), (length,))
 
-    @_compile
+    @_compile_owning
     def view_u16(address: int, length: int) -> Any:
         return carray(_pointer_u16(address), (length,))
 
-    @_compile
+    @_compile_owning
     def view_i32(address: int, length: int) -> Any:
         return carray(_pointer_i32(address), (length,))
 
-    @_compile
+    @_compile_owning
     def view_i64(address: int, length: int) -> Any:
         return carray(_pointer_i64(address), (length,))
 
-    @_compile
+    @_compile_owning
     def view_i64_rows(address: int, rows: int, columns: int) -> Any:
         return carray(_pointer_i64(address), (rows, columns))
 else:  # pragma: no cover - without numba the swarm step is not compiled at all

@@ -54,7 +54,7 @@ from typing import Any
 
 import numpy as np
 
-from bbzide.vm.compiled.fastgc import COMPILED, _compile, _i
+from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
 from bbzide.vm.compiled.fasthost import collect_on_registers, find_entry, out_append_vstig
 from bbzide.vm.compiled.fastinbox import _room_for_objects
 from bbzide.vm.compiled.fastloop import (
@@ -138,7 +138,7 @@ def _adopt(d: Any, regs: Any, s: int, reserved: int, records: Any, at: int, entr
     entries[i, E_TIMESTAMP] = lamport
 
 
-@_compile
+@_compile_owning
 def process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s: int,
                    elems: int, reserved: int, records: Any, state: Any, entries: Any,
                    outq: Any) -> int:
