@@ -571,13 +571,15 @@ class VM:
         the neighbor ring keep this profile's sizes, with ``start``/``end`` inside them."""
         heap = self.heap
         held, stackptr, blockptr = snap[0], snap[2], snap[3]
+        if len(held) not in (5, 7):  # (a snapshot of five values predates the heap's flags)
+            return False
         rtobj, ltseg, flags = held[1], held[2], held[5:]
         # every scalar register an int (a pickled keyframe could hold any allowed value: a
         # list as the pc escaped as a TypeError from the debug map), the state and error kinds;
-        # the heap's two flags bools (a snapshot of five values predates them)
+        # the heap's two flags bools
         ints = (rtobj, ltseg, stackptr, blockptr, snap[4], *snap[7:13], snap[14])
-        if set(map(type, ints)) != {int} or len(held) not in (5, 7) \
-                or set(map(type, flags)) - {bool} or type(snap[5]) is not State \
+        if set(map(type, ints)) != {int} or set(map(type, flags)) - {bool} \
+                or type(snap[5]) is not State \
                 or type(snap[6]) is not Error \
                 or not heap.reserved * heap.obj_size <= rtobj <= ltseg <= heap.size \
                 or rtobj % heap.obj_size or (heap.size - ltseg) % heap.seg_size \

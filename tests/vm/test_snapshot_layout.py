@@ -164,6 +164,19 @@ def test_a_flat_snapshot_without_heap_flags_restores_with_none_set() -> None:
             fresh.restore(crafted)
 
 
+def test_a_pickled_heap_of_another_shape_is_refused() -> None:
+    """A pickled keyframe is untrusted: a heap tuple of another length, or flags that are not
+    bools, is a `SnapshotError` and leaves the VM as it was."""
+    robot = swarm(KILOBOT, 1)[0]
+    before = robot.snapshot()
+    state = robot.vm.decode_snapshot(robot.vm.pickled_snapshot())
+    heap = state[0]
+    for crafted in (heap[:2], heap[:6], (*heap[:5], 1, 0), (*heap, False)):
+        with pytest.raises(SnapshotError):
+            robot.vm.restore_state((crafted, *state[1:]))
+    assert robot.snapshot() == before
+
+
 def test_a_state_of_another_shape_is_pickled_and_restores() -> None:
     robot = swarm(KILOBOT, 1)[0]
     robot.control_step()  # robot 0 puts into its stigmergy
