@@ -77,7 +77,8 @@ def run_briefly(world: str, script: Path) -> None:
     program = load_script(script, WORLDS[world].host_names, [])
     simulation = Simulation(world, program, robots=ROBOTS, seed=1, watch=())
     simulation.run(STEPS)
-    for state in simulation.failures:
+    if simulation.failures:
+        state = simulation.failures[0]
         first_line = state.failure.message.splitlines()[0]
         raise SystemExit(f"warm-up: robot {state.robot_id} of {script.name} failed: "
                          f"{state.failure.reason}: {first_line[:300]}")

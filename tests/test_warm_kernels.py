@@ -1,6 +1,6 @@
 """`scripts/warm_kernels.py` leaves one kernel cache (the folders of earlier kernel sources go),
-and its extra runs reach the kernels the world examples do not: the neighbour walks' and a
-replay's receive."""
+its extra runs reach the kernels the world examples do not (the neighbour walks' and a
+replay's receive), and a robot that fails in it (a kernel numba did not compile) stops it."""
 
 from __future__ import annotations
 
@@ -63,3 +63,10 @@ def test_the_rebuilt_recording_receives_through_the_kernel(monkeypatch: pytest.M
     calls = _counting(monkeypatch, fastreceive, ["receive_all"])
     _warm_kernels().record_and_rebuild(tmp_path)  # type: ignore[attr-defined]
     assert calls["receive_all"] > 0, calls
+
+
+def test_a_robot_failing_in_the_warm_up_stops_it_with_the_reason(tmp_path: Path) -> None:
+    script = tmp_path / "fails.bzz"
+    script.write_text("function init() {}\nfunction step() { x = 1 / 0 }\n")
+    with pytest.raises(SystemExit, match=r"robot 0 of fails.bzz failed: [A-Z]+"):
+        _warm_kernels().run_briefly("kilobot", script)  # type: ignore[attr-defined]
