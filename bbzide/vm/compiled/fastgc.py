@@ -168,6 +168,10 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
     mo = 4 * elems
     nwords = 2 * elems
     max_chain = size // g + 1
+    # the segments' words as little-endian u16s, one load each (-8 % per collection): a
+    # segment starts at size - (seg + 1) * g, g even, so at an even offset from `odd`
+    odd = size & 1
+    words = d[odd:size].view(np.uint16)
     # 1. clear marks (segments k-1..0, objects n-1..0)
     for j in range(k):
         d[size - (j + 1) * g + mo + 1] &= 0xFF ^ _SEG_MARK_HI
@@ -233,31 +237,40 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                 base = size - (seg + 1) * g
                 w = f_word[fp]
                 fd = f_depth[fp]
-                while w < nwords:
-                    word = _i(d[base + 2 * w]) | (_i(d[base + 2 * w + 1]) << 8)
-                    w += 1
-                    if word & 0x8000 and fd >= limit:
-                        y = word & 0x7FFF
-                        if y < nobj and not _i(d[y * s]) & _GC_MARK:
-                            truncated = True
-                    elif word & 0x8000:
-                        y = word & 0x7FFF
-                        if y < nobj:
-                            my = _i(d[y * s])
-                            if not my & _GC_MARK:
-                                ty = my & _TYPE_MASK
-                                if ty != _TABLE and not (ty == _CLOSURE and my & _FLAG2
-                                                         and _i(d[y * s + 2]) != _NO_ACTREC):
-                                    # a leaf: mark(y) at depth fd + 1 marks it and returns,
-                                    # done here without leaving the word loop (most
-                                    # children are leaves: -25 % per collection)
-                                    d[y * s] = my | _GC_MARK
-                                    info[y] = fd + 1 + phase
-                                    if y > highest:
-                                        highest = y
-                                    continue
-                                x = y
-                                break
+                first_word = (base - odd) >> 1
+                if fd >= limit:
+                    # mark(y) would be past the depth limit: it only tells whether it stopped
+                    while w < nwords:
+                        word = _i(words[first_word + w])
+                        w += 1
+                        if word & 0x8000:
+                            y = word & 0x7FFF
+                            if y < nobj and not _i(d[y * s]) & _GC_MARK:
+                                truncated = True
+                else:
+                    leaf_info = fd + 1 + phase
+                    while w < nwords:
+                        word = _i(words[first_word + w])
+                        w += 1
+                        if word & 0x8000:
+                            y = word & 0x7FFF
+                            if y < nobj:
+                                o = y * s
+                                my = _i(d[o])
+                                if not my & _GC_MARK:
+                                    ty = my & _TYPE_MASK
+                                    if ty != _TABLE and not (
+                                            ty == _CLOSURE and my & _FLAG2
+                                            and _i(d[o + 2]) != _NO_ACTREC):
+                                        # a leaf: mark(y) at depth fd + 1 marks it and
+                                        # returns, done here without leaving the word loop
+                                        # (most children are leaves: -25 % per collection)
+                                        d[o] = my | _GC_MARK
+                                        info[y] = leaf_info
+                                        highest = max(highest, y)
+                                        continue
+                                    x = y
+                                    break
                 f_word[fp] = w
                 if x >= 0:
                     depth = fd + 1
