@@ -32,6 +32,7 @@ program is logged as a single row when first used.
 from __future__ import annotations
 
 import base64
+import dataclasses
 import gc
 import json
 import operator
@@ -203,10 +204,12 @@ class Recordable:
         tapped = {}
         latched = []
         for name, fn in host_functions.items():
-            if isinstance(fn, LatchedHostFunction):  # stays latched: see SwarmCapture.tap
-                tapped[name] = LatchedHostFunction(
-                    capture.tap(robot_id, name, fn.function, live, latched=fn.argc),
-                    fn.argc, fn.target, fn.apply)
+            # stays latched (see SwarmCapture.tap) unless some of its int calls fail: a
+            # replay takes every int call of a latched function for a plain ret0
+            if isinstance(fn, LatchedHostFunction) and fn.below is None:
+                tapped[name] = dataclasses.replace(
+                    fn, function=capture.tap(robot_id, name, fn.function, live,
+                                             latched=fn.argc))
                 latched.append((name, fn.argc))
             else:
                 tapped[name] = capture.tap(robot_id, name, fn, live)

@@ -17,7 +17,7 @@ with ``vm.ret0()`` or ``vm.ret1()`` (ret1 returns the top of the stack).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -274,12 +274,17 @@ class LatchedHostFunction:
     for every robot whose latch was written (``targets``: their ``target`` values;
     ``values``: int64[k, argc], each robot's last call), and it applies a robot's latch
     before that robot runs any Python code of the same step, so the order of stores is
-    the order of calls. Anything unusual (another argument count, a non-int) is Python's:
-    ``function`` then reports it as it always does.
+    the order of calls. Anything unusual (another argument count, a non-int, an int not
+    ``below`` its bound) is Python's: ``function`` then reports it as it always does. A
+    function each of whose calls counts, not only the last (an M300's ``set_role``: the
+    world counts role changes), is latched ``once``: the kernel hands a second call of the
+    same step to Python, after the first call's latch is applied. A reading of the state it
+    stores (an M300's ``arrived()`` reads what ``goto`` stores) names it in its
+    ``stale_after``.
 
     Why it is exact: a store of the last call's arguments, applied before anything else
     of that robot could store or read the same state, leaves the state ``function``
-    would have left.
+    would have left; latched once, the one call is applied as ``function`` would do it.
     """
 
     function: Callable[[HostCall], None]
@@ -287,6 +292,12 @@ class LatchedHostFunction:
     #: what ``apply`` gets for this robot (the world's index of the robot)
     target: int
     apply: Callable[[Any, Any], None]
+    #: every argument's exclusive upper bound on the kernel's path (the lower one is 0;
+    #: None: any int): for a function that fails some ints (a recording, which replays a
+    #: latched call as its ``ret0``, takes such a function as an ordinary one)
+    below: int | None = None
+    #: at most one call a step is latched (a second one goes to Python)
+    once: bool = False
 
     def __call__(self, call: HostCall) -> None:
         self.function(call)
@@ -336,6 +347,10 @@ class ReadingHostFunction:
     read: Callable[[], Reading]
     #: the record's field names, in the order ``HostCall.ret`` puts them (empty: an int)
     keys: tuple[str, ...] = ()
+    #: the latched host functions (``LatchedHostFunction``, by name) that store what it
+    #: reads: once one of them is called in a step, the kernel leaves this reading to
+    #: Python, which runs after that call's latch is applied
+    stale_after: tuple[str, ...] = ()
 
     def __call__(self, call: HostCall) -> None:
         value = self.read()
@@ -363,6 +378,49 @@ class ReadingHostFunction:
             return (packed_queues.READ_VALUE, *(v & 0xFFFF for v in value)) \
                 + (0,) * (width - len(value))
         return (packed_queues.READ_NONE,) + (0,) * width
+
+
+@dataclass(frozen=True)
+class DrawnHostFunction:
+    """A world host function of no arguments whose result is a **record of ints drawn from
+    its robot's own random stream**, and nothing else (an M300's ``random_goal()``: a
+    uniform point of the field and its belief cell). Called from Python it is ``function``
+    as usual, which draws. A compiled swarm step (``swarm_batch``) instead writes the
+    results of the next ``packed_queues.DRAWN_ROWS`` calls as the robot's drawn rows before
+    its kernel part (``ahead``: computed by the same code, the stream left as it was); the
+    kernel (``fasthost``) pushes one per call, in order, and marks it taken; after that
+    part the swarm step moves the stream on as that many calls would (``skip``), before the
+    robot runs any Python code of the step. A call past the last row goes to Python.
+
+    Why it is exact: the kernel's calls return the values the same calls would have drawn,
+    in order, and the stream ends where those calls would have left it.
+    """
+
+    function: Callable[[HostCall], None]
+    #: the record's field names, in the order ``HostCall.ret`` puts them
+    keys: tuple[str, ...]
+    #: the next `count` calls' results (each the record's ints in `keys` order), the
+    #: stream left as it is; the same object while the stream has not moved
+    ahead: Callable[[int], tuple[tuple[int, ...], ...]]
+    #: the stream moved on as `count` calls move it
+    skip: Callable[[int], None]
+    #: the last results `rows` turned into rows, and those rows
+    _rows: list[Any] = field(default_factory=lambda: [None, None], compare=False)
+
+    def __call__(self, call: HostCall) -> None:
+        self.function(call)
+
+    def rows(self, count: int) -> np.ndarray:
+        """The next `count` calls' results as drawn rows (``packed_queues.READ_VALUE`` and
+        the ints masked to 16 bits, as ``VM.new_int`` stores them)."""
+        results = self.ahead(count)
+        if self._rows[0] is not results:
+            rows = np.zeros((count, 1 + packed_queues.LATCH_ARGS), np.int64)
+            rows[:, 0] = packed_queues.READ_VALUE
+            rows[:, 1:1 + len(self.keys)] = np.array(results, np.int64).reshape(
+                count, len(self.keys)) & 0xFFFF
+            self._rows[:] = results, rows
+        return self._rows[1]
 
 
 @dataclass(frozen=True)

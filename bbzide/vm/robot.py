@@ -46,6 +46,7 @@ from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
 from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout, vstig
 from bbzide.vm.host import (
+    DrawnHostFunction,
     HostCall,
     LatchedHostFunction,
     LookupHostFunction,
@@ -112,6 +113,9 @@ class CompiledHosts:
     latched: list[LatchedHostFunction]
     #: the reading of each reading slot (``packed_queues.READING_SLOTS``)
     readings: list[ReadingHostFunction]
+    #: each drawn host function and the latch row of its first drawn row (its
+    #: ``packed_queues.DRAWN_ROWS`` rows follow the readings')
+    drawn: list[tuple[int, DrawnHostFunction]]
 
 
 class Robot:
@@ -144,6 +148,7 @@ class Robot:
         #: latched host functions by C symbol (host.LatchedHostFunction), and the table of
         #: host functions a compiled swarm step runs in place (compiled_hosts), cached
         self._latched: dict[str, LatchedHostFunction] = {}
+        self._drawn: dict[str, DrawnHostFunction] = {}
         self._readings: dict[str, ReadingHostFunction] = {}
         self._hosts: tuple[int, CompiledHosts] | None = None
         self._latching = True
@@ -223,6 +228,8 @@ class Robot:
             self._latched[symbol] = fn
         elif isinstance(fn, ReadingHostFunction):
             self._readings[symbol] = fn
+        elif isinstance(fn, DrawnHostFunction):
+            self._drawn[symbol] = fn
         elif isinstance(fn, RoundedDistanceHostFunction):
             self.vm.host.mark_computed(symbol, fasthost.HOST_DISTANCE, fn.argc)
         elif isinstance(fn, LookupHostFunction):
@@ -246,36 +253,46 @@ class Robot:
 
     def compiled_hosts(self) -> CompiledHosts:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
-        (address, pointer size, kind, slot, argument count, a record's field names) for the
-        closure address of ``neighbors.broadcast``, of a stigmergy's ``get`` and ``put``, of
-        each latched host function, of each reading and of each one the kernel computes
+        (address, pointer size, kind, slot, argument count, a record's field names, a latch's
+        bound and once flag, a reading's stale-after slots) for the closure address of
+        ``neighbors.broadcast``, of a stigmergy's ``get`` and ``put``, of each latched host
+        function, of each reading, of each drawn one and of each one the kernel computes
         (``HostRegistry.computed_rows``), as the VM's registry maps them now; the latched
-        function of each latch slot; the reading of each reading slot. Cached until the
-        registry changes."""
+        function of each latch slot; the reading of each reading slot; the drawn functions
+        and their rows. Cached until the registry changes."""
         registry = self.vm.host
         cached = self._hosts
         if cached is not None and cached[0] == registry.version:
             return cached[1]
         ptr = self.profile.ptr_size
-        no_keys = (-1,) * packed_queues.LATCH_ARGS
         rows: list[tuple[int, ...]] = []
         slots: list[LatchedHostFunction] = []
+        slot_of: dict[str, int] = {}
         readings: list[ReadingHostFunction] = []
+
+        def row(address: int, kind: int, slot: int, argc: int, keys: Sequence[int] = (),
+                below: int = -1, once: int = 0, stale_after: int = 0) -> tuple[int, ...]:
+            # fasthost.H_* columns: the record's field names, then the latch's and the
+            # reading's own
+            no_keys = (-1,) * (packed_queues.LATCH_ARGS - len(keys))
+            return (address, ptr, kind, slot, argc, *keys, *no_keys, below, once, stale_after)
+
         for address, call in registry.by_address.items():
             if call.function is neighbors.neighbors_broadcast:
-                rows.append((address, ptr, fasthost.HOST_BROADCAST, 0, 2, *no_keys))
+                rows.append(row(address, fasthost.HOST_BROADCAST, 0, 2))
             elif call.function is vstig.vstig_get:
-                rows.append((address, ptr, fasthost.HOST_VSTIG_GET, 0, 1, *no_keys))
+                rows.append(row(address, fasthost.HOST_VSTIG_GET, 0, 1))
             elif call.function is vstig.vstig_put:
-                rows.append((address, ptr, fasthost.HOST_VSTIG_PUT, 0, 2, *no_keys))
+                rows.append(row(address, fasthost.HOST_VSTIG_PUT, 0, 2))
         for symbol, fn in self._latched.items() if self._latching else ():
             call = registry.by_symbol.get(symbol)
             if call is None or registry.by_address.get(call.address) is not call \
                     or len(slots) >= packed_queues.LATCH_SLOTS \
                     or not 0 <= fn.argc <= packed_queues.LATCH_ARGS:
                 continue
-            rows.append((call.address, ptr, fasthost.HOST_LATCH, len(slots), fn.argc,
-                         *no_keys))
+            rows.append(row(call.address, fasthost.HOST_LATCH, len(slots), fn.argc,
+                            below=-1 if fn.below is None else fn.below, once=int(fn.once)))
+            slot_of[symbol] = len(slots)
             slots.append(fn)
         for symbol, reading in self._readings.items() if self._latching else ():
             call = registry.by_symbol.get(symbol)
@@ -284,13 +301,29 @@ class Robot:
                     or len(readings) >= packed_queues.READING_SLOTS \
                     or len(keys) > packed_queues.LATCH_ARGS or None in keys:
                 continue  # a field name the program lacks: Python's call reports it
+            # (a storer not latched hands the step to Python, whose readings are Python's)
+            stale_after = sum(1 << slot_of[name] for name in reading.stale_after
+                              if name in slot_of)
             kind = fasthost.HOST_READ_RECORD if keys else fasthost.HOST_READ_INT
-            rows.append((call.address, ptr, kind, packed_queues.LATCH_SLOTS + len(readings), 0,
-                         *keys, *no_keys[len(keys):]))
+            rows.append(row(call.address, kind, packed_queues.LATCH_SLOTS + len(readings), 0,
+                            keys, stale_after=stale_after))
             readings.append(reading)
+        drawn: list[tuple[int, DrawnHostFunction]] = []
+        used = len(readings)
+        for symbol, fn in self._drawn.items() if self._latching else ():
+            call = registry.by_symbol.get(symbol)
+            keys = [self.program.string_id(key) for key in fn.keys]
+            if call is None or registry.by_address.get(call.address) is not call \
+                    or used + packed_queues.DRAWN_ROWS > packed_queues.READING_SLOTS \
+                    or len(keys) > packed_queues.LATCH_ARGS or None in keys:
+                continue
+            first_row = packed_queues.LATCH_SLOTS + used
+            rows.append(row(call.address, fasthost.HOST_DRAWN, first_row, 0, keys))
+            drawn.append((first_row, fn))
+            used += packed_queues.DRAWN_ROWS
         rows.extend(map(tuple, registry.computed_rows().tolist()))
         table = np.array(rows, np.int64).reshape(-1, fasthost.HOST_COLUMNS)
-        hosts = CompiledHosts(table, slots, readings)
+        hosts = CompiledHosts(table, slots, readings, drawn)
         self._hosts = (registry.version, hosts)
         return hosts
 

@@ -81,6 +81,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bbzide.vm.host import (
+    DrawnHostFunction,
     LatchedHostFunction,
     LookupHostFunction,
     ReadingHostFunction,
@@ -126,6 +127,8 @@ DEFAULT_THRESHOLD = 20       # percent: goals believed below this are rejected
 #: ~21 % of a generated map's mass is under the threshold).
 TARGETS_WHERE = ("uniform", "likely", "anywhere")
 
+#: random_goal()'s record: a point of the field (dm) and its belief cell
+GOAL_KEYS = ("x", "y", "cell")
 #: Role codes of `set_role` -> names the UI shows; LED colours per role.
 ROLE_NAMES = ("searcher", "root_candidate", "root", "auctioneer", "networker_bidder",
               "networker", "rendezvous", "landed")
@@ -327,7 +330,7 @@ class M300Field(World):
     # ---- bodies -------------------------------------------------------------------------------
     def attach(self, sim: Simulation) -> None:
         count = sim.count
-        self._sim = sim  # the step a latched doze counts from
+        self._sim = sim  # for latched host functions: doze's step, set_role's robot
         if self.field_size < self.comm_range:     # again: `--comm-range` overrides the radio
             raise WorldConfigError(
                 f"a {self.field_size:g} m field is smaller than the {self.comm_range:g} m "
@@ -423,12 +426,11 @@ class M300Field(World):
             x, y = _number_arg(call, 1), _number_arg(call, 2)
             if x is None or y is None:
                 return
-            if world.mode[index] == FLYING:
-                world.goals[index, 0] = min(max(float(x) / DM, 0.0), size)
-                world.goals[index, 1] = min(max(float(y) / DM, 0.0), size)
+            world.go_to(index, x, y)
 
         # Readings (vm/host.py): what they read changes only in `advance` and in this
-        # robot's takeoff, land and goto, never in a step before its first Python call.
+        # robot's takeoff and land, never in a step before its first Python call, and in
+        # its goto (latched: `arrived` is stale after it).
         def position() -> tuple[int, int, int, int]:
             x, y, z = sim.positions[index].tolist()
             return _dm(x), _dm(y), _dm(z), world.cell_of(x, y)
@@ -447,9 +449,28 @@ class M300Field(World):
             x, y = world.targets[seen].tolist()
             return _dm(x), _dm(y)
 
+        def goal_of(x: float, y: float) -> tuple[int, int, int]:
+            return _dm(x), _dm(y), world.cell_of(x, y)
+
         def random_goal(call: HostCall) -> None:
             x, y = rng.uniform(0.0, size, 2)
-            call.ret({"x": _dm(x), "y": _dm(y), "cell": world.cell_of(x, y)})
+            call.ret(dict(zip(GOAL_KEYS, goal_of(x, y), strict=True)))
+
+        # random_goal's next results for the compiled swarm step (DrawnHostFunction), kept
+        # with the stream's state they were drawn from until the stream moves
+        ahead_of: list[Any] = [None, ()]
+
+        def goals_ahead(count: int) -> tuple[tuple[int, int, int], ...]:
+            state = rng.bit_generator.state
+            if ahead_of[0] != state or len(ahead_of[1]) != count:
+                drawn = rng.uniform(0.0, size, 2 * count).tolist()  # `count` calls' draws
+                rng.bit_generator.state = state
+                ahead_of[:] = state, tuple(goal_of(drawn[2 * k], drawn[2 * k + 1])
+                                           for k in range(count))
+            return ahead_of[1]
+
+        def skip_goals(count: int) -> None:
+            rng.uniform(0.0, size, 2 * count)
 
         def prior(call: HostCall) -> None:
             if not call.expect_args(1):
@@ -485,22 +506,14 @@ class M300Field(World):
             if not 0 <= code < len(ROLE_NAMES):
                 call.fail("TYPE")
                 return
-            name = ROLE_NAMES[code]
-            world.count_transition(index, world.roles[index], name)
-            world.roles[index] = name
-            world.role_codes[index] = code
-            sim.robots[index].set_label("role", name)
-            sim.leds[index] = ROLE_COLOURS[name]
+            world.take_role(index, code)
 
         def know_target(call: HostCall) -> None:
             if not call.expect_args(2):
                 return
             x, y = _number_arg(call, 1), _number_arg(call, 2)
             if x is not None and y is not None:
-                x, y = x / DM, y / DM
-                known = world.known_targets[index]
-                if all(math.hypot(x - a, y - b) > 0.5 for a, b in known):
-                    known.append((float(x), float(y)))
+                world.learn_target(index, x, y)
 
         def relay_link(call: HostCall) -> None:
             if not call.expect_args(1):
@@ -529,14 +542,23 @@ class M300Field(World):
             if steps is not None:
                 world.asleep_until[index] = sim.step_count + 1 + max(int(steps), 0)
 
-        return {"takeoff": takeoff, "land": land, "goto": goto,
+        return {"takeoff": takeoff, "land": land,
+                "goto": LatchedHostFunction(goto, 2, index, self._apply_goto_latches),
                 "position": ReadingHostFunction(position, ("x", "y", "z", "cell")),
-                "arrived": ReadingHostFunction(arrived), "flying": ReadingHostFunction(flying),
+                "arrived": ReadingHostFunction(arrived, stale_after=("goto",)),
+                "flying": ReadingHostFunction(flying),
                 "camera": ReadingHostFunction(camera, ("x", "y")),
-                "random_goal": random_goal,
+                "random_goal": DrawnHostFunction(random_goal, GOAL_KEYS, goals_ahead, skip_goals),
                 "prior": LookupHostFunction(prior, self.prior_values),
                 "distance": RoundedDistanceHostFunction(distance),
-                "mission": mission, "set_role": set_role, "know_target": know_target,
+                "mission": mission,
+                # stores of this drone's state that no host function reads but `arrived`
+                # (goto's goal): latched; each role change and target learnt counts, so
+                # set_role and know_target are latched once a step
+                "set_role": LatchedHostFunction(set_role, 1, index, self._apply_role_latches,
+                                                below=len(ROLE_NAMES), once=True),
+                "know_target": LatchedHostFunction(know_target, 2, index,
+                                                   self._apply_target_latches, once=True),
                 "relay_link": relay_link,
                 "missed": LookupHostFunction(missed, self.missed_values), "rand": random_byte,
                 "clock": ReadingHostFunction(clock),
@@ -548,6 +570,46 @@ class M300Field(World):
         """``doze(steps)`` of robots ``targets`` (their last call's int argument each), as
         the host function stores it."""
         self.asleep_until[targets] = self._sim.step_count + 1 + np.maximum(values[:, 0], 0)
+
+    def go_to(self, index: int, x: float, y: float) -> None:
+        """``goto(x, y)`` (dm) of drone `index`: its goal, inside the field, if it flies."""
+        if self.mode[index] == FLYING:
+            self.goals[index, 0] = min(max(float(x) / DM, 0.0), self.field_size)
+            self.goals[index, 1] = min(max(float(y) / DM, 0.0), self.field_size)
+
+    def take_role(self, index: int, code: int) -> None:
+        """``set_role(code)`` of drone `index` (`code` an index of ROLE_NAMES): the change
+        counted, the role, its label and LED set."""
+        name = ROLE_NAMES[code]
+        self.count_transition(index, self.roles[index], name)
+        self.roles[index] = name
+        self.role_codes[index] = code
+        self._sim.robots[index].set_label("role", name)
+        self._sim.leds[index] = ROLE_COLOURS[name]
+
+    def learn_target(self, index: int, x: float, y: float) -> None:
+        """``know_target(x, y)`` (dm) of drone `index`: kept unless within half a metre of
+        one it knows."""
+        x, y = x / DM, y / DM
+        known = self.known_targets[index]
+        if all(math.hypot(x - a, y - b) > 0.5 for a, b in known):
+            known.append((float(x), float(y)))
+
+    def _apply_goto_latches(self, targets: np.ndarray, values: np.ndarray) -> None:
+        """``goto(x, y)`` of drones ``targets`` (their last call's ints), as the host
+        function stores it."""
+        for index, (x, y) in zip(targets.tolist(), values.tolist(), strict=True):
+            self.go_to(index, x, y)
+
+    def _apply_role_latches(self, targets: np.ndarray, values: np.ndarray) -> None:
+        """``set_role(code)`` of drones ``targets`` (one call each, its code in range)."""
+        for index, code in zip(targets.tolist(), values[:, 0].tolist(), strict=True):
+            self.take_role(index, code)
+
+    def _apply_target_latches(self, targets: np.ndarray, values: np.ndarray) -> None:
+        """``know_target(x, y)`` of drones ``targets`` (one call each, ints)."""
+        for index, (x, y) in zip(targets.tolist(), values.tolist(), strict=True):
+            self.learn_target(index, x, y)
 
     def count_transition(self, index: int, before: str, after: str) -> None:
         """Count the role changes that are events of the search pattern (§5.3.1)."""

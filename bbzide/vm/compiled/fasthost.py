@@ -13,8 +13,10 @@ call back to Python with nothing done otherwise):
   included) on the packed out-queue (:mod:`packed_queues`), then ``ret0``;
 * a **latched** host function (``host.LatchedHostFunction``: a world function whose only
   effect is to store its int arguments as the robot's state, e.g. a Kilobot's ``led``):
-  its arguments are type-checked (ints only) and stored in the robot's latch slot, ``ret0``;
-  the world gets them after the swarm step (``swarm_batch``);
+  its arguments are type-checked (ints only, below the row's bound if it has one) and
+  stored in the robot's latch slot, ``ret0``; the world gets them after the swarm step
+  (``swarm_batch``); a function latched once a step (every call of it counts: an M300's
+  ``set_role``) hands its second call of a step to Python;
 * a **rounded distance** (``host.RoundedDistanceHostFunction``: an M300's
   ``distance(x1, y1, x2, y2)``, ``round(hypot(x1 - x2, y1 - y2))``): four int arguments,
   the int result pushed and ``ret1``; it touches no queue, so a walk begun from Python
@@ -23,7 +25,14 @@ call back to Python with nothing done otherwise):
   ``camera()``): no argument; the value the compiled swarm step wrote in the robot's reading
   row before the kernel (``packed_queues.READ_*``) pushed as ``HostCall.ret`` pushes it —
   an int, nil, or a record of ints (:func:`push_int_record`, field names from the row's
-  ``H_KEYS``) — and ``ret1``; a row with no reading (``READ_NONE``) goes to Python;
+  ``H_KEYS``) — and ``ret1``; a row with no reading (``READ_NONE``), or one a latched call
+  of this step made stale (``H_STALE_AFTER``: an M300's ``arrived()`` after ``goto``), goes
+  to Python;
+* a **drawn** record (``host.DrawnHostFunction``: an M300's ``random_goal()``): no
+  argument; the first row of the robot's drawn rows that no call of this step has taken
+  (the swarm step wrote the results of the next ``DRAWN_ROWS`` calls there, the random
+  stream left as it was) pushed as a record and marked taken; the swarm step then moves
+  the stream on by the rows taken; once every row is taken the call goes to Python;
 * a **lookup** (``host.LookupHostFunction``: an M300's ``prior(cell)``, ``missed(flown)``):
   one int argument, clamped into its table (``HostRegistry.computed_rows``: the table's
   address and length in the row), the int pushed and ``ret1``; like the distance it touches
@@ -103,12 +112,15 @@ from bbzide.vm.compiled.fasttables import darray_get, darray_size
 from bbzide.vm.compiled.fastviews import view_i64, view_i64_rows
 from bbzide.vm.compiled.packed_queues import (
     CTL_SLOTS,
+    DRAWN_ROWS,
     LATCH_ARGS,
+    LATCH_SLOTS,
     OUT_END,
     OUT_SLOTS,
     OUT_START,
     READ_NIL,
     READ_NONE,
+    READ_TAKEN,
     ROBOT,
     VSTIG_ADDRESS,
     VSTIG_CAP,
@@ -141,7 +153,9 @@ from bbzide.vm.message_layout import (
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD",
-           "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "H_KEYS", "HOST_COLUMNS",
+           "H_LATCH_BELOW", "H_LATCH_ONCE", "H_STALE_AFTER",
+           "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "HOST_DRAWN", "H_KEYS",
+           "HOST_COLUMNS",
            "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
            "WALK_TABLE_MAP", "WALK_TABLE_FILTER", "WALK_TABLE_REDUCE", "W_ACCUM",
@@ -151,9 +165,16 @@ __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST"
 # Columns of a ``hosts`` row (a reading's record: its field names' string ids from
 # ``H_KEYS`` on, LATCH_ARGS of them), and its kinds.
 H_ADDRESS, H_PTR_SIZE, H_KIND, H_SLOT, H_ARGC, H_KEYS = range(6)
-HOST_COLUMNS = H_KEYS + LATCH_ARGS
+#: a latch's columns: every argument's exclusive upper bound (-1: none; the lower one is
+#: 0), and 1 when only one call a step is latched (a second one goes to Python); a
+#: reading's column: the latch slots (bit k: slot k) whose call this step makes its row
+#: stale (the world state it reads is one that latched function stores)
+H_LATCH_BELOW = H_KEYS + LATCH_ARGS
+H_LATCH_ONCE = H_LATCH_BELOW + 1
+H_STALE_AFTER = H_LATCH_ONCE + 1
+HOST_COLUMNS = H_STALE_AFTER + 1
 HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE, HOST_READ_INT, HOST_READ_RECORD = 1, 2, 3, 4, 5
-HOST_VSTIG_GET, HOST_LOOKUP, HOST_VSTIG_PUT = 6, 7, 8
+HOST_VSTIG_GET, HOST_LOOKUP, HOST_VSTIG_PUT, HOST_DRAWN = 6, 7, 8, 9
 
 
 
@@ -267,16 +288,35 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         if kind != HOST_BROADCAST and kind != HOST_VSTIG_GET and kind != HOST_VSTIG_PUT \
                 and _i(d[o * s]) & 7 != INT:
             return False  # TYPE (or a string id the world would read as an int): Python
+    if kind == HOST_LATCH:
+        if hosts[row, H_LATCH_ONCE] == 1 and latch[hosts[row, H_SLOT], 0]:
+            return False  # its second call this step: the first is applied, then Python's
+        below = hosts[row, H_LATCH_BELOW]
+        for i in range(1, argc + 1):
+            if below >= 0 and not 0 <= _int_arg(d, lsyms, i, s, elems) < below:
+                return False  # outside its range: Python reports it
     sp = regs[R_SP]
     bp = regs[R_BP]
     result = 0
-    reading = kind == HOST_READ_INT or kind == HOST_READ_RECORD
+    reading = kind == HOST_READ_INT or kind == HOST_READ_RECORD or kind == HOST_DRAWN
+    record = kind == HOST_READ_RECORD or kind == HOST_DRAWN
     read = READ_NONE
+    read_row = hosts[row, H_SLOT]
+    if kind == HOST_DRAWN:  # the first row no call of this step has taken
+        first_row = read_row
+        while read_row < first_row + DRAWN_ROWS and latch[read_row, 0] == READ_TAKEN:
+            read_row += 1
+        if read_row == first_row + DRAWN_ROWS:
+            return False  # every row drawn ahead is taken: Python draws the next
     if reading:
-        read = latch[hosts[row, H_SLOT], 0]
+        read = latch[read_row, 0]
         if read == READ_NONE:
             return False  # no reading this step: Python asks the world
-        result = latch[hosts[row, H_SLOT], 1] & 0xFFFF
+        stale_after = hosts[row, H_STALE_AFTER]
+        for slot in range(LATCH_SLOTS):
+            if stale_after >> slot & 1 and latch[slot, 0]:
+                return False  # a latched call changed what it reads: applied, then Python
+        result = latch[read_row, 1] & 0xFFFF
     if kind == HOST_DISTANCE:
         result = rounded_distance(
             _int_arg(d, lsyms, 1, s, elems) - _int_arg(d, lsyms, 3, s, elems),
@@ -298,9 +338,9 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
                 or not _ret_ok(d, stack, True, sp + 1, bp, lsyms, bsize, s, elems)
                 or not _room(d, regs, s, reserved, elems, objects, 0)):
             return False
-        if kind == HOST_READ_RECORD and read != READ_NIL and not push_int_record(
+        if record and read != READ_NIL and not push_int_record(
                 d, stack, regs, hosts[row, H_KEYS:H_KEYS + _record_fields(hosts, row)],
-                latch[hosts[row, H_SLOT], 1:], s, elems, reserved):
+                latch[read_row, 1:], s, elems, reserved):
             return False
     elif not _ret_ok(d, stack, False, sp, bp, lsyms, bsize, s, elems):
         return False
@@ -345,9 +385,11 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         sp += 1
         stack[sp] = regs[R_NIL]  # push_nil
         with_value = True
-    elif kind == HOST_READ_RECORD:
+    elif record:
         sp += 1  # push_int_record pushed the table
         with_value = True
+        if kind == HOST_DRAWN:
+            latch[read_row, 0] = READ_TAKEN  # the swarm step moves the stream on for it
     elif kind == HOST_VSTIG_GET:
         # vstig_get (after its gc): the QUERY queued (the entry's, or nil at timestamp 0
         # under this robot), its value (or nil) pushed; after the ret1 below, gc again

@@ -75,13 +75,18 @@ RING_COLUMNS = 5
 LATCH_ARGS = 4
 #: latch slots of one robot (distinct latched host functions it registers)
 LATCH_SLOTS = 4
+#: rows of one drawn host function (``host.DrawnHostFunction``): the results of its next
+#: calls, one a row. Eight: an M300's search draws up to eight random goals in a step
+#: (examples/sar/sar.bzz ``next_goal``); a ninth call goes to Python.
+DRAWN_ROWS = 8
 #: reading slots of one robot (``host.ReadingHostFunction``: the rows after the latch
-#: slots). Six: an M300 reads five (clock, position, flying, arrived, camera) and a
-#: Crazyflie fewer; each row costs a robot 40 bytes.
-READING_SLOTS = 6
+#: slots; a drawn function takes DRAWN_ROWS of them). Fourteen: an M300 reads five
+#: (clock, position, flying, arrived, camera) and draws one (random_goal), one to spare;
+#: each row costs a robot 40 bytes.
+READING_SLOTS = 14
 #: column 0 of a reading row: no reading (the kernel hands the call to Python), an int or a
-#: record in columns 1..LATCH_ARGS, or nil
-READ_NONE, READ_VALUE, READ_NIL = 0, 1, 2
+#: record in columns 1..LATCH_ARGS, nil, or a drawn row a call has taken
+READ_NONE, READ_VALUE, READ_NIL, READ_TAKEN = 0, 1, 2, 3
 
 
 #: bumped whenever an array or constant register a compiled swarm step may have cached

@@ -58,7 +58,7 @@ from bbzide.vm.compiled.fastbatch import (
     IO_SLOTS,
     P_RECEIVE,
 )
-from bbzide.vm.compiled.packed_queues import LATCH_ARGS, LATCH_SLOTS
+from bbzide.vm.compiled.packed_queues import DRAWN_ROWS, LATCH_ARGS, LATCH_SLOTS, READ_TAKEN
 from bbzide.vm.message_layout import PAYLOAD_SIZE
 from bbzide.vm.packed_messages import PackedMessages, StepResult
 from bbzide.vm.states import State
@@ -172,6 +172,9 @@ class _SwarmTables:
         self.machines: list[tuple[Any, Any, Any] | None] = []
         #: (latch array, readings) of each robot with readings (``host.ReadingHostFunction``)
         self.readings: list[tuple[np.ndarray, list[Any]] | None] = [None] * count
+        #: (latch array, drawn functions and their first rows) of each robot with drawn host
+        #: functions (``host.DrawnHostFunction``)
+        self.drawn: list[tuple[np.ndarray, list[tuple[int, Any]]] | None] = [None] * count
         #: ``VM.hosted`` of each robot with readings while Python finishes its step
         self.hosted: list[tuple[np.ndarray, np.ndarray] | None] = [None] * count
         for i, robot in enumerate(robots):
@@ -188,6 +191,8 @@ class _SwarmTables:
                 self.readings[i] = (packed.latch, hosts.readings)
                 in_place = np.isin(hosts.table[:, fasthost.H_KIND], _IN_PLACE_FROM_PYTHON)
                 self.hosted[i] = (np.ascontiguousarray(hosts.table[in_place]), packed.latch)
+            if hosts.drawn:
+                self.drawn[i] = (packed.latch, hosts.drawn)
             arrays = (h.view, vm._stack_view, np.frombuffer(vm.bcode, np.uint8), h.gc_info,
                       h.gc_traversed, packed.inq, packed.outq, packed.ring, packed.ctl,
                       packed.latch, np.ascontiguousarray(hosts.table, np.int64), packed.vstig)
@@ -313,11 +318,16 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
     before = np.array(values, np.int64).reshape(len(chosen), fastbatch.DYNAMIC)
     dynamic = np.empty((len(robots), fastbatch.DYNAMIC), np.int64)
     dynamic[todo] = before
-    readings = tables.readings
-    for index in todo[stepping[todo]].tolist():  # only a step runs Buzz code
+    readings, drawn = tables.readings, tables.drawn
+    steps = todo[stepping[todo]].tolist()
+    for index in steps:  # only a step runs Buzz code
         if (mine := readings[index]) is not None:  # the reading rows, read now
             latch, functions = mine
             latch[LATCH_SLOTS:LATCH_SLOTS + len(functions)] = [f.row() for f in functions]
+        if (draws := drawn[index]) is not None:  # the next calls' results, drawn ahead
+            latch, functions = draws
+            for first, fn in functions:
+                latch[first:first + DRAWN_ROWS] = fn.rows(DRAWN_ROWS)
     pops = [robot.loop == "pop" for _vm, _h, robot in chosen]
     flags = np.zeros(len(robots), np.int64)
     flags[todo] = np.where(deferred[todo], F_RECEIVE, 0) | np.where(stepping[todo], F_STEP, 0) \
@@ -350,6 +360,13 @@ def _run_compiled(robots: Sequence[Any], tables: _SwarmTables, todo: np.ndarray,
         counts = [run(0)] + [f.result() for f in futures]
         for box in outboxes[1:]:
             outbox.extend(box)
+    for index in steps:  # the streams moved on by the drawn rows the calls took
+        if (draws := drawn[index]) is not None:
+            latch, functions = draws
+            for first, fn in functions:
+                taken = int(np.count_nonzero(latch[first:first + DRAWN_ROWS, 0] == READ_TAKEN))
+                if taken:
+                    fn.skip(taken)
     rows_latched = np.concatenate([rows[:n] for rows, n in zip(latched, counts, strict=True)])
     n_latched = len(rows_latched)
     _write_back(chosen, before, dynamic[todo])
