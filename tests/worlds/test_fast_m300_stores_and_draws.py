@@ -5,7 +5,9 @@ the same drones in both VM modes.
 step), ``set_role`` and ``know_target`` are latched once a step (a second call goes to
 Python; an out-of-range role is Python's TYPE error), and ``random_goal`` is drawn: the
 compiled swarm step writes its next results before a drone's kernel part and moves the
-drone's random stream on by the ones the kernel took. The script below calls each of them
+drone's random stream on by the ones the kernel took. A step ends on an int the kernel
+computes (``distance``, ``prior``, ``clock``), whose host frame it drops without a
+collection. The script below calls each of them
 zero to many times a step, mixes ``rand()`` (the same stream) in, and calls them from a
 listener too. Each run is compared after every step with the reference mode (``stress_gc``:
 every host function called in Python): each drone's VM state, and the world's state of every
@@ -65,6 +67,10 @@ function step() {
   if (id % 2 == 1) { know_target(t % 3 * 10 + 25, id * 10) }
   seen = seen + arrived() + flying()
   neighbors.broadcast("g", t + id)
+  # a step ending on an int a kernel computes: no collection between it and the step's end
+  if (id % 3 == 0) { return distance(t % 9, id, 3, 4) }
+  if (id % 3 == 1) { return prior(t % 4) }
+  return clock()
 }
 """
 

@@ -49,7 +49,11 @@ call back to Python with nothing done otherwise):
 
 After a host function ``VM._loop`` counts a step (``n``), applies no skip rule (``callc``
 has none: the next step collects) and checks the budget; :func:`run_hosted` does the same
-(it refuses a call after which the budget would be exceeded, so the error stays Python's).
+(it refuses a call after which the budget would be exceeded, so the error stays Python's),
+but for a call whose dropped frame holds only kept roots and fresh temporaries
+(``fastloop.host_frame_droppable``) and whose result, if any, is one new int (or nil): the
+next step's collection is then its effect — the frame's temporaries freed, that int marked
+and fresh (:func:`_host_compiled`).
 
 The table of compiled host functions (``hosts``, one row per closure address: see the
 ``H_*`` columns) is built by ``Robot.compiled_hosts`` from the VM's host registry; it is
@@ -69,6 +73,7 @@ from bbzide.vm.compiled.fastloop import (
     CALL,
     CALL_ON_FIXED_HEAP,
     EXIT,
+    FRESH,
     HOST_CALL,
     NEW,
     NONE,
@@ -86,6 +91,7 @@ from bbzide.vm.compiled.fastloop import (
     R_NIL,
     R_OLD_CHANGED,
     R_PENDING,
+    R_PRIOR,
     R_REACHED,
     R_RTOBJ,
     R_SAVED,
@@ -132,6 +138,7 @@ from bbzide.vm.heap_layout import (
     CLOSURE,
     FLAG2,
     FLOAT,
+    GC_MARK,
     INT,
     NO_ACTREC,
     PERMANENT,
@@ -363,10 +370,13 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         if entry < 0 and (rows >= ctl[VSTIG_CAP] or rows >= ctl[VSTIG_CAPACITY]):
             return False  # VSTIG (the stigmergy is full), or no packed row left: Python
     count = regs[R_HOST_COUNT]
-    # a frame is dropped only when the call made nothing (a result outlives it)
-    droppable = (kind != HOST_DISTANCE and kind != HOST_LOOKUP and not reading
-                 and not stigmergy and count >= 0 and not regs[R_UNSETTLED]
+    # a frame is dropped when the call made nothing, or one int (or pushed nil): that int
+    # is then a fresh leaf, referenced by its stack slot alone
+    int_result = kind == HOST_DISTANCE or kind == HOST_LOOKUP or kind == HOST_READ_INT
+    droppable = ((int_result or not (reading or stigmergy)) and count >= 0
+                 and not regs[R_UNSETTLED]
                  and host_frame_droppable(d, info, count, c, lsyms, s, elems))
+    fresh_result = -1
     # ---- commit: the host function's effect, then ret0 (ret1) and the end of the step
     with_value = False
     out_record = len(outq) // (ctl[OUT_SLOTS] + 1)  # (for the kinds that queue a message)
@@ -378,6 +388,9 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         o = _obj_alloc(d, regs, s, reserved, INT, 0)  # push_int(result)
         d[o * s + 1] = result & 0xFF
         d[o * s + 2] = result >> 8
+        if regs[R_PRIOR] & GC_MARK:
+            droppable = False  # a free slot the last collection reached: not fresh
+        fresh_result = o
         sp += 1
         stack[sp] = o
         with_value = True
@@ -447,6 +460,9 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
     if droppable:
         end_host_frame(d, regs, info, count, c, lsyms, return_pc, block, s, elems,
                        reserved)
+        if fresh_result >= 0:  # the collection marks the result, a fresh leaf
+            d[fresh_result * s] = _i(d[fresh_result * s]) | GC_MARK
+            info[fresh_result] = FRESH
         regs[R_FIXED] = 1
     return True
 
