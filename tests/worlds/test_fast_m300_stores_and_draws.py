@@ -2,7 +2,7 @@
 the same drones in both VM modes.
 
 ``goto`` is latched (``arrived()``, which reads its goal, goes to Python after it in a
-step), ``set_role`` and ``know_target`` are latched once a step (a second call goes to
+step, also when the step went on in Python in between), ``set_role`` and ``know_target`` are latched once a step (a second call goes to
 Python; an out-of-range role is Python's TYPE error), and ``random_goal`` is drawn: the
 compiled swarm step writes its next results before a drone's kernel part and moves the
 drone's random stream on by the ones the kernel took. A step ends on an int the kernel
@@ -59,6 +59,13 @@ function step() {
     goto(t % 7 * 10, 50)
     seen = seen + arrived()                  # reads the goal goto just stored
     goto(60, 60.5)                           # not an int: Python's goto
+  }
+  if (t % 4 == 2) {
+    var here = position()
+    if (t % 8 == 2) { goto(here.x, here.y) } else { goto(here.x + 40, here.y) }   # latched,
+    var m = {}
+    m.f = function(v) { return v }           # then an instruction Python runs (a method
+    seen = seen + 3 * arrived()              # bound), then the goal read after it
   }
   set_role((t + id) % 8)
   if (id % 3 == 0) { set_role((t + 1) % 8) } # a second role change this step

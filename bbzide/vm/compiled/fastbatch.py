@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
-from bbzide.vm.compiled.fasthost import HOST_COLUMNS
+from bbzide.vm.compiled.fasthost import HOST_COLUMNS, clear_stale_readings
 from bbzide.vm.compiled.fastinbox import (
     CALLED,
     DONE,
@@ -475,6 +475,7 @@ def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynami
             for slot in range(LATCH_SLOTS):
                 if latch[slot, 0]:
                     latch[slot, 0] = 0
+                    clear_stale_readings(hosts, latch, slot)
                     latched[count, L_GROUP] = groups[i, slot]
                     latched[count, L_TARGET] = targets[i, slot]
                     for a in range(latch.shape[1] - 1):

@@ -160,7 +160,7 @@ from bbzide.vm.message_layout import (
 
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD",
-           "H_LATCH_BELOW", "H_LATCH_ONCE", "H_STALE_AFTER",
+           "H_LATCH_BELOW", "H_LATCH_ONCE", "H_STALE_AFTER", "clear_stale_readings",
            "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "HOST_DRAWN", "H_KEYS",
            "HOST_COLUMNS",
            "NO_HOST_ARGS", "xtreme_walk",
@@ -465,6 +465,19 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
             info[fresh_result] = FRESH
         regs[R_FIXED] = 1
     return True
+
+
+@_compile
+def clear_stale_readings(hosts: Any, latch: Any, slot: int) -> None:
+    """Once the call latched in ``slot`` is taken for the world (the swarm step's end of a
+    robot's kernel part), the reading rows it made stale (``H_STALE_AFTER``) are emptied
+    (``READ_NONE``): a kernel entered from Python for the rest of that step hands those
+    readings to Python, which reads the state the applied latch left."""
+    for r in range(len(hosts)):
+        kind = hosts[r, H_KIND]
+        if (kind == HOST_READ_INT or kind == HOST_READ_RECORD) \
+                and hosts[r, H_STALE_AFTER] >> slot & 1:
+            latch[hosts[r, H_SLOT], 0] = READ_NONE
 
 
 @_compile
