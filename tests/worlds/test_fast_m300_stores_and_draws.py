@@ -2,17 +2,17 @@
 the same drones in both VM modes.
 
 ``goto`` is latched (``arrived()``, which reads its goal, goes to Python after it in a
-step, also when the step went on in Python in between), ``set_role`` and ``know_target`` are latched once a step (a second call goes to
-Python; an out-of-range role is Python's TYPE error), and ``random_goal`` is drawn: the
-compiled swarm step writes its next results before a drone's kernel part and moves the
-drone's random stream on by the ones the kernel took. A step ends on an int the kernel
-computes (``distance``, ``prior``, ``clock``), whose host frame it drops without a
-collection. The script below calls each of them
-zero to many times a step, mixes ``rand()`` (the same stream) in, and calls them from a
-listener too. Each run is compared after every step with the reference mode (``stress_gc``:
-every host function called in Python): each drone's VM state, and the world's state of every
-drone — position, goal, flight mode, role, role changes counted, targets learnt, and its
-random stream.
+step, also when the step went on in Python in between), ``set_role`` and ``know_target``
+are latched once a step (a second call goes to Python; an out-of-range role is Python's
+TYPE error), and ``random_goal`` is drawn: the compiled swarm step writes its next results
+before a drone's kernel part and moves the drone's random stream on by the ones the kernel
+took. A step ends on an int the kernel computes (``distance``, ``prior``, ``clock``), whose
+host frame it drops without a collection. The script below calls each of them zero to many
+times a step, mixes ``rand()`` (the same stream) in, and calls them from a listener too.
+Each run is compared after every step with the reference mode (``stress_gc``: every host
+function called in Python): each drone's VM state, and the world's state of every drone —
+position, goal, flight mode, role, role changes counted, targets learnt, and its random
+stream.
 """
 
 from __future__ import annotations
