@@ -349,7 +349,8 @@ class ReadingHostFunction:
     keys: tuple[str, ...] = ()
     #: the latched host functions (``LatchedHostFunction``, by name) that store what it
     #: reads: once one of them is called in a step, the kernel leaves this reading to
-    #: Python, which runs after that call's latch is applied
+    #: Python, which runs after that call's latch is applied (and once the latch is
+    #: applied its row is emptied, for a step that goes on in Python)
     stale_after: tuple[str, ...] = ()
 
     def __call__(self, call: HostCall) -> None:
