@@ -53,7 +53,15 @@ from bbzide.vm.host import (
     ReadingHostFunction,
     RoundedDistanceHostFunction,
 )
-from bbzide.vm.kernels import fastbatch, fasthost, fastinbox, fastloop, fastreceive, packed_queues
+from bbzide.vm.kernels import (
+    fastbatch,
+    fasthost,
+    fastinbox,
+    fastloop,
+    fastreceive,
+    kernels_now,
+    packed_queues,
+)
 from bbzide.vm.profiles import Profile
 from bbzide.vm.tables import table_get
 from bbzide.vm.vm import VM, Error, State
@@ -456,13 +464,40 @@ class Robot:
                             and vm.state == State.READY:
                         vm.pop()
             # P_OUTMSGS (and after the above): the countdown is still to do
-            neighbors.process_outmsgs(vm)
-            sent = messages.drain_outbox(vm.queues)
+            sent = self._end_of_step_packed()
+            if sent is None:
+                neighbors.process_outmsgs(vm)
+                sent = messages.drain_outbox(vm.queues)
             self.steps_done += 1
             self._check()
         except Exception as exc:  # noqa: BLE001 - the robot must never raise (contract)
             self._fail_host(exc)
         return sent
+
+    def _end_of_step_packed(self) -> list[bytes] | None:
+        """``process_outmsgs`` and ``drain_outbox`` by the compiled swarm step's own end of a
+        step (``fastbatch.end_of_step``), on the packed queues while they still hold the
+        truth: when the part of the step Python ran touched none of them (a hand-over to a
+        table walk and back, say), unpacking them for the end and packing them again for the
+        next step cost more than the rest of that part. None, with nothing done, when Python
+        must do it (a heap data GC the kernel does not cover, a VM not READY)."""
+        vm = self.vm
+        if not vm._packed_live or not kernels_now(vm):
+            return None
+        packed, heap = vm._packed, vm.heap
+        rows = self.profile.out_queue_cap + 1  # the out-queue's records at most
+        payloads = np.zeros((rows, messages.PAYLOAD_SIZE), np.uint8)
+        lengths = np.zeros(rows, np.int64)
+        io = np.zeros(fastbatch.IO_SLOTS, np.int64)
+        regs = vm.kernel_registers(None, None)
+        if not fastbatch.end_of_step(heap.view, regs, heap.obj_size, heap.elems, heap.reserved,
+                                     packed.outq, packed.ring, packed.ctl, 0, payloads, lengths,
+                                     np.zeros(rows, np.int64), io):
+            return None
+        vm.take_kernel_registers(regs)
+        if removed := -int(io[fastbatch.IO_ADDED]):  # a heap data GC's deleted entries
+            vm._neighbors.count = (vm._neighbors.count - removed) & 0xFF
+        return [payloads[k, :lengths[k]].tobytes() for k in range(int(io[fastbatch.IO_ROWS]))]
 
     # ---- failure -------------------------------------------------------------------------
     def _check(self) -> bool:

@@ -131,8 +131,8 @@ from bbzide.vm.message_layout import (
     VSTIG_QUERY,
 )
 
-__all__ = ["COMPILED", "robot_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS", "P_RECEIVE",
-           "LATCHED"]
+__all__ = ["COMPILED", "robot_step", "end_of_step", "P_DONE", "P_INMSGS", "P_STEP", "P_OUTMSGS",
+           "P_RECEIVE", "LATCHED"]
 
 # Phases a call stopped in (its return value, plus LATCHED when a latch slot was written).
 P_DONE = 0      # everything asked for is done
@@ -314,6 +314,31 @@ def _process_vstigs(d: Any, stack: Any, regs: Any, info: Any, traversed: Any, s:
     return status
 
 
+@_compile
+def end_of_step(d: Any, regs: Any, s: int, elems: int, reserved: int, outq: Any, ring: Any,
+                ctl: Any, index: int, out_payloads: Any, out_lengths: Any, out_robots: Any,
+                io: Any) -> bool:
+    """The end of a control step on the packed queues: ``process_outmsgs`` (the neighbor-
+    data GC countdown, u8, then the data GC: the ring's, or the heap's with the entries it
+    deleted taken off ``io[IO_ADDED]``), then ``drain_outbox`` into the outbox rows from
+    ``io[IO_ROWS]`` on. False with nothing done when the heap's data GC is Python's."""
+    was = ctl[CLEAR_COUNTER]
+    removed = 0
+    if was == 0 and not ctl[XTREME]:
+        removed = data_gc_heap(d, regs, s, elems, reserved, ctl[HPOS], regs[R_NIL])
+    if removed < 0:
+        return False
+    ctl[CLEAR_COUNTER] = (was - 1) & 0xFF
+    if was == 0:
+        ctl[CLEAR_COUNTER] = ctl[CLEAR_PERIOD]
+        if ctl[XTREME]:
+            _data_gc(ring, ctl)
+        else:
+            io[IO_ADDED] -= removed
+    _drain(outq, ctl, index, out_payloads, out_lengths, out_robots, io)
+    return True
+
+
 @_compile_owning
 def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                rules: Any, s: int, elems: int, reserved: int, inq: Any, outq: Any,
@@ -377,23 +402,9 @@ def robot_step(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
         elif status != NOT_DEFINED and (status != CALLED or flags & F_POP):
             io[IO_STATUS] = status
             phase = P_STEP
-    if phase == P_DONE:
-        # ---- process_outmsgs: the neighbor-data GC countdown (u8), then the data GC
-        was = ctl[CLEAR_COUNTER]
-        removed = 0
-        if was == 0 and not ctl[XTREME]:
-            removed = data_gc_heap(d, regs, s, elems, reserved, ctl[HPOS], regs[R_NIL])
-        if removed < 0:
-            phase = P_OUTMSGS
-        else:
-            ctl[CLEAR_COUNTER] = (was - 1) & 0xFF
-            if was == 0:
-                ctl[CLEAR_COUNTER] = ctl[CLEAR_PERIOD]
-                if ctl[XTREME]:
-                    _data_gc(ring, ctl)
-                else:
-                    io[IO_ADDED] -= removed
-            _drain(outq, ctl, index, out_payloads, out_lengths, out_robots, io)
+    if phase == P_DONE and not end_of_step(d, regs, s, elems, reserved, outq, ring, ctl,
+                                           index, out_payloads, out_lengths, out_robots, io):
+        phase = P_OUTMSGS
     if latched or latch[:LATCH_SLOTS, 0].any():
         return phase | LATCHED
     return phase
