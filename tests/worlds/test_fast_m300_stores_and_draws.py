@@ -17,21 +17,13 @@ stream.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import pytest
 
 from bbzide.vm.host import DrawnHostFunction, LatchedHostFunction
-from bbzide.vm.robot import Robot
-from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
-from bbzide.worlds.registry import WORLDS
-
-#: targets in a grid over the launch strip, so that cameras see some
-TARGETS = [(x, y) for x in (0.5, 2.5, 4.5) for y in range(1, 12, 3)]
-OPTIONS = {"size": 12.0, "targets": TARGETS, "altitude": 1.5}
-HEAP_SIZE = 6000
+from tests.worlds.m300_modes import compile_script, field, run_both
 
 STORES_AND_DRAWS = """
 var seen = 0
@@ -82,15 +74,6 @@ function step() {
 """
 
 
-def _factory(stress: bool):
-    def build(program, profile, robot_id, host_functions):
-        return Robot(program, dataclasses.replace(profile, heap_size=HEAP_SIZE), robot_id,
-                     host_functions=host_functions, instruction_budget=100_000,
-                     stress_gc=stress)
-
-    return build
-
-
 def _world_state(sim: Simulation) -> tuple:
     world = sim.world
     return (sim.positions.tobytes(), world.goals.tobytes(), world.mode.tobytes(),
@@ -100,26 +83,9 @@ def _world_state(sim: Simulation) -> tuple:
             [rng.bit_generator.state for rng in sim.robot_rngs])
 
 
-def _compile(tmp_path: Path, text: str):
-    path = tmp_path / "script.bzz"
-    path.write_text(text)
-    return load_script(path, WORLDS["m300"].host_names, [])
-
-
 def test_stores_and_draws_identical(tmp_path: Path) -> None:
-    program = _compile(tmp_path, STORES_AND_DRAWS)
-    sims = [Simulation("m300", program, robots=8, seed=4, world_options=OPTIONS,
-                       robot_factory=_factory(stress), watch=())
-            for stress in (True, False)]
-    for step in range(24):
-        for sim in sims:
-            sim.step()
-        reference, fast = sims
-        assert _world_state(reference) == _world_state(fast), step
-        for a, b in zip(reference.robots, fast.robots, strict=True):
-            assert Robot.comparable(a.robot.snapshot()) == Robot.comparable(b.robot.snapshot()), \
-                (step, a.index)
-            assert str(a.robot.failure) == str(b.robot.failure), (step, a.index)
+    reference, fast = run_both(compile_script(tmp_path, STORES_AND_DRAWS), 24, 8,
+                               _world_state)
     failures = {state.index: str(state.robot.failure) for state in fast.robots
                 if state.robot.failure is not None}
     assert list(failures) == [4] and "TYPE" in failures[4], failures
@@ -162,12 +128,11 @@ function step() {
   doze(t % 2)
 }
 """
-    program = _compile(tmp_path, text)
+    program = compile_script(tmp_path, text)
     states = []
     for stress, name in ((True, "reference"), (False, "fast")):
         mode[0] = name
-        sim = Simulation("m300", program, robots=6, seed=4, world_options=OPTIONS,
-                         robot_factory=_factory(stress), watch=())
+        sim = field(program, 6, stress)
         sim.run(14)
         assert all(state.robot.failure is None for state in sim.robots)
         states.append(_world_state(sim))

@@ -12,7 +12,6 @@ wake-up step).
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -20,15 +19,8 @@ import pytest
 
 from bbzide.vm.host import ReadingHostFunction
 from bbzide.vm.robot import Robot
-from bbzide.worlds.commands import load_script
 from bbzide.worlds.engine import Simulation
-from bbzide.worlds.registry import WORLDS
-
-#: targets in a grid over the launch strip, so that cameras see some and miss others
-TARGETS = [(x, y) for x in (0.5, 2.5, 4.5) for y in range(1, 12, 3)]
-#: a low flight (1.5 m: 15 steps of climb), so that drones arrive within the run
-OPTIONS = {"size": 12.0, "targets": TARGETS, "altitude": 1.5}
-HEAP_SIZE = 6000
+from tests.worlds.m300_modes import compile_script, field, run_both
 
 READINGS = """
 var v
@@ -79,49 +71,16 @@ function step() {
 """
 
 
-def _factory(stress: bool, budget: int = 100_000):
-    def build(program, profile, robot_id, host_functions):
-        # a small heap, which drone 5 fills in a few steps (the M300's 60 kB would take the
-        # reference mode, a collection before every instruction, minutes)
-        return Robot(program, dataclasses.replace(profile, heap_size=HEAP_SIZE), robot_id,
-                     host_functions=host_functions, instruction_budget=budget,
-                     stress_gc=stress)
-
-    return build
-
-
 def _world_state(sim: Simulation) -> tuple:
     world = sim.world
     return (sim.positions.tobytes(), world.goals.tobytes(), world.mode.tobytes(),
             world.asleep_until.tobytes())
 
 
-def _run_both(program, steps: int, robots: int = 9) -> list[Simulation]:
-    sims = [Simulation("m300", program, robots=robots, seed=4, world_options=OPTIONS,
-                       robot_factory=_factory(stress), watch=())
-            for stress in (True, False)]
-    for step in range(steps):
-        for sim in sims:
-            sim.step()
-        reference, fast = sims
-        assert _world_state(reference) == _world_state(fast), step
-        for a, b in zip(reference.robots, fast.robots, strict=True):
-            assert Robot.comparable(a.robot.snapshot()) == Robot.comparable(b.robot.snapshot()), \
-                (step, a.index)
-            assert str(a.robot.failure) == str(b.robot.failure), (step, a.index)
-    return sims
-
-
-def _compile(tmp_path: Path, text: str):
-    path = tmp_path / "script.bzz"
-    path.write_text(text)
-    return load_script(path, WORLDS["m300"].host_names, [])
-
-
 def test_readings_and_doze_identical(tmp_path: Path) -> None:
     """Readings in step and in a listener, after a stigmergy hand-over, after a Python
     goto in the same step, with an argument, without heap room; doze with an int and not."""
-    reference, fast = _run_both(_compile(tmp_path, READINGS), 26)
+    reference, fast = run_both(compile_script(tmp_path, READINGS), 26, 9, _world_state)
     failures = {state.index: str(state.robot.failure) for state in fast.robots
                 if state.robot.failure is not None}
     assert list(failures) == [5] and "MEM" in failures[5], failures
@@ -144,11 +103,10 @@ def test_readings_run_in_place(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) 
 
     monkeypatch.setattr(ReadingHostFunction, "__call__", counted)
     text = READINGS.split("  if (id % 3 == 0")[0] + "  doze(t % 2)\n}\n"
-    program = _compile(tmp_path, text)
+    program = compile_script(tmp_path, text)
     for stress, name in ((True, "reference"), (False, "fast")):
         mode[0] = name
-        sim = Simulation("m300", program, robots=6, seed=4, world_options=OPTIONS,
-                         robot_factory=_factory(stress), watch=())
+        sim = field(program, 6, stress)
         sim.run(12)
         assert all(state.robot.failure is None for state in sim.robots)
     assert calls["reference"] > 6 * 12 and calls["fast"] == 0, calls
@@ -157,10 +115,8 @@ def test_readings_run_in_place(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) 
 def test_readings_switched_off_with_latching_identical(tmp_path: Path) -> None:
     """`Robot.latch_host_calls = False` (a recorder logging every host call) sends the
     readings and doze to Python, with the same drones."""
-    program = _compile(tmp_path, READINGS)
-    sims = [Simulation("m300", program, robots=6, seed=4, world_options=OPTIONS,
-                       robot_factory=_factory(False), watch=())
-            for _ in range(2)]
+    program = compile_script(tmp_path, READINGS)
+    sims = [field(program, 6, False) for _ in range(2)]
     for state in sims[1].robots:
         state.robot.latch_host_calls = False
     for step in range(14):
@@ -176,7 +132,7 @@ def test_readings_switched_off_with_latching_identical(tmp_path: Path) -> None:
 def test_missed_table_clamped_gives_every_flight_its_value(tmp_path: Path, size: float) -> None:
     """`missed(flown)` as a lookup (kernel: the argument clamped into the table) equals the
     world's computation for every int16 flight, negative ones and those past the table."""
-    sim = Simulation("m300", _compile(tmp_path, READINGS), robots=2, seed=4,
+    sim = Simulation("m300", compile_script(tmp_path, READINGS), robots=2, seed=4,
                      world_options={"size": size}, watch=())
     world = sim.world
     table = world.missed_values
