@@ -285,6 +285,18 @@ class Robot:
             no_keys = (-1,) * (packed_queues.LATCH_ARGS - len(keys))
             return (address, ptr, kind, slot, argc, *keys, *no_keys, below, once, stale_after)
 
+        def current(symbol: str) -> Any:
+            # the call registered as `symbol`, unless another registration took its address
+            call = registry.by_symbol.get(symbol)
+            return call if call is not None and registry.by_address.get(call.address) is call \
+                else None
+
+        def field_ids(names: Sequence[str]) -> list[int] | None:
+            # a record's field names as string ids; None when the program lacks one (Python's
+            # call reports it) or they are too many for a row
+            ids = [self.program.string_id(name) for name in names]
+            return None if len(ids) > packed_queues.LATCH_ARGS or None in ids else ids
+
         for address, call in registry.by_address.items():
             if call.function is neighbors.neighbors_broadcast:
                 rows.append(row(address, fasthost.HOST_BROADCAST, 0, 2))
@@ -293,9 +305,8 @@ class Robot:
             elif call.function is vstig.vstig_put:
                 rows.append(row(address, fasthost.HOST_VSTIG_PUT, 0, 2))
         for symbol, fn in self._latched.items() if self._latching else ():
-            call = registry.by_symbol.get(symbol)
-            if call is None or registry.by_address.get(call.address) is not call \
-                    or len(slots) >= packed_queues.LATCH_SLOTS \
+            call = current(symbol)
+            if call is None or len(slots) >= packed_queues.LATCH_SLOTS \
                     or not 0 <= fn.argc <= packed_queues.LATCH_ARGS:
                 continue
             rows.append(row(call.address, fasthost.HOST_LATCH, len(slots), fn.argc,
@@ -303,12 +314,10 @@ class Robot:
             slot_of[symbol] = len(slots)
             slots.append(fn)
         for symbol, reading in self._readings.items() if self._latching else ():
-            call = registry.by_symbol.get(symbol)
-            keys = [self.program.string_id(key) for key in reading.keys]
-            if call is None or registry.by_address.get(call.address) is not call \
-                    or len(readings) >= packed_queues.READING_SLOTS \
-                    or len(keys) > packed_queues.LATCH_ARGS or None in keys:
-                continue  # a field name the program lacks: Python's call reports it
+            call = current(symbol)
+            keys = field_ids(reading.keys)
+            if call is None or keys is None or len(readings) >= packed_queues.READING_SLOTS:
+                continue
             # (a storer not latched hands the step to Python, whose readings are Python's)
             stale_after = sum(1 << slot_of[name] for name in reading.stale_after
                               if name in slot_of)
@@ -319,11 +328,10 @@ class Robot:
         drawn: list[tuple[int, DrawnHostFunction]] = []
         used = len(readings)
         for symbol, fn in self._drawn.items() if self._latching else ():
-            call = registry.by_symbol.get(symbol)
-            keys = [self.program.string_id(key) for key in fn.keys]
-            if call is None or registry.by_address.get(call.address) is not call \
-                    or used + packed_queues.DRAWN_ROWS > packed_queues.READING_SLOTS \
-                    or len(keys) > packed_queues.LATCH_ARGS or None in keys:
+            call = current(symbol)
+            keys = field_ids(fn.keys)
+            if call is None or keys is None \
+                    or used + packed_queues.DRAWN_ROWS > packed_queues.READING_SLOTS:
                 continue
             first_row = packed_queues.LATCH_SLOTS + used
             rows.append(row(call.address, fasthost.HOST_DRAWN, first_row, 0, keys))
