@@ -32,6 +32,8 @@ from bbzide.ui.world_backend import SwarmFrame, WorldGeometry
 
 #: Sides of the robot cylinder (see the module docstring for why so few).
 BODY_SIDES = 8
+#: The cylinder's height in robot radii: a flat disc, like a Kilobot, yet with walls to see.
+BODY_HEIGHT_RADII = 0.6
 #: Segments approximating a range circle: round enough at table scale, 16 lines per robot.
 CIRCLE_SEGMENTS = 16
 #: Trails keep one sample every 3 frames, 15 samples per robot: at 30 Hz about 1.5 s of history,
@@ -332,7 +334,7 @@ class SwarmScene:
         with self._lock:
             self.last_frame = frame
             radius, z = geometry.robot_radius, geometry.height
-            top = z + 0.6 * radius + 0.0005
+            top = z + BODY_HEIGHT_RADII * radius + 0.0005
             positions = _lift(frame.positions, z)
             wxyzs = heading_quaternions(frame.headings)
             colors = led_colors_to_rgb(frame.led_colors)
@@ -402,7 +404,7 @@ class SwarmScene:
             if handle is not None:
                 handle.remove()
         radius = geometry.robot_radius
-        vertices, faces = cylinder_mesh(radius, 0.6 * radius)
+        vertices, faces = cylinder_mesh(radius, BODY_HEIGHT_RADII * radius)
         self._robots = self.server.scene.add_batched_meshes_simple(
             "/swarm/robots",
             vertices,
@@ -493,7 +495,7 @@ class SwarmScene:
             ring.visible = label.visible = False
             return
         radius = geometry.robot_radius
-        top = geometry.height + 0.6 * radius + 0.001
+        top = geometry.height + BODY_HEIGHT_RADII * radius + 0.001
         centre = frame.positions[index : index + 1]
         robot_id = frame.robot_ids[index] if index < len(frame.robot_ids) else index
         with client.atomic():
