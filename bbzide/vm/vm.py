@@ -1457,6 +1457,8 @@ class VM:
                     bool(prior & VALID or not prior & GC_MARK)
             elif rule == _PUSHED_OLD:
                 top = stack[self.stackptr]
+                if info[top] & 127 == fastgc.OWNED:  # on the stack too: its slot's alone no more
+                    info[top] = 3 + fastgc.PERMANENT_PHASE + (info[top] & 128)
                 m = data[top * s]
                 t = m & TYPE_MASK
                 if t != TABLE and (t != CLOSURE or not m & FLAG2):
@@ -1521,6 +1523,12 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 # * _STORED_GLOBAL: gstore replaced a global's value by a leaf; the value it dropped was the
 #   same, a permanent leaf, or one only that global held (fastloop.OWNED: the skipped
 #   collection frees it, as the fresh leaves below; fastloop._stored_global_kept).
+# * _STORED_IN_TABLE: tput replaced the value of a key a table walked from the permanent
+#   roots had by a leaf; the value it dropped was the same, a permanent leaf, or one only
+#   that table's slot held (fastloop.OWNED again; fastloop._stored_in_table_kept).
+# * _REMOVED_LOCALS: lremove took one or two locals whose values are permanent leaves or
+#   OWNED (their one reference was the local's slot: freed), out of the frame's last
+#   segment (no segment freed).
 # The kernel also accepts, for every dropped root of these rules, a *fresh* leaf
 # (fastloop.FRESH: a leaf a skipped step allocated in a slot the last collection did not
 # reach, so its one reference was that stack slot; or a dup's copy of a table the permanent
@@ -1528,7 +1536,7 @@ _PC_ONLY_OPCODES = frozenset({0, 34, 44})
 # and the kernel does just that at the start of the next step (fastloop._free_dropped).
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 _POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9
-_STORED_GLOBAL = 10
+_STORED_GLOBAL, _STORED_IN_TABLE, _REMOVED_LOCALS = 10, 11, 12
 _SKIP_RULES: list[int] = [0] * 256
 for _op in _PC_ONLY_OPCODES:
     _SKIP_RULES[_op] = _PC_ONLY
@@ -1546,6 +1554,8 @@ for _op in (13, 16, 19):
 _SKIP_RULES[32] = _POPPED_TWO_OLD
 _SKIP_RULES[42] = _STORED_NEW_LOCAL
 _SKIP_RULES[29] = _STORED_GLOBAL
+_SKIP_RULES[31] = _STORED_IN_TABLE
+_SKIP_RULES[43] = _REMOVED_LOCALS
 
 #: the compiled instruction kernel, when numba is installed (else the Python loop alone)
 _KERNEL: Callable[..., int] | None = fastloop.run if fastloop.COMPILED else None

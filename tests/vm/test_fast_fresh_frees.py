@@ -104,6 +104,73 @@ while (i < 40) {
   i = i + c % 5 - c % 5 + 1
 }
 """,
+    "table slots overwritten": """
+t = {.x = 0, .y = 0.5, .n = {.v = 1}}
+u = {}
+seen = {}
+function store(k, v) {
+  t[k] = v * 2              # the argument's product: only t's slot holds it, until
+}
+function peek(k, v) {
+  seen[k] = v               # a second slot holds the walked value: not t's alone
+}
+i = 0
+while (i < 40) {
+  t.x = t.x + 1             # read back, dropped, then its slot's only value replaced
+  t.y = t.y * 2.0 - 1.0
+  t.n.v = t.n.v + i % 3     # a table below a table
+  u[i % 4] = i * 3
+  u[i % 4] = u[i % 4]       # the same number stored again
+  t.z = u[i % 4]            # two slots hold it: overwriting one must not free it
+  u[i % 4] = 7
+  store(i % 3, i)           # a key that is a local's value
+  store(i % 3 + 1, i + 1)
+  if (i % 5 == 0) { foreach(t, peek) }
+  t[i % 3] = nil            # storing nil deletes the key
+  t.x = t.x + t.x           # the same number twice on the stack
+  i = i + 1
+}
+""",
+    "locals removed": """
+g = {.k = 0}
+h = 0
+function f(a, b) {
+  var d = a * b             # only the frame's slot holds it, until the function ends
+  var e = d + 1
+  if (d > 20) {
+    var q = d - e           # a block's local, removed at the block's end
+    h = q                   # a global holds it too: its removal must not free it
+  }
+  var w = g.k + e
+  g.k = d                   # a table holds d too
+  return w
+}
+function l(x) {
+  var c = x + 0.5
+  return c * 2.0
+}
+i = 0
+while (i < 40) {
+  r = f(i, i % 7) + l(i)
+  i = i + 1
+}
+""",
+    "long expressions of stored numbers": """
+a = 1
+b = 2
+c = 3
+d = 4
+e = 5
+t = {.p = 6, .q = 7}
+i = 0
+while (i < 40) {
+  a = a + b * c - d / e + t.p - t.q + a   # more stored numbers on the stack than followed
+  t.p = t.p + a % 3 - b
+  b = (c + d) % 9 + 1
+  e = e % 5 + 1
+  i = i + 1
+}
+""",
     "method calls on global tables": """
 counter = {.n = 0, .add = function(k) { self.n = self.n + k  return self.n }}
 log = {.last = 0}

@@ -107,6 +107,7 @@ except ImportError:  # pragma: no cover - exercised only on machines without num
 
 # Metadata bits (heap.py), repeated as literals so the compiled code sees constants.
 _TYPE_MASK = 0x07
+_INT, _FLOAT = 1, 2
 _TABLE = 4
 _CLOSURE = 5
 _STRING = 3
@@ -120,6 +121,14 @@ _SEG_VALID_HI = 0x80  # SEG_VALID (bit 15) in the high byte
 _SEG_NEXT = 0x3FFF
 #: flag in a collect() ``info`` entry: first marked from a permanent root (depth < 64)
 PERMANENT_PHASE = 64
+#: ``info`` value of an int or float whose one reference is a slot of a table (a global's,
+#: or any table's) walked from the permanent roots: a collection gives it to a number it
+#: first marks as such a table's leaf, and takes it back if it meets the number again (the
+#: marker meets every reference a reachable object has, unless the depth limit stopped a
+#: walk; the heap is then ``TRUNCATED``, and no skip rule applies any more). The skip rules
+#: keep it true between collections (``fastloop``: a push takes it back; overwriting that
+#: slot frees the number, as the skipped collection would).
+OWNED = 1 + PERMANENT_PHASE
 #: flag in :func:`collect_with`'s result: the collection is not a fixed point of itself, so
 #: the next one must run. It marked an object at or above the object end it left (an invalid
 #: slot a stale reference reached, past which the end then retreated, or one already above
@@ -206,6 +215,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
             unmarked = 0 <= x < nobj and not _i(d[x * s]) & _GC_MARK
             if unmarked and depth > limit:
                 truncated = True
+            if not unmarked and 0 <= x < nobj and info[x] == OWNED:
+                info[x] = depth + phase  # a second reference: a plain leaf
             if unmarked and depth <= limit:
                 o = x * s
                 d[o] |= _GC_MARK
@@ -247,6 +258,8 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                             y = word & 0x7FFF
                             if y < nobj and not _i(d[y * s]) & _GC_MARK:
                                 truncated = True
+                            elif y < nobj and info[y] == OWNED:
+                                info[y] = fd + 1 + phase  # a second reference
                 else:
                     leaf_info = fd + 1 + phase
                     while w < nwords:
@@ -266,11 +279,16 @@ def collect_with(d: bytearray, stack: Any, top: int, rtobj: int, ltseg: int, inf
                                         # returns, done here without leaving the word loop
                                         # (most children are leaves: -25 % per collection)
                                         d[o] = my | _GC_MARK
-                                        info[y] = leaf_info
+                                        if phase and (ty == _INT or ty == _FLOAT):
+                                            info[y] = OWNED  # until met again
+                                        else:
+                                            info[y] = leaf_info
                                         highest = max(highest, y)
                                         continue
                                     x = y
                                     break
+                                if info[y] == OWNED:
+                                    info[y] = leaf_info  # a second reference
                 f_word[fp] = w
                 if x >= 0:
                     depth = fd + 1

@@ -61,6 +61,7 @@ import numpy as np
 
 from bbzide.vm.compiled.fastgc import (
     COMPILED,
+    OWNED,
     PERMANENT_PHASE,
     TRUNCATED,
     UNSETTLED,
@@ -137,7 +138,7 @@ _NO_NEXT = 0x3FFF
 #: kernel applies: see there)
 _PC_ONLY, _PUSHED_OLD, _PUSHED_NEW, _REPLACED_TOP, _POPPED_TWO_NEW = 1, 2, 3, 4, 5
 _POPPED_ONE, _POPPED_ONE_NEW, _POPPED_TWO_OLD, _STORED_NEW_LOCAL = 6, 7, 8, 9
-_STORED_GLOBAL = 10
+_STORED_GLOBAL, _STORED_IN_TABLE, _REMOVED_LOCALS = 10, 11, 12
 RULES = np.zeros(256, np.int64)
 for _op in (0, 34, 44):
     RULES[_op] = _PC_ONLY
@@ -155,6 +156,8 @@ for _op in (13, 16, 19):
 RULES[32] = _POPPED_TWO_OLD  # tget
 RULES[42] = _STORED_NEW_LOCAL  # lstore
 RULES[29] = _STORED_GLOBAL  # gstore
+RULES[31] = _STORED_IN_TABLE  # tput
+RULES[43] = _REMOVED_LOCALS  # lremove
 #: ``info`` value of a *fresh* leaf: one a skipped step allocated (in a slot the last
 #: collection did not reach), so its one reference is its own stack slot — or a ``dup``'s
 #: copy of a table the permanent roots keep (see :func:`_table_copy_kept`). The collector
@@ -166,12 +169,19 @@ FRESH = 1
 #: return to that fixed point frees (:func:`undo_to_fixed_point`). The collector's values
 #: stay below it (depth < 64, plus ``PERMANENT_PHASE``).
 NEW = 128
-#: ``info`` value of an int or float whose one reference is a global's slot: a fresh
-#: temporary a skipped ``gstore`` moved there (:func:`_stored_global_kept`). Overwriting
-#: that global frees it, as the skipped collection would; any push of it (the only way to
-#: copy a reference to it) makes it a plain permanent-reached leaf again (:func:`_old_kept`).
-#: The collector never writes it (depth 1).
-OWNED = 1 + PERMANENT_PHASE
+#: ``info`` of an :data:`OWNED` number that is also :data:`NEW`: a fresh temporary an
+#: ``lstore`` moved into a local (its one reference the frame's slot)
+OWNED_NEW = OWNED + NEW
+#: OWNED numbers on the stack ``run`` follows at once: an expression reads several global
+#: and local numbers before it drops the first one, ``gx = gx + (px - x) * (SEP - d) / d``
+#: four (gx's, px's, x's, then SEP's and d's)
+OWNED_FOLLOWED = 4
+# OWNED (``fastgc.OWNED``): the ``info`` value of an int or float whose one reference is a
+# slot of a table walked from the permanent roots (a global's, a table's, a frame's local):
+# the collector says so of the numbers it meets once, and a skipped ``gstore`` or ``tput``
+# of a fresh one (:func:`_stored_global_kept`, :func:`_stored_in_table_kept`). Overwriting
+# that slot frees it, as the skipped collection would; any push of it (the only way to copy
+# a reference to it) makes it a plain permanent-reached leaf again (:func:`_old_kept`).
 
 
 @_compile
@@ -581,6 +591,26 @@ def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
 
 
 @_compile
+def _last_elements(d: Any, a: int, k: int, s: int, elems: int) -> tuple[int, int]:
+    """The objects of darray ``a``'s last ``k`` (1 or 2) elements, the last first, when its
+    last segment holds them (-2, -2 otherwise: a pop would empty a segment, which the
+    collector's end then walks past)."""
+    seg = _last_segment(d, a, s, elems)
+    if seg < 0:
+        return -2, -2
+    g = 4 * elems + 2
+    p = 0
+    while p < 2 * elems and _word(d, seg, p, g) & 0x8000:
+        p += 1
+    if p < k:
+        return -2, -2
+    last = _word(d, seg, p - 1, g) & 0x7FFF
+    if k == 1:
+        return last, -1
+    return last, _word(d, seg, p - 2, g) & 0x7FFF
+
+
+@_compile
 def _darray_pop_in_place(d: Any, a: int, k: int, s: int, elems: int) -> bool:
     """``k`` times ``tables.darray_pop`` when the last segment holds ``k`` elements or more
     (each pop then clears its last valid word); False, with nothing written, otherwise."""
@@ -932,6 +962,13 @@ def _walked_from_permanent(info: Any, x: int, limit: int) -> bool:
     return (first & PERMANENT_PHASE) != 0 and (first & (PERMANENT_PHASE - 1)) < limit
 
 
+@_compile
+def _owned(info: Any, x: int) -> bool:
+    """Is ``x`` a number whose one reference is a slot of a table walked from the permanent
+    roots (:data:`OWNED`, new or not)?"""
+    return (_i(info[x]) & (NEW - 1)) == OWNED
+
+
 #: what a root an instruction dropped leaves behind (:func:`_dropped`): kept by the
 #: permanent roots, a fresh temporary the skipped collection frees, or unknown
 _DROP_KEPT, _DROP_FRESH, _DROP_UNKNOWN = 0, 1, 2
@@ -943,8 +980,8 @@ def _dropped(info: Any, x: int, nobj: int) -> int:
     collection first marked it from the permanent roots (as a stack root it marked
     nothing), :data:`_DROP_FRESH` for a fresh temporary (nothing else reaches it), else
     :data:`_DROP_UNKNOWN` (a collection must tell)."""
-    if x >= nobj:
-        return _DROP_UNKNOWN
+    if x >= nobj or _owned(info, x):
+        return _DROP_UNKNOWN  # (an OWNED number's one reference may be the one dropped)
     first = _i(info[x])
     if first == FRESH:
         return _DROP_FRESH
@@ -990,13 +1027,35 @@ def _table_copy_kept(regs: Any, info: Any, copy: int, source: int, nobj: int,
 
 
 @_compile
-def _pushed_owned(info: Any, x: int, owned_pushed: int) -> int:
-    """The number ``run`` follows (``owned_pushed``) after a push of the old object ``x``:
-    ``x`` when it is :data:`OWNED` (its global's alone until now), none when ``x`` is the
-    one followed (on the stack twice now), else the one it was."""
-    if _i(info[x]) == OWNED:
-        return x
-    return -1 if x == owned_pushed else owned_pushed
+def _follow_push(info: Any, x: int, followed: Any) -> None:
+    """After a push of the old object ``x``: ``run`` follows ``x`` (one of ``followed``'s
+    :data:`OWNED_FOLLOWED` places, -1: free) when it is :data:`OWNED` (its slot's alone
+    until now; when every place is taken, the number followed longest gives way and is
+    followed no more), and stops following it when it did (on the stack twice now)."""
+    for i in range(OWNED_FOLLOWED):
+        if followed[i] == x:
+            followed[i] = -1
+            return
+    if not _owned(info, x):
+        return
+    for i in range(OWNED_FOLLOWED):
+        if followed[i] < 0:
+            followed[i] = x
+            return
+    for i in range(OWNED_FOLLOWED - 1):
+        followed[i] = followed[i + 1]
+    followed[OWNED_FOLLOWED - 1] = x
+
+
+@_compile
+def _follow_drop(info: Any, followed: Any, top: int, below: int, two: bool) -> None:
+    """An instruction dropped the stack top ``top`` (and ``below`` when ``two``): a followed
+    number whose one stack slot that was is its slot's alone again, :data:`OWNED`."""
+    for i in range(OWNED_FOLLOWED):
+        x = followed[i]
+        if x >= 0 and (x == top or (two and x == below)):
+            info[x] = OWNED + (_i(info[x]) & NEW)
+            followed[i] = -1
 
 
 @_compile
@@ -1005,8 +1064,8 @@ def _old_kept(d: Any, info: Any, x: int, s: int) -> bool:
     point? Yes for a marked leaf (the marker never looks inside it), or a non-leaf the last
     collection first marked from the permanent roots (its stack root finds it marked)."""
     m = _i(d[x * s])
-    if _i(info[x]) == OWNED:
-        info[x] = 3 + PERMANENT_PHASE  # on the stack too now: not its global's alone
+    if _owned(info, x):  # on the stack too now: not its slot's alone
+        info[x] = 3 + PERMANENT_PHASE + (_i(info[x]) & NEW)
     if _is_leaf(m):
         return (m & _GC_MARK) != 0
     return (_i(info[x]) & PERMANENT_PHASE) != 0
@@ -1020,15 +1079,17 @@ def _stored_leaf_kept(d: Any, regs: Any, info: Any, v: int, lsyms: int, nobj: in
     record was first marked from the permanent roots at a depth whose words the marker
     visits: ``v``, marked already, is then marked from the permanent roots instead of its
     stack slot, one level below the record — which ``info`` now says (a fresh leaf is
-    fresh no more, but still :data:`NEW`; an old object's rewritten ``info`` is noted in
-    ``R_OLD_CHANGED``)."""
+    fresh no more, but still :data:`NEW`, and a fresh number is the local's alone,
+    :data:`OWNED_NEW`; an old object's rewritten ``info`` is noted in ``R_OLD_CHANGED``)."""
     if v >= nobj or lsyms >= nobj:
         return False
     m = _i(d[v * s])
     if not _is_leaf(m) or not m & _GC_MARK or not _walked_from_permanent(info, lsyms, limit):
         return False
     first = _i(info[v])
-    if not first & PERMANENT_PHASE:
+    if first == FRESH and (m & 7 == _INT or m & 7 == _FLOAT):
+        info[v] = OWNED_NEW  # its stack slot was its one reference: the local's now
+    elif not first & PERMANENT_PHASE:
         depth = (_i(info[lsyms]) & (PERMANENT_PHASE - 1)) + 1
         if first <= FRESH or first & NEW:
             info[v] = depth + PERMANENT_PHASE + NEW
@@ -1061,7 +1122,7 @@ def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
         return -2
     free = -1
     if old != v and not _permanent_leaf(d, old, nobj, s):
-        if _i(info[old]) != OWNED:
+        if not _owned(info, old):
             return -2
         free = old
     first = _i(info[v])
@@ -1071,6 +1132,44 @@ def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
         info[v] = (_i(info[gsyms]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
     regs[R_OLD_CHANGED] = 1
     return free
+
+
+@_compile
+def _stored_in_table_kept(d: Any, regs: Any, info: Any, t: int, k: int, v: int, old: int,
+                          nobj: int, s: int, limit: int) -> tuple[int, int]:
+    """After a ``tput`` that replaced table ``t``'s value ``old`` under the key ``k`` by the
+    stack top ``v`` (``old`` -1: a new key): is the heap still a fixed point, but for the
+    objects the skipped collection frees? (-2, -1) when a collection must tell, else those
+    objects (-1: none). Yes when the key was there (nothing allocated, the table keeps its
+    own key object), ``v`` is a marked leaf (not nil: storing nil deletes the key), ``t``
+    is walked from the permanent roots (so it stays reached, and so does ``v``, one level
+    below it), the dropped key ``k`` is kept by the permanent roots (a local of a frame,
+    as ``rid`` of ``t[rid] = v``) or a fresh temporary (freed), and ``old`` is ``v``, a
+    permanent leaf (nil) or :data:`OWNED` (then unreachable now: freed). A fresh int or
+    float ``v`` becomes :data:`OWNED`; any other ``v`` not yet permanent-reached is said
+    to be, one level below ``t``. ``t`` changed: ``R_OLD_CHANGED``."""
+    if old < 0 or old >= nobj or v >= nobj or k >= nobj or t >= nobj:
+        return -2, -1
+    m = _i(d[v * s])
+    kind = m & 7
+    if not _is_leaf(m) or not m & _GC_MARK or kind == _NIL \
+            or not _walked_from_permanent(info, t, limit):
+        return -2, -1
+    key = _dropped(info, k, nobj)
+    if key == _DROP_UNKNOWN or (key == _DROP_FRESH and k == v):
+        return -2, -1
+    free_old = -1
+    if old != v and not _permanent_leaf(d, old, nobj, s):
+        if not _owned(info, old):
+            return -2, -1
+        free_old = old
+    first = _i(info[v])
+    if first == FRESH and (kind == _INT or kind == _FLOAT):
+        info[v] = OWNED
+    elif first == FRESH or not first & PERMANENT_PHASE:
+        info[v] = (_i(info[t]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
+    regs[R_OLD_CHANGED] = 1
+    return free_old, k if key == _DROP_FRESH else -1
 
 
 @_compile
@@ -1106,14 +1205,18 @@ def _mark_as_reached(d: Any, info: Any, y: int, depth: int, s: int) -> bool:
     object, ``info`` as the collector would first set it, plus :data:`NEW`); a fresh
     temporary the frame now holds is fresh no more. A leaf the last collection reached
     from the stack only (a walk's accumulator) is now reached from the permanent roots,
-    which its ``info`` then says, as the collection would; True when that rewrote an old
-    object's ``info`` (``R_OLD_CHANGED``)."""
+    which its ``info`` then says, as the collection would; an :data:`OWNED` number has a
+    second reference now, and is a plain leaf. True when that rewrote an old object's
+    ``info`` (``R_OLD_CHANGED``)."""
     m = _i(d[y * s])
     if not m & _GC_MARK:
         d[y * s] = m | _GC_MARK
         info[y] = depth + PERMANENT_PHASE + NEW
         return False
     first = _i(info[y])
+    if _owned(info, y):  # a second reference
+        info[y] = depth + PERMANENT_PHASE + (first & NEW)
+        return not first & NEW
     if first & PERMANENT_PHASE:
         return False
     if first <= FRESH or first & NEW:
@@ -1463,7 +1566,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     n = regs[R_N]
     fixed = regs[R_FIXED] != 0
     pending = regs[R_PENDING]
-    frames = np.empty((4, limit + 2), np.int64)  # the collector's mark stack, reused
+    # the collector's mark stack (rows 0-3, reused), and the OWNED numbers run follows
+    frames = np.empty((5, max(limit + 2, OWNED_FOLLOWED)), np.int64)
+    followed = frames[4]
+    followed[:] = -1
     # fresh leaves the last instruction dropped (-1: none): the skipped collection frees them
     free_a = -1
     free_b = -1
@@ -1494,14 +1600,18 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     # the last lstore made a new local, or replaced a permanent leaf (nil: the compiler's
     # ``pushnil; lstore`` declares a local), so no value it dropped can become unreachable
     new_local = False
-    replaced = -1  # the value the last gstore replaced (-1: a new global)
-    # a fresh number the last gstore moved into a global whose old value a collection must
-    # judge: that collection leaves it referenced by the global alone, so OWNED
+    replaced = -1  # the value the last gstore or tput replaced (-1: a new global or key)
+    stored_in = -1  # the table of the last tput
+    removed_a = -2  # the values of the locals the last lremove took (-1: none, -2: unknown)
+    removed_b = -2
+    # a fresh number the last gstore (tput) moved into a global (a table's slot) whose old
+    # value a collection must judge: that collection leaves it referenced by that slot
+    # alone, so OWNED (when it marks it from the permanent roots)
     owned_next = -1
-    # an OWNED number the last push put on the stack, once (-1: none): while nothing but
-    # that stack slot and its global refers to it, an instruction that drops the slot makes
-    # it its global's alone again, OWNED (how ``x = x + 1`` keeps x's number OWNED)
-    owned_pushed = -1
+    # ``followed``: OWNED numbers pushed on the stack, once each (-1: none): while nothing
+    # but that stack slot and its own slot refers to one, an instruction that drops the
+    # stack slot makes it its slot's alone again, OWNED (how ``x = x + 1`` keeps x's number
+    # OWNED; _follow_push, _follow_drop)
     while saved == NONE or saved < bp:
         # ---- the collection before the instruction (or its provably changeless skip)
         regs[R_GC_RUNS] += 1
@@ -1517,7 +1627,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             regs[R_OLD_CHANGED] = 1
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
-            owned_pushed = -1
+            followed[:] = -1
         owned_next = -1
         fixed = False
         pending = -1
@@ -1712,8 +1822,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 ar = _i(d[v * s + 2])
                 if ar != _NO_ACTREC and not _i(d[ar * s]) & _FLAG2:
                     break  # a method to bind (VM._bind_method)
+            replaced = table_lookup(d, t, k, s, elems)
             if not _table_set(d, regs, t, k, v, s, elems):
                 break
+            stored_in = t
             sp -= 3
         elif op == 32:  # tget
             if sp < 1:
@@ -1810,6 +1922,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             darray_set(d, lsyms, arg, _i(stack[sp]), s, elems)
             sp -= 1
         elif op == 43:  # lremove of one local, or of several held by the last segment
+            removed_a, removed_b = -2, -2
+            if arg <= 2:
+                removed_a, removed_b = _last_elements(d, lsyms, arg, s, elems)
             if arg == 1 and not _darray_pop(d, lsyms, s, elems):
                 break
             if arg > 1 and not _darray_pop_in_place(d, lsyms, arg, s, elems):
@@ -1839,8 +1954,8 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         regs[R_EXECUTED] += 1
         rule = rules[op]
         fixed = True
-        if rule == _STORED_GLOBAL or rule == _STORED_NEW_LOCAL:
-            owned_pushed = -1  # the number may have moved into a second place
+        if rule == _STORED_GLOBAL or rule == _STORED_NEW_LOCAL or rule == _STORED_IN_TABLE:
+            followed[:] = -1  # the number may have moved into a second place
         if rule == _STORED_GLOBAL:
             name_fresh = _dropped(info, below_before, nobj) == _DROP_FRESH
             freed = _stored_global_kept(d, regs, info, top_before, below_before, replaced,
@@ -1858,6 +1973,37 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             if not fixed and _i(info[top_before]) == FRESH \
                     and _i(d[top_before * s]) & 7 in (_INT, _FLOAT):
                 owned_next = top_before
+        elif rule == _STORED_IN_TABLE:
+            free_a, free_b = _stored_in_table_kept(d, regs, info, stored_in, below_before,
+                                                   top_before, replaced, nobj, s, limit)
+            fixed = free_a > -2
+            if not fixed:
+                free_a = -1
+                if _i(info[top_before]) == FRESH and below_before != top_before \
+                        and _i(d[top_before * s]) & 7 in (_INT, _FLOAT):
+                    owned_next = top_before
+            elif free_a < 0:
+                free_a = free_b
+                free_b = -1
+        elif rule == _REMOVED_LOCALS:
+            # the locals' values lost the frame's slot: each must be a permanent leaf (nil)
+            # or OWNED, whose one reference that slot was (the skipped collection frees it)
+            fixed = removed_a >= 0 and removed_a != removed_b
+            for x in (removed_a, removed_b):
+                if x < 0 or not fixed or _permanent_leaf(d, x, nobj, s):
+                    continue
+                if x < nobj and _owned(info, x):
+                    if not _i(info[x]) & NEW:
+                        regs[R_OLD_CHANGED] = 1  # an old object freed
+                    if free_a < 0:
+                        free_a = x
+                    else:
+                        free_b = x
+                else:
+                    fixed = False
+            if not fixed:
+                free_a = -1
+                free_b = -1
         elif rule == _STORED_NEW_LOCAL:
             fixed = new_local and _stored_leaf_kept(d, regs, info, top_before, lsyms, nobj,
                                                     s, limit)
@@ -1871,10 +2017,9 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 below = _dropped(info, below_before, nobj)
             fixed = top != _DROP_UNKNOWN and below != _DROP_UNKNOWN and not (
                 top == below == _DROP_FRESH and top_before == below_before)
-            if owned_pushed >= 0 and (top_before == owned_pushed
-                                      or (two and below_before == owned_pushed)):
-                info[owned_pushed] = OWNED  # its one stack slot dropped (or a collection
-                owned_pushed = -1           # follows, which rewrites every info anyway)
+            # a followed number's one stack slot dropped: its slot's alone again (a
+            # collection that follows finds it so, see fastgc.OWNED)
+            _follow_drop(info, followed, top_before, below_before, two)
             if not fixed or rule == _POPPED_ONE:
                 pass
             elif sp < 0 or _i(stack[sp]) >= nobj:
@@ -1883,7 +2028,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
                 pending = _i(stack[sp]) * s
                 fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
             else:
-                owned_pushed = _pushed_owned(info, _i(stack[sp]), owned_pushed)
+                _follow_push(info, _i(stack[sp]), followed)
                 fixed = _old_kept(d, info, _i(stack[sp]), s)
             if fixed and top == _DROP_FRESH:
                 free_a = top_before
@@ -1901,7 +2046,7 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             else:
                 fixed = _new_leaf_kept(d, regs, info, _i(stack[sp]), s)
         elif rule == _PUSHED_OLD:
-            owned_pushed = _pushed_owned(info, _i(stack[sp]), owned_pushed)
+            _follow_push(info, _i(stack[sp]), followed)
             fixed = _old_kept(d, info, _i(stack[sp]), s)
         else:
             fixed = rule == _PC_ONLY
