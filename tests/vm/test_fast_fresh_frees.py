@@ -25,6 +25,7 @@ from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import TABLE
 from bbzide.vm.inspector import globals_by_name
 from bbzide.vm.profiles import CRAZYFLIE, KILOBOT, PC, Profile
+from bbzide.vm.tables import darray_get, darray_size, table_get
 from bbzide.vm.vm import VM, State
 from tests.vm.chunked_runs import assert_modes_agree, chunk_stops
 
@@ -291,4 +292,58 @@ def test_a_counter_stays_its_globals_alone_while_it_counts(name: str) -> None:
             value = globals_by_name(vm, program.strings)["i"]
             owned_at_store.append(vm.heap.gc_info[value] == fastloop.OWNED)
     assert len(owned_at_store) > 5 and all(owned_at_store)
+    assert_modes_agree(program.bbo, PC, 3000, name)
+
+
+#: a table entry counted up, and a local's number dropped when its function ends
+SLOT_OWNERS = {
+    "a table's entry": ("""
+t = {.n = 0}
+i = 0
+while (i < 400) {
+  t.n = t.n + 1
+  i = i + 1
+}
+""", 31),
+    "a function's local": ("""
+s = 0
+function twice(x) {
+  var d = x * 2
+  s = s + d % 3
+}
+i = 0
+while (i < 400) {
+  twice(i)
+  i = i + 1
+}
+""", 43),
+}
+
+
+@pytest.mark.skipif(not fastloop.COMPILED, reason="the kernel runs as Python without numba")
+@pytest.mark.parametrize("name", sorted(SLOT_OWNERS))
+def test_a_number_its_slot_alone_holds_is_freed_with_it(name: str) -> None:
+    """``t.n = t.n + 1`` and a local ``d`` at the end of its function (``lremove``): the
+    number the ``tput`` replaces, the one the ``lremove`` drops, is ``fastgc.OWNED`` (new or
+    not) when the instruction runs, so the kernel frees it without a collection. Run from
+    the start for one budget after another, the VM stopped before such an instruction
+    finds it so; and the run is the reference's."""
+    source, opcode = SLOT_OWNERS[name]
+    program = compile_source(source, "slot.bzz",
+                             string_table=bittybuzz_string_table([])).to_bbo()
+    owned_at = []
+    for budget in range(60, 400):
+        vm = VM(PC, stress_gc=False)
+        vm.construct()
+        vm.set_bcode(program.bbo)
+        vm.run(max_instructions=budget)
+        if vm.bcode[vm.pc] != opcode:
+            continue
+        if opcode == 31:  # the value under the key about to be replaced
+            value = table_get(vm.heap, vm.stack[vm.stackptr - 2], vm.stack[vm.stackptr - 1])
+        else:  # the frame's last local
+            value = darray_get(vm.heap, vm.lsyms, darray_size(vm.heap, vm.lsyms) - 1)
+        assert value is not None
+        owned_at.append(int(vm.heap.gc_info[value]) & 0x7F == fastloop.OWNED)
+    assert len(owned_at) > 5 and all(owned_at), owned_at
     assert_modes_agree(program.bbo, PC, 3000, name)
