@@ -26,17 +26,21 @@ var when = {}
 var sum = 0
 var last = 0
 var v = nil
+var calls = 0
+var walked = 0
 function init() {
   takeoff()
   v = stigmergy.create(1)
   neighbors.listen("n", function(topic, value, rid) {
     heard[rid] = (value / 8) * 3           # the old entry is this slot's alone: freed
+    calls = calls + 1
     when[rid] = last                       # a number many entries share: not freed
     if (value % 4 == 0) { heard[rid] = heard[rid] + 1 }
   })
 }
 function add(rid, x) {
   var d = x * 2                            # a local: freed when the function ends
+  walked = walked + 1
   if (d % 3 == 0) {
     var e = d + rid
     sum = sum + e % 7                      # a global's number read, then replaced
@@ -66,6 +70,9 @@ def _world_state(sim: Simulation) -> tuple:
 
 
 def test_owned_numbers_identical(tmp_path: Path) -> None:
-    _reference, fast = run_both(compile_script(tmp_path, OWNED_NUMBERS), 30, 6, _world_state)
+    _reference, fast = run_both(compile_script(tmp_path, OWNED_NUMBERS), 16, 5, _world_state)
     assert all(state.robot.failure is None for state in fast.robots)
-    assert all(state.global_value("sum") > 20 for state in fast.robots)
+    for state in fast.robots:  # each drone heard the others, walked their entries, added
+        assert state.global_value("calls") > 20, state.index
+        assert state.global_value("walked") > 20, state.index
+        assert state.global_value("sum") > 20, state.index
