@@ -17,10 +17,14 @@ budget stop may fall between a drop and its free) and at the end.
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import pytest
 
 from bbzide.compiler import bittybuzz_string_table, compile_source
+from bbzide.compiler.assembler import assemble
+from bbzide.compiler.bo2bbo import bo_to_bbo
+from bbzide.compiler.frontend import compile_to_basm
 from bbzide.vm.compiled import fastloop
 from bbzide.vm.heap import TABLE
 from bbzide.vm.inspector import globals_by_name
@@ -347,3 +351,34 @@ def test_a_number_its_slot_alone_holds_is_freed_with_it(name: str) -> None:
         owned_at.append(int(vm.heap.gc_info[value]) & 0x7F == fastloop.OWNED)
     assert len(owned_at) > 5 and all(owned_at), owned_at
     assert_modes_agree(program.bbo, PC, 3000, name)
+
+
+#: a function whose local ``y`` is removed while a copy of its number is still on the stack:
+#: ``lload 2`` twice (the number on the stack twice), one copy popped, ``lremove 1``, then
+#: the other copy stored in ``g``. The compiler emits no such sequence (a block's locals go
+#: when its statements have left the stack empty); bytecode may, and the VM runs it.
+TWICE = """g = 0
+function f(x) {
+  var y = x * 2
+  g = 1
+}
+i = 0
+while (i < 30) {
+  f(i)
+  i = i + 1
+}
+"""
+
+
+def test_a_local_removed_while_its_number_is_on_the_stack_keeps_the_number() -> None:
+    """The first ``lload`` follows the local's number (OWNED: its slot's alone until then);
+    the second finds it followed and stops following it, so dropping one copy does not make
+    it the slot's alone again, and the ``lremove`` leaves it to a collection, which keeps it
+    for the copy the stack still holds (then ``g``'s)."""
+    basm = compile_to_basm("twice.bzz", source=TWICE).basm
+    edited, count = re.subn(r"\tlremove 1\t[^\n]*",
+                            "\tpushs 0\n\tlload 2\n\tlload 2\n\tpop\n\tlremove 1\n\tgstore", basm)
+    assert count == 1
+    bbo = bo_to_bbo(assemble(edited, "twice.basm").bo, "twice.bo").bbo
+    for profile in PROFILES:
+        assert_modes_agree(bbo, profile, 500, f"twice ({profile.name})")
