@@ -591,19 +591,27 @@ def _darray_pop(d: Any, a: int, s: int, elems: int) -> bool:
 
 
 @_compile
+def _last_segment_filled(d: Any, a: int, s: int, elems: int) -> tuple[int, int]:
+    """Darray ``a``'s last segment (-1 as :func:`_last_segment`) and how many of its words,
+    from the first, are valid elements."""
+    seg = _last_segment(d, a, s, elems)
+    p = 0
+    if seg >= 0:
+        g = 4 * elems + 2
+        while p < 2 * elems and _word(d, seg, p, g) & 0x8000:
+            p += 1
+    return seg, p
+
+
+@_compile
 def _last_elements(d: Any, a: int, k: int, s: int, elems: int) -> tuple[int, int]:
     """The objects of darray ``a``'s last ``k`` (1 or 2) elements, the last first, when its
     last segment holds them (-2, -2 otherwise: a pop would empty a segment, which the
     collector's end then walks past)."""
-    seg = _last_segment(d, a, s, elems)
-    if seg < 0:
+    seg, p = _last_segment_filled(d, a, s, elems)
+    if seg < 0 or p < k:
         return -2, -2
     g = 4 * elems + 2
-    p = 0
-    while p < 2 * elems and _word(d, seg, p, g) & 0x8000:
-        p += 1
-    if p < k:
-        return -2, -2
     last = _word(d, seg, p - 1, g) & 0x7FFF
     if k == 1:
         return last, -1
@@ -614,15 +622,10 @@ def _last_elements(d: Any, a: int, k: int, s: int, elems: int) -> tuple[int, int
 def _darray_pop_in_place(d: Any, a: int, k: int, s: int, elems: int) -> bool:
     """``k`` times ``tables.darray_pop`` when the last segment holds ``k`` elements or more
     (each pop then clears its last valid word); False, with nothing written, otherwise."""
-    seg = _last_segment(d, a, s, elems)
-    if seg < 0:
+    seg, p = _last_segment_filled(d, a, s, elems)
+    if seg < 0 or p < k:
         return False
     g = 4 * elems + 2
-    p = 0
-    while p < 2 * elems and _word(d, seg, p, g) & 0x8000:
-        p += 1
-    if p < k:
-        return False
     for q in range(p - k, p):
         _set_word(d, seg, q, g, _word(d, seg, q, g) & 0x7FFF)
     return True
@@ -1100,25 +1103,21 @@ def _stored_leaf_kept(d: Any, regs: Any, info: Any, v: int, lsyms: int, nobj: in
 
 
 @_compile
-def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
-                        gsyms: int, nobj: int, s: int, limit: int) -> int:
-    """After a ``gstore`` that replaced global ``k``'s value ``old`` by the stack top
-    ``v`` (``old`` -1: a new global): is the heap still a fixed point, but for ``old``
+def _leaf_stored_kept(d: Any, regs: Any, info: Any, table: int, v: int, old: int, nobj: int,
+                      s: int, limit: int) -> int:
+    """After a store that replaced the value ``old`` of a slot of ``table`` (the globals' or
+    any table) by the stack top ``v``: is the heap still a fixed point, but for ``old``
     the skipped collection frees? -2 when a collection must tell, else the object to free
-    (-1: none). Yes when the name is kept by the permanent roots or a fresh string (the
-    table keeps its own key for a global it had: the caller frees the name), ``v`` is a
-    marked leaf
-    (not nil: storing nil deletes the global), the globals' table is walked from the
-    permanent roots, and ``old`` is ``v``, a permanent leaf (nil) or :data:`OWNED` (then
-    unreachable now). A fresh int or float ``v`` becomes :data:`OWNED`; any other ``v``
-    not yet permanent-reached is said to be, one level below the globals. The globals
-    changed: ``R_OLD_CHANGED``."""
-    if old < 0 or old >= nobj or v >= nobj or _dropped(info, k, nobj) == _DROP_UNKNOWN:
-        return -2
+    (-1: none). Yes when ``v`` is a marked leaf (not nil: storing nil deletes the slot),
+    ``table`` is walked from the permanent roots (so it stays reached, and so does ``v``,
+    one level below it), and ``old`` is ``v``, a permanent leaf (nil) or :data:`OWNED`
+    (then unreachable now). A fresh int or float ``v`` becomes :data:`OWNED`; any other
+    ``v`` not yet permanent-reached is said to be, one level below ``table``. ``table``
+    changed: ``R_OLD_CHANGED``. The caller has judged the roots the store dropped."""
     m = _i(d[v * s])
-    t = m & 7
-    if not _is_leaf(m) or not m & _GC_MARK or t == _NIL \
-            or not _walked_from_permanent(info, gsyms, limit):
+    kind = m & 7
+    if not _is_leaf(m) or not m & _GC_MARK or kind == _NIL \
+            or not _walked_from_permanent(info, table, limit):
         return -2
     free = -1
     if old != v and not _permanent_leaf(d, old, nobj, s):
@@ -1126,12 +1125,26 @@ def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
             return -2
         free = old
     first = _i(info[v])
-    if first == FRESH and (t == _INT or t == _FLOAT):
+    if first == FRESH and (kind == _INT or kind == _FLOAT):
         info[v] = OWNED
     elif first == FRESH or not first & PERMANENT_PHASE:
-        info[v] = (_i(info[gsyms]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
+        info[v] = (_i(info[table]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
     regs[R_OLD_CHANGED] = 1
     return free
+
+
+@_compile
+def _stored_global_kept(d: Any, regs: Any, info: Any, v: int, k: int, old: int,
+                        gsyms: int, nobj: int, s: int, limit: int) -> int:
+    """After a ``gstore`` that replaced global ``k``'s value ``old`` by the stack top
+    ``v`` (``old`` -1: a new global): is the heap still a fixed point, but for ``old``
+    the skipped collection frees? -2 when a collection must tell, else the object to free
+    (-1: none). Yes when the global was there, its name is kept by the permanent roots or
+    a fresh string (the table keeps its own key for a global it had: the caller frees the
+    name), and the store itself is, into the globals' table (:func:`_leaf_stored_kept`)."""
+    if old < 0 or old >= nobj or v >= nobj or _dropped(info, k, nobj) == _DROP_UNKNOWN:
+        return -2
+    return _leaf_stored_kept(d, regs, info, gsyms, v, old, nobj, s, limit)
 
 
 @_compile
@@ -1141,34 +1154,18 @@ def _stored_in_table_kept(d: Any, regs: Any, info: Any, t: int, k: int, v: int, 
     stack top ``v`` (``old`` -1: a new key): is the heap still a fixed point, but for the
     objects the skipped collection frees? (-2, -1) when a collection must tell, else those
     objects (-1: none). Yes when the key was there (nothing allocated, the table keeps its
-    own key object), ``v`` is a marked leaf (not nil: storing nil deletes the key), ``t``
-    is walked from the permanent roots (so it stays reached, and so does ``v``, one level
-    below it), the dropped key ``k`` is kept by the permanent roots (a local of a frame,
-    as ``rid`` of ``t[rid] = v``) or a fresh temporary (freed), and ``old`` is ``v``, a
-    permanent leaf (nil) or :data:`OWNED` (then unreachable now: freed). A fresh int or
-    float ``v`` becomes :data:`OWNED`; any other ``v`` not yet permanent-reached is said
-    to be, one level below ``t``. ``t`` changed: ``R_OLD_CHANGED``."""
+    own key object), the dropped key ``k`` is kept by the permanent roots (a local of a
+    frame, as ``rid`` of ``t[rid] = v``) or a fresh temporary (freed), ``t`` was dropped
+    as a root the permanent roots keep (it is walked from them), and the store itself is
+    (:func:`_leaf_stored_kept`)."""
     if old < 0 or old >= nobj or v >= nobj or k >= nobj or t >= nobj:
-        return -2, -1
-    m = _i(d[v * s])
-    kind = m & 7
-    if not _is_leaf(m) or not m & _GC_MARK or kind == _NIL \
-            or not _walked_from_permanent(info, t, limit):
         return -2, -1
     key = _dropped(info, k, nobj)
     if key == _DROP_UNKNOWN or (key == _DROP_FRESH and k == v):
         return -2, -1
-    free_old = -1
-    if old != v and not _permanent_leaf(d, old, nobj, s):
-        if not _owned(info, old):
-            return -2, -1
-        free_old = old
-    first = _i(info[v])
-    if first == FRESH and (kind == _INT or kind == _FLOAT):
-        info[v] = OWNED
-    elif first == FRESH or not first & PERMANENT_PHASE:
-        info[v] = (_i(info[t]) & (PERMANENT_PHASE - 1)) + 1 + PERMANENT_PHASE
-    regs[R_OLD_CHANGED] = 1
+    free_old = _leaf_stored_kept(d, regs, info, t, v, old, nobj, s, limit)
+    if free_old == -2:
+        return -2, -1
     return free_old, k if key == _DROP_FRESH else -1
 
 
