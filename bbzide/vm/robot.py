@@ -44,7 +44,7 @@ import numpy as np
 from bbzide.compiler import bbzfloat
 from bbzide.compiler.program import BittyBuzzProgram
 from bbzide.diagnostics import SourceLocation
-from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout, vstig
+from bbzide.vm import inmsgs, messages, neighbors, snapshot_layout, table_library, vstig
 from bbzide.vm.host import (
     DrawnHostFunction,
     HostCall,
@@ -263,7 +263,8 @@ class Robot:
         """The host functions a compiled swarm step runs in place (:mod:`fasthost`): rows
         (address, pointer size, kind, slot, argument count, a record's field names, a latch's
         bound and once flag, a reading's stale-after slots) for the closure address of
-        ``neighbors.broadcast``, of a stigmergy's ``get`` and ``put``, of each latched host
+        ``neighbors.broadcast``, of a stigmergy's ``get`` and ``put``, of the table library's
+        ``foreach`` (walked in place: ``fasthost.run_walking``), of each latched host
         function, of each reading, of each drawn one and of each one the kernel computes
         (``HostRegistry.computed_rows``), as the VM's registry maps them now; the latched
         function of each latch slot; the reading of each reading slot; the drawn functions
@@ -304,6 +305,8 @@ class Robot:
                 rows.append(row(address, fasthost.HOST_VSTIG_GET, 0, 1))
             elif call.function is vstig.vstig_put:
                 rows.append(row(address, fasthost.HOST_VSTIG_PUT, 0, 2))
+            elif call.function is table_library.table_foreach:
+                rows.append(row(address, fasthost.HOST_TABLE_FOREACH, 0, 2))
         for symbol, fn in self._latched.items() if self._latching else ():
             call = current(symbol)
             if call is None or len(slots) >= packed_queues.LATCH_SLOTS \

@@ -161,7 +161,8 @@ from bbzide.vm.message_layout import (
 __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST",
            "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD",
            "H_LATCH_BELOW", "H_LATCH_ONCE", "H_STALE_AFTER", "clear_stale_readings",
-           "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "HOST_DRAWN", "H_KEYS",
+           "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "HOST_DRAWN", "HOST_TABLE_FOREACH",
+           "H_KEYS", "run_walking", "call_pushed_walking",
            "HOST_COLUMNS",
            "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
@@ -182,6 +183,9 @@ H_STALE_AFTER = H_LATCH_ONCE + 1
 HOST_COLUMNS = H_STALE_AFTER + 1
 HOST_BROADCAST, HOST_LATCH, HOST_DISTANCE, HOST_READ_INT, HOST_READ_RECORD = 1, 2, 3, 4, 5
 HOST_VSTIG_GET, HOST_LOOKUP, HOST_VSTIG_PUT, HOST_DRAWN = 6, 7, 8, 9
+#: the table library's ``foreach`` (``table_library.table_foreach``): not a host function
+#: :func:`_host_compiled` does, but a walk :func:`run_walking` makes in place
+HOST_TABLE_FOREACH = 10
 
 
 
@@ -248,6 +252,15 @@ def _address_matches(d: Any, c: int, s: int, address: int, ptr_size: int) -> boo
 
 
 @_compile
+def _host_row(d: Any, c: int, s: int, hosts: Any) -> int:
+    """The row of ``hosts`` whose address C closure ``c`` holds, or -1."""
+    for r in range(len(hosts)):
+        if _address_matches(d, c, s, hosts[r, H_ADDRESS], hosts[r, H_PTR_SIZE]):
+            return r
+    return -1
+
+
+@_compile
 def rounded_distance(dx: int, dy: int) -> int:
     """``round(math.hypot(dx, dy))`` of ints, in ints: the integer square root ``r`` of
     ``n = dx² + dy²``, plus one when ``n > r² + r`` (then √n > r + ½; it is never exactly
@@ -276,14 +289,12 @@ def _host_compiled(d: Any, stack: Any, bsize: int, regs: Any, info: Any, travers
         return False
     nobj = len(d) // s
     c = regs[R_HOST]
-    row = -1
-    for r in range(len(hosts)):
-        if _address_matches(d, c, s, hosts[r, H_ADDRESS], hosts[r, H_PTR_SIZE]):
-            row = r
-            break
+    row = _host_row(d, c, s, hosts)
     if row < 0:
         return False
     kind = hosts[row, H_KIND]
+    if kind == HOST_TABLE_FOREACH:
+        return False  # a walk: run_walking's, or Python's
     argc = hosts[row, H_ARGC]
     lsyms = regs[R_LSYMS]
     if darray_size(d, lsyms, s, elems) != argc + 1:
@@ -526,14 +537,21 @@ def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     """``closure_call``'s loop once its arguments and count are pushed (``sp``: the new
     stack top): the registers of a fresh ``_loop`` with its ``callc`` still to make
     (``entry``: ``fastloop.CALL`` or ``CALL_ON_FIXED_HEAP``), then :func:`run_hosted`."""
+    _enter_call(regs, sp, entry)
+    return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
+                      hosts, outq, ctl, latch)
+
+
+@_compile
+def _enter_call(regs: Any, sp: int, entry: int) -> None:
+    """The registers of ``closure_call``'s fresh ``_loop`` (``sp``: the stack top, the
+    argument count on it), its ``callc`` still to make (``entry``)."""
     regs[R_SP] = sp
     regs[R_SAVED] = regs[R_BP]
     regs[R_N] = 0
     regs[R_FIXED] = 0
     regs[R_PENDING] = -1
     regs[R_CALL_FIRST] = entry
-    return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
-                      hosts, outq, ctl, latch)
 
 
 @_compile
@@ -957,3 +975,130 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
         if si == _NO_NEXT_SEGMENT:
             return WALK_DONE
     return WALK_DONE
+
+
+# ---- the table library's foreach, walked where the call was met -------------------------------
+# A control step that calls ``foreach(t, f)`` (an M300 flocking drone's walk over its
+# neighbours' positions) left the swarm step's machine code there: Python made the call,
+# the walk (:func:`table_walk`, re-entered from ``table_library``) and the rest of the
+# step, ~70 µs a drone of Python around a ~200 µs walk. :func:`run_walking` makes that call
+# itself. Its walk may stop at any element (an instruction or host function the kernels leave
+# to Python, the budget, an error), and a walk half made cannot be handed over: the walk
+# starts from copies of everything a kernel writes — heap, stack, the collector's arrays,
+# registers, out-queue, control words, latches — and a walk that stops puts them all back,
+# so Python makes the whole call, as it would have. The elements' calls run the host
+# functions of ``hosts`` but a stigmergy's (their entries live outside those arrays) and a
+# nested foreach: such an element stops the walk.
+
+
+@_compile_owning
+def _walk_hosts(hosts: Any) -> Any:
+    """The rows of ``hosts`` an element's call may run in place: all but a stigmergy's."""
+    kept = 0
+    for r in range(len(hosts)):
+        if hosts[r, H_KIND] != HOST_VSTIG_GET and hosts[r, H_KIND] != HOST_VSTIG_PUT:
+            kept += 1
+    rows = np.empty((kept, hosts.shape[1]), np.int64)
+    k = 0
+    for r in range(len(hosts)):
+        if hosts[r, H_KIND] != HOST_VSTIG_GET and hosts[r, H_KIND] != HOST_VSTIG_PUT:
+            rows[k] = hosts[r]
+            k += 1
+    return rows
+
+
+@_compile_owning
+def _foreach_in_place(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+                      rules: Any, s: int, elems: int, reserved: int, hosts: Any, outq: Any,
+                      ctl: Any, latch: Any) -> bool:
+    """``table_library.table_foreach`` of the C closure whose call ``run`` set up
+    (``HOST_CALL``, the closure in ``R_HOST``) when ``hosts`` maps it there: the walk, the
+    ``ret0`` and ``VM._loop``'s end of that step (no skip rule: the next step collects).
+    False with nothing changed when Python must make the call (see above)."""
+    saved = regs[R_SAVED]
+    budget = regs[R_BUDGET]
+    n = regs[R_N]
+    if saved == NONE or (budget != NONE and n + 1 > budget):
+        return False  # the budget's error is Python's
+    row = _host_row(d, regs[R_HOST], s, hosts)
+    if row < 0 or hosts[row, H_KIND] != HOST_TABLE_FOREACH:
+        return False
+    lsyms = regs[R_LSYMS]
+    if darray_size(d, lsyms, s, elems) != 3:
+        return False  # LNUM: Python reports it
+    nobj = len(d) // s
+    t = darray_get(d, lsyms, 1, s, elems)
+    closure = darray_get(d, lsyms, 2, s, elems)
+    if not (0 <= t < nobj and _i(d[t * s]) & 7 == TABLE
+            and 0 <= closure < nobj and _i(d[closure * s]) & 7 == CLOSURE):
+        return False  # TYPE: Python reports it
+    kept_regs = regs.copy()
+    kept_heap = d.copy()
+    kept_stack = stack.copy()
+    kept_info = info.copy()
+    kept_traversed = traversed.copy()
+    kept_outq = outq.copy()
+    kept_ctl = ctl.copy()
+    kept_latch = latch.copy()
+    # the registers ``table_library.table_walk_compiled`` enters with (VM.kernel_registers)
+    regs[R_N] = 0
+    regs[R_FIXED] = 0
+    regs[R_PENDING] = -1
+    regs[R_CALL_FIRST] = 0
+    regs[R_HOST_COUNT] = -1
+    regs[R_REACHED] = 0
+    regs[R_OLD_CHANGED] = 0
+    w = np.zeros(WALK_SLOTS, np.int64)
+    w[W_SEGMENT] = _u16(d, t, s)
+    result = table_walk(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
+                        WALK_TABLE_FOREACH, closure, -1, w, _walk_hosts(hosts), outq, ctl,
+                        latch)
+    sp = regs[R_SP]
+    bp = regs[R_BP]
+    if result == WALK_DONE and _ret_ok(d, stack, False, sp, bp, regs[R_LSYMS], len(bcode), s,
+                                       elems):
+        _ret(d, stack, regs, False, sp, bp, regs[R_LSYMS], len(bcode), s, elems)
+        regs[R_SAVED] = saved
+        regs[R_N] = n + 1
+        regs[R_FIXED] = 0
+        regs[R_PENDING] = -1
+        regs[R_CALL_FIRST] = kept_regs[R_CALL_FIRST]
+        regs[R_REACHED] |= kept_regs[R_REACHED]
+        regs[R_OLD_CHANGED] = 1  # the walk's calls collected: the caller's fixed point is gone
+        return True
+    regs[:] = kept_regs
+    d[:] = kept_heap
+    stack[:] = kept_stack
+    info[:] = kept_info
+    traversed[:] = kept_traversed
+    outq[:] = kept_outq
+    ctl[:] = kept_ctl
+    latch[:] = kept_latch
+    return False
+
+
+@_compile
+def run_walking(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
+                rules: Any, s: int, elems: int, reserved: int, hosts: Any, outq: Any,
+                ctl: Any, latch: Any) -> int:
+    """:func:`run_hosted`, with the table library's ``foreach`` walked in place (see
+    above); returns what ``run_hosted`` last returned."""
+    while True:
+        status = run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                            reserved, hosts, outq, ctl, latch)
+        if status != HOST_CALL or len(hosts) == 0 or not _foreach_in_place(
+                d, stack, bcode, regs, info, traversed, rules, s, elems, reserved, hosts,
+                outq, ctl, latch):
+            return status
+
+
+@_compile
+def call_pushed_walking(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
+                        traversed: Any, rules: Any, s: int, elems: int, reserved: int,
+                        sp: int, hosts: Any, outq: Any, ctl: Any, latch: Any,
+                        entry: int) -> int:
+    """:func:`call_pushed` by :func:`run_walking`: a control step's entry (an element's
+    call, :func:`call_pushed`'s, walks nothing: no walk nests in another)."""
+    _enter_call(regs, sp, entry)
+    return run_walking(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
+                       hosts, outq, ctl, latch)

@@ -33,7 +33,8 @@ before any side effect it cannot hand over** — at two points of a message:
 
 :func:`call_global` is ``Robot.call_global`` the same way (name string, lookup, pushes,
 ``closure_call(0)``): :data:`PYTHON_MESSAGE` with nothing done when the stack or the heap
-lacks room, ``CALL_UNDER_WAY + status`` when the call must go on in Python.
+lacks room, ``CALL_UNDER_WAY + status`` when the call must go on in Python. Its call walks
+the table library's ``foreach`` in place (``fasthost.run_walking``); a listener's does not.
 
 The records travel as one byte array (the in-queue's records, concatenated: record ``k``
 at ``k * record_size``; the last one is the scratch record of ``bbzinmsg_queue_extract``)
@@ -51,6 +52,7 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
 from bbzide.vm.compiled.fasthost import (
     call_pushed,
+    call_pushed_walking,
     collect_on_registers,
     end_of_call_collection,
 )
@@ -238,8 +240,8 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     d[argc * s + 1] = 0
     d[argc * s + 2] = 0
     stack[sp + 3] = argc
-    status = call_pushed(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
-                         sp + _CALL_PUSHES, hosts, outq, ctl, latch, entry)
+    status = call_pushed_walking(d, stack, bcode, regs, info, traversed, rules, s, elems,
+                                 reserved, sp + _CALL_PUSHES, hosts, outq, ctl, latch, entry)
     if status != EXIT:
         return CALL_UNDER_WAY + status
     return CALLED
