@@ -65,6 +65,7 @@ from bbzide.vm.compiled.fastgc import (
     PERMANENT_PHASE,
     TRUNCATED,
     UNSETTLED,
+    VALID_BELOW_SHIFT,
     _compile,
     _compile_owning,
     _i,
@@ -92,7 +93,8 @@ R_HOST_COUNT = 26
 #: every object slot from the reserved ones up to this index is valid (0: nothing known),
 #: so an allocation's first-fit scan may start there; a string's does not (it looks for a
 #: twin among the valid strings below the first free slot). Allocations raise it, every
-#: free lowers it (:func:`_slot_freed`, a collection to 0); Python's registers start at 0,
+#: free lowers it (:func:`_slot_freed`; a collection sets it to the lowest slot its sweep
+#: left invalid, ``fastgc.VALID_BELOW_SHIFT``); Python's registers start at 0,
 #: and the swarm step sets it to 0 for each robot: Python may have freed objects since.
 R_VALID_BELOW = 27
 #: 1 when the last collection was not a fixed point of the collector (``fastgc.UNSETTLED``):
@@ -239,11 +241,11 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
 @_compile
 def take_collection(regs: Any, r: int) -> None:
     """The registers after a collection that returned ``r`` (``fastgc.collect_with``):
-    both heap ends, no valid run known below any slot, and whether the heap is settled
+    both heap ends, the valid run the sweep left, and whether the heap is settled
     (``R_UNSETTLED``, ``R_TRUNCATED``); the caller counts it."""
     regs[R_RTOBJ] = (r >> 16) & 0xFFFF
     regs[R_LTSEG] = r & 0xFFFF
-    regs[R_VALID_BELOW] = 0
+    regs[R_VALID_BELOW] = r >> VALID_BELOW_SHIFT
     if r & TRUNCATED:
         regs[R_TRUNCATED] = 1
     regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
@@ -841,15 +843,7 @@ def _callc(d: Any, stack: Any, regs: Any, sp: int, bp: int, lsyms: int, retpc: i
     if regs[R_LTSEG] - regs[R_RTOBJ] < 3 * s + (1 + (m + argn) // n) * g:
         return 0
     # ---- commit, in the order of VM.callc
-    rtobj = regs[R_RTOBJ]
-    new = first_free(d, rtobj, s, reserved, _TABLE, 0)
-    if new < 0:
-        new = rtobj // s
-        regs[R_RTOBJ] = rtobj + s
-        _note_usage(regs, size)
-    if _i(d[new * s]) & (_VALID | _GC_MARK) == _GC_MARK:
-        regs[R_REACHED] = 1
-    d[new * s] = _TABLE | _VALID
+    new = _obj_alloc(d, regs, s, reserved, _TABLE, 0)
     seg = _seg_alloc(d, regs, elems)
     d[new * s + 1] = seg & 0xFF
     d[new * s + 2] = seg >> 8
