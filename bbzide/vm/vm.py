@@ -76,6 +76,8 @@ from bbzide.vm.tables import (
 from bbzide.vm.vstig import VstigEntry, VstigStore
 
 _I16 = 0xFFFF
+#: the twin registers of a fresh register array (``fastloop.R_TWIN_END`` on): none known
+_NO_TWINS = (0,) * (fastloop.REGISTERS - fastloop.R_TWIN_END)
 
 
 def _s16(v: int) -> int:
@@ -1312,8 +1314,8 @@ class VM:
             self.nil, self.gsyms, fastloop.NONE if saved is None else saved,
             fastloop.NONE if budget is None else budget, self.profile.float_ops,
             self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
-            0, call_first, 0, 0, 0, -1, 0, int(heap.unsettled), int(heap.truncated)),
-            np.int64)
+            0, call_first, 0, 0, 0, -1, 0, int(heap.unsettled), int(heap.truncated),
+            *_NO_TWINS), np.int64)
 
     def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
         """Copy a kernel's registers back into the VM and its heap; the loop's own
@@ -1408,6 +1410,7 @@ class VM:
                                       self.instructions_executed, n, fixed, pending,
                                       heap.peak_used)
                         regs[fastloop.R_VALID_BELOW] = 0  # Python ran: it may have freed
+                        regs[fastloop.R_TWIN_END] = 0  # or made strings
                         regs[fastloop.R_UNSETTLED] = heap.unsettled  # or collected
                         regs[fastloop.R_TRUNCATED] = heap.truncated
                     fresh = False

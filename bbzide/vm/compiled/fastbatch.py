@@ -55,7 +55,7 @@ from bbzide.vm.compiled.fastinbox import (
     call_global,
     process_broadcasts,
 )
-from bbzide.vm.compiled.fastloop import R_NIL, R_SP, R_UNSETTLED, R_VALID_BELOW
+from bbzide.vm.compiled.fastloop import R_NIL, R_SP, R_TWIN_END, R_UNSETTLED, R_VALID_BELOW
 from bbzide.vm.compiled.fastreceive import (
     NB_MARK,
     _inmsg_append,
@@ -469,6 +469,7 @@ def swarm_step(addresses: Any, sizes: Any, geometry: Any, registers: Any, dynami
         for k in range(DYNAMIC):
             regs[_DYNAMIC_REGISTER[k]] = dyn[k]
         regs[R_VALID_BELOW] = 0  # Python may have freed objects since its last step
+        regs[R_TWIN_END] = 0  # or made strings
         regs[R_UNSETTLED] = 1  # (or collected): no fixed point until a collection here
         io = ios[i]
         io[IO_ROWS] = rows

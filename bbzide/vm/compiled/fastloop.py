@@ -103,8 +103,24 @@ R_UNSETTLED = 28
 #: 1 once a collection of this heap stopped at the depth limit (``fastgc.TRUNCATED``); it
 #: stays 1, and so does :data:`R_UNSETTLED` after every collection
 R_TRUNCATED = 29
+#: a string's twin known without a scan: ``pushs`` deduplicates its string by a first-fit
+#: scan from the reserved slots for a valid string with the same id (``first_free``), and an
+#: M300 drone's global names sit past ~90 host function names, so each global access
+#: scanned ~90 slots. Every slot from the reserved ones up to ``R_TWIN_END`` is valid, and
+#: each of the :data:`TWIN_SLOTS` registers from ``R_TWINS`` on (indexed by the id's low
+#: bits) holds ``(id + 1) << 16 | slot``: that id's lowest string, when the slot is below
+#: ``R_TWIN_END``. A scan from the reserved slots raises the end past what it passed (the
+#: registers that slot does not vouch for cleared); every free lowers it, as it lowers
+#: ``R_VALID_BELOW``, and Python's registers start at 0 (:func:`_known_twin`,
+#: :func:`_note_twin`)
+R_TWIN_END = 30
+R_TWINS = 31
+#: twins known at once: the global names and topics a script's steps use; 32 keeps the
+#: registers of a robot in one 512-byte row, and a name whose register another took is
+#: scanned for as before
+TWIN_SLOTS = 32
 #: registers in the array
-REGISTERS = 30
+REGISTERS = R_TWINS + TWIN_SLOTS
 #: R_SAVED / R_BUDGET value meaning "none" (run() has no saved blockptr; no budget)
 NONE = -(1 << 40)
 
@@ -211,15 +227,53 @@ def _note_usage(regs: Any, size: int) -> None:
 
 
 @_compile
+def _known_twin(d: Any, regs: Any, s: int, sid: int) -> int:
+    """The lowest valid string of id ``sid`` when the twin registers know it (see
+    :data:`R_TWIN_END`), or -1."""
+    e = regs[R_TWINS + (sid & (TWIN_SLOTS - 1))]
+    if e >> 16 != sid + 1:
+        return -1
+    slot = e & 0xFFFF
+    o = slot * s
+    if slot >= regs[R_TWIN_END] or _i(d[o]) & (_VALID | 7) != _VALID | _STRING \
+            or (_i(d[o + 1]) | (_i(d[o + 2]) << 8)) != sid:
+        return -1
+    return slot
+
+
+@_compile
+def _note_twin(regs: Any, sid: int, slot: int) -> None:
+    """A scan from the reserved slots found every slot below ``slot`` valid and ``slot``
+    the lowest string of id ``sid`` (its twin, or the new string it takes)."""
+    end = regs[R_TWIN_END]
+    if slot + 1 > end:
+        for j in range(TWIN_SLOTS):  # slots from the old end on: not known lowest
+            if regs[R_TWINS + j] & 0xFFFF >= end:
+                regs[R_TWINS + j] = 0
+        regs[R_TWIN_END] = slot + 1
+    regs[R_TWINS + (sid & (TWIN_SLOTS - 1))] = ((sid + 1) << 16) | slot
+
+
+@_compile
 def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> int:
-    """``Heap.obj_alloc`` for a non-table type; -1 (and nothing written) when full."""
+    """``Heap.obj_alloc`` for a non-table type; -1 (and nothing written) when full. A
+    string's caller writes its id into it at once (the twin registers count on it)."""
     rtobj = regs[R_RTOBJ]
-    start = reserved if typ == _STRING else max(reserved, regs[R_VALID_BELOW])
-    found = first_free(d, rtobj, s, start, typ, sid)
+    if typ == _STRING:
+        start = reserved
+        found = _known_twin(d, regs, s, sid)
+        if found < 0:
+            found = first_free(d, rtobj, s, start, typ, sid)
+        else:
+            found = -2 - found
+    else:
+        start = max(reserved, regs[R_VALID_BELOW])
+        found = first_free(d, rtobj, s, start, typ, sid)
     if found < -1:
         twin = -2 - found
         regs[R_PRIOR] = d[twin * s]
         regs[R_VALID_BELOW] = max(regs[R_VALID_BELOW], twin + 1)
+        _note_twin(regs, sid, twin)
         return twin
     if found < 0:
         if rtobj + s > regs[R_LTSEG]:
@@ -228,6 +282,8 @@ def _obj_alloc(d: Any, regs: Any, s: int, reserved: int, typ: int, sid: int) -> 
         regs[R_RTOBJ] = rtobj + s
         _note_usage(regs, len(d))
     regs[R_VALID_BELOW] = found + 1
+    if typ == _STRING:
+        _note_twin(regs, sid, found)
     o = found * s
     regs[R_PRIOR] = d[o]  # Heap.prior_mdata
     if _i(d[o]) & (_VALID | _GC_MARK) == _GC_MARK:
@@ -246,6 +302,7 @@ def take_collection(regs: Any, r: int) -> None:
     regs[R_RTOBJ] = (r >> 16) & 0xFFFF
     regs[R_LTSEG] = r & 0xFFFF
     regs[R_VALID_BELOW] = r >> VALID_BELOW_SHIFT
+    regs[R_TWIN_END] = min(regs[R_TWIN_END], regs[R_VALID_BELOW])
     if r & TRUNCATED:
         regs[R_TRUNCATED] = 1
     regs[R_UNSETTLED] = 1 if r & UNSETTLED or regs[R_TRUNCATED] else 0
@@ -253,9 +310,12 @@ def take_collection(regs: Any, r: int) -> None:
 
 @_compile
 def _slot_freed(regs: Any, x: int) -> None:
-    """Object slot ``x`` was freed: the valid run below ``R_VALID_BELOW`` ends there."""
+    """Object slot ``x`` was freed: the valid runs below ``R_VALID_BELOW`` and
+    ``R_TWIN_END`` end there."""
     if x < regs[R_VALID_BELOW]:
         regs[R_VALID_BELOW] = x
+    if x < regs[R_TWIN_END]:
+        regs[R_TWIN_END] = x
 
 
 @_compile
