@@ -90,3 +90,20 @@ def test_a_string_takes_a_hole_freed_below_its_known_twin() -> None:
     fastloop._slot_freed(regs, number)
     assert _string(vm, regs, 999) == number  # a new string in the hole
     assert _string(vm, regs, 999) == number  # its twin from now on
+
+
+def test_a_string_python_made_below_a_known_twin_is_found() -> None:
+    """Python may make a string of a known id below the slot the registers name (each
+    kernel entry then starts with their end at 0); a later scan that raises the end again
+    must not bring the old register back: the next string of that id is Python's."""
+    vm = VM(PC, stress_gc=False)
+    vm.construct()
+    h = vm.heap
+    regs = vm.kernel_registers(None, None)
+    number = fastloop._obj_alloc(h.view, regs, h.obj_size, h.reserved, INT, 0)
+    known = _string(vm, regs, 999)
+    o = number * h.obj_size  # Python's string in the number's slot
+    h.view[o:o + 3] = (STRING | 0x08, 999 & 0xFF, 999 >> 8)
+    regs[fastloop.R_TWIN_END] = 0
+    assert _string(vm, regs, 555) > known  # a scan from the reserved slots past both
+    assert _string(vm, regs, 999) == number
