@@ -76,8 +76,9 @@ from bbzide.vm.tables import (
 from bbzide.vm.vstig import VstigEntry, VstigStore
 
 _I16 = 0xFFFF
-#: the twin registers of a fresh register array (``fastloop.R_TWIN_END`` on): none known
-_NO_TWINS = (0,) * (fastloop.REGISTERS - fastloop.R_TWIN_END)
+#: the registers of a fresh array from ``fastloop.R_LEFT_FRAME`` on: no walk element
+#: before, no string twin known
+_FRESH_TAIL = (0,) * (fastloop.REGISTERS - fastloop.R_LEFT_FRAME)
 
 
 def _s16(v: int) -> int:
@@ -1315,7 +1316,7 @@ class VM:
             fastloop.NONE if budget is None else budget, self.profile.float_ops,
             self.stack_size, self.profile.gcmark_depth, self.flist, self.dflt_actrec,
             0, call_first, 0, 0, 0, -1, 0, int(heap.unsettled), int(heap.truncated),
-            *_NO_TWINS), np.int64)
+            *_FRESH_TAIL), np.int64)
 
     def take_kernel_registers(self, regs: np.ndarray) -> tuple[int, bool, int]:
         """Copy a kernel's registers back into the VM and its heap; the loop's own

@@ -71,6 +71,7 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i, collect_with
 from bbzide.vm.compiled.fastloop import (
     CALL,
+    CALL_IN_WALK,
     CALL_ON_FIXED_HEAP,
     EXIT,
     FRESH,
@@ -84,6 +85,7 @@ from bbzide.vm.compiled.fastloop import (
     R_GC_RUNS,
     R_HOST,
     R_HOST_COUNT,
+    R_LEFT_FRAME,
     R_LSYMS,
     R_LTSEG,
     R_MARK_DEPTH,
@@ -108,6 +110,7 @@ from bbzide.vm.compiled.fastloop import (
     _true,
     _u16,
     end_host_frame,
+    forget_left_frame,
     host_frame_droppable,
     run,
     take_collection,
@@ -940,6 +943,10 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
     self_slot = 1 if kind >= WALK_TABLE_FOREACH else 0
     si = w[W_SEGMENT]
     first = w[W_SLOT]
+    # foreach's element calls begin by returning to the previous one's first collection
+    # when they may (fastloop.CALL_IN_WALK); the first one here collects
+    entry = CALL_IN_WALK if kind == WALK_TABLE_FOREACH else CALL
+    regs[R_LEFT_FRAME] = 0
     for visit in range(w[W_VISIT], max_segments + 1):
         if si >= max_segments:
             return WALK_DONE
@@ -960,9 +967,11 @@ def table_walk(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: 
                     or regs[R_LTSEG] - regs[R_RTOBJ] < s
                     or (kind == WALK_REDUCE and sp < 0)):
                 return WALK_PYTHON
+            if entry == CALL_IN_WALK:
+                forget_left_frame(d, regs, info, s, elems)
             status = _call_element_fun(d, stack, bcode, regs, info, traversed, rules,
                                        s, elems, reserved, sp, kind, self_obj, closure,
-                                       key, value, w, hosts, outq, ctl, latch, CALL)
+                                       key, value, w, hosts, outq, ctl, latch, entry)
             if status != EXIT:
                 w[W_STATUS] = status
                 return WALK_IN_CALL

@@ -103,6 +103,10 @@ R_UNSETTLED = 28
 #: 1 once a collection of this heap stopped at the depth limit (``fastgc.TRUNCATED``); it
 #: stays 1, and so does :data:`R_UNSETTLED` after every collection
 R_TRUNCATED = 29
+#: the previous element of a table walk (:data:`CALL_IN_WALK`; 0: none): its activation
+#: record and the return-address and block-pointer ints its ``callc`` pushed, which the
+#: next element's entry frees with the rest of what the element left
+R_LEFT_FRAME, R_LEFT_RET, R_LEFT_BP = 30, 31, 32
 #: a string's twin known without a scan: ``pushs`` deduplicates its string by a first-fit
 #: scan from the reserved slots for a valid string with the same id (``first_free``), and an
 #: M300 drone's global names sit past ~90 host function names, so each global access
@@ -113,8 +117,8 @@ R_TRUNCATED = 29
 #: registers that slot does not vouch for cleared); every free lowers it, as it lowers
 #: ``R_VALID_BELOW``, and Python's registers start at 0 (:func:`_known_twin`,
 #: :func:`_note_twin`)
-R_TWIN_END = 30
-R_TWINS = 31
+R_TWIN_END = 33
+R_TWINS = 34
 #: twins known at once: the global names and topics a script's steps use; 32 keeps the
 #: registers of a robot in one 512-byte row, and a name whose register another took is
 #: scanned for as before
@@ -138,6 +142,14 @@ SLICE = 5          # SLICE_STEPS steps done: back to Python, which re-enters at 
 #: argument count last) only the stack holds: the collection after the ``callc`` may then
 #: be replaced by its effect (:func:`_entered_on_fixed_heap`)
 CALL, CALL_ON_FIXED_HEAP = 1, 2
+#: R_CALL_FIRST value: a table walk's element call (``fasthost.table_walk``, the table
+#: library's ``foreach``). Its first collection frees what the previous element left and
+#: nothing else when, since that element's own first collection (a fixed point), nothing was
+#: stored where it outlives the element (``R_OLD_CHANGED``) and no allocation took a
+#: reached slot (``R_REACHED``): the return to that fixed point plus this element's frame
+#: (:func:`_undo_to_element_start`) then replaces it. (The C loop collects only there:
+#: ``bbztable_foreach`` calls the closure, and the closure's first step collects.)
+CALL_IN_WALK = 3
 #: steps per kernel call at most: ~0.5 s of machine code, then Python handles its signals
 SLICE_STEPS = 1 << 20
 
@@ -1580,6 +1592,58 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
 
 
 @_compile
+def _undo_to_element_start(d: Any, stack: Any, regs: Any, info: Any, sp: int, s: int,
+                           elems: int, reserved: int) -> None:
+    """The collection that begins a walk's element call (:data:`CALL_IN_WALK`), once
+    ``callc`` made its frame and :func:`_entered_on_fixed_heap` marked it: since the
+    previous element's first collection nothing it made was stored where it outlives it, so
+    that collection's heap, the new frame (record, return address, block pointer) and its
+    marks are what this one leaves. Freed: every object made since (``info`` 0,
+    :data:`FRESH` or :data:`NEW`: the previous element's temporaries, locals and, when that
+    element began this way, its return address and block pointer; the argument count just
+    pushed) but the new frame's, the previous element's return-address and block-pointer
+    ints (``R_LEFT_RET``, ``R_LEFT_BP``: old when its entry collected), the marks its
+    returned record kept (cleared before this element's allocations: ``fasthost.table_walk``);
+    then both heap ends retreat (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
+    frame = regs[R_LSYMS]
+    return_int = _i(stack[sp - 2])
+    block_int = _i(stack[sp])
+    left_ret = regs[R_LEFT_RET]
+    left_bp = regs[R_LEFT_BP]
+    for i in range(regs[R_RTOBJ] // s):
+        if i == frame or i == return_int or i == block_int:
+            continue
+        first = _i(info[i])
+        if first > FRESH and not first & NEW and i != left_ret and i != left_bp:
+            continue  # an old object, or a free slot the marker reached: as they were
+        o = i * s
+        m = _i(d[o])
+        if m & _VALID:
+            _free_object(d, regs, info, i, s)
+        elif m & _GC_MARK:
+            d[o] = m & (0xFF ^ _GC_MARK)
+            info[i] = 0
+            if m & 7 == _TABLE:
+                _clear_segment_flags(d, _u16(d, i, s), 0x4000, elems)  # SEG_MARK
+    _retreat(d, regs, s, elems, reserved)
+
+
+@_compile
+def forget_left_frame(d: Any, regs: Any, info: Any, s: int, elems: int) -> None:
+    """Before a walk's next element allocates anything: the previous element's record,
+    freed by its return, loses the marks its first collection gave it (its slot and
+    segments, which the next frame takes first, are then no reached free slots:
+    ``R_REACHED``). No collection reads a mark it did not write, and nothing observes the
+    heap before the next element's first collection."""
+    frame = regs[R_LEFT_FRAME]
+    if frame <= 0 or _i(d[frame * s]) & _VALID:
+        return
+    d[frame * s] = _i(d[frame * s]) & (0xFF ^ _GC_MARK)
+    info[frame] = 0
+    _clear_segment_flags(d, _u16(d, frame, s), 0x4000, elems)  # SEG_MARK
+
+
+@_compile
 def _free_dropped(d: Any, regs: Any, info: Any, a: int, b: int, s: int,
                   reserved: int) -> None:
     """A skipped collection's effect on the fresh leaves ``a`` and ``b`` (-1: none) the
@@ -1625,13 +1689,16 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
     free_a = -1
     free_b = -1
     entry = regs[R_CALL_FIRST]
+    # a walk's element: its first collection (or the return that replaces it) is the fixed
+    # point the next element's entry returns to
+    track_from_first = entry == CALL_IN_WALK
     if entry:
         # closure_call: its callc (pc pushed as is, no collection, not an instruction)
         regs[R_CALL_FIRST] = 0
         count = _i(stack[sp]) if sp >= 0 else nobj
         closure = nobj
         self_obj = nobj
-        if entry == CALL_ON_FIXED_HEAP and count < nobj:
+        if entry != CALL and count < nobj:
             argn = _u16(d, count, s)
             if sp - 2 - argn >= 0:
                 closure = _i(stack[sp - 1 - argn])
@@ -1642,8 +1709,18 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
         bp = regs[R_BP]
         lsyms = regs[R_LSYMS]
         pc = regs[R_PC]
-        if closure < nobj and _entered_on_fixed_heap(d, stack, regs, info, count, closure,
-                                                     self_obj, s, elems, limit):
+        if entry == CALL_IN_WALK:
+            if (regs[R_LEFT_FRAME] > 0 and closure < nobj and regs[R_OLD_CHANGED] == 0
+                    and not regs[R_UNSETTLED]
+                    and _entered_on_fixed_heap(d, stack, regs, info, count, closure,
+                                               self_obj, s, elems, limit)):
+                _undo_to_element_start(d, stack, regs, info, sp, s, elems, reserved)
+                fixed = True
+            regs[R_LEFT_FRAME] = lsyms
+            regs[R_LEFT_RET] = _i(stack[sp - 2])
+            regs[R_LEFT_BP] = _i(stack[sp])
+        elif closure < nobj and _entered_on_fixed_heap(d, stack, regs, info, count, closure,
+                                                       self_obj, s, elems, limit):
             fixed = True
             free_a = count
     status = EXIT
@@ -1679,6 +1756,10 @@ def run(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed: Any,
             if owned_next >= 0 and _i(info[owned_next]) & PERMANENT_PHASE:
                 info[owned_next] = OWNED  # the collection changed no reference to it
             followed[:] = -1
+        if track_from_first:
+            track_from_first = False
+            regs[R_OLD_CHANGED] = 0
+            regs[R_REACHED] = 0
         owned_next = -1
         fixed = False
         pending = -1
