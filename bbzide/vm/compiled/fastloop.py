@@ -119,9 +119,10 @@ R_LEFT_FRAME, R_LEFT_RET, R_LEFT_BP = 30, 31, 32
 #: :func:`_note_twin`)
 R_TWIN_END = 33
 R_TWINS = 34
-#: twins known at once: the global names and topics a script's steps use; 32 keeps the
-#: registers of a robot in one 512-byte row, and a name whose register another took is
-#: scanned for as before
+#: twins known at once (a power of two: the id's low bits pick the register): the flocking
+#: example pushes 28 distinct strings, the gradient one 10; a name whose register another
+#: name took is scanned for as before (the search-and-rescue mission pushes 229, most of
+#: them once in a while). 32 adds 256 bytes to a robot's registers
 TWIN_SLOTS = 32
 #: registers in the array
 REGISTERS = R_TWINS + TWIN_SLOTS
