@@ -72,14 +72,21 @@ def _string(vm: VM, regs: np.ndarray, sid: int) -> int:
     return x
 
 
-def test_a_string_takes_a_hole_freed_below_its_known_twin() -> None:
-    """The registers name a string's twin once a scan found it; a slot freed below it
-    makes the next string of that id a new one in that slot, as the scan would."""
+def _fresh_vm_and_a_number() -> tuple[VM, np.ndarray, int]:
+    """A fast VM just constructed, a kernel register array for it, and an int the kernel
+    allocated first (the slot below the strings the tests make next)."""
     vm = VM(PC, stress_gc=False)
     vm.construct()
     h = vm.heap
     regs = vm.kernel_registers(None, None)
-    number = fastloop._obj_alloc(h.view, regs, h.obj_size, h.reserved, INT, 0)
+    return vm, regs, fastloop._obj_alloc(h.view, regs, h.obj_size, h.reserved, INT, 0)
+
+
+def test_a_string_takes_a_hole_freed_below_its_known_twin() -> None:
+    """The registers name a string's twin once a scan found it; a slot freed below it
+    makes the next string of that id a new one in that slot, as the scan would."""
+    vm, regs, number = _fresh_vm_and_a_number()
+    h = vm.heap
     first = _string(vm, regs, 999)
     assert first == number + 1
     register = regs[fastloop.R_TWINS + (999 & (fastloop.TWIN_SLOTS - 1))]
@@ -96,11 +103,8 @@ def test_a_string_python_made_below_a_known_twin_is_found() -> None:
     """Python may make a string of a known id below the slot the registers name (each
     kernel entry then starts with their end at 0); a later scan that raises the end again
     must not bring the old register back: the next string of that id is Python's."""
-    vm = VM(PC, stress_gc=False)
-    vm.construct()
+    vm, regs, number = _fresh_vm_and_a_number()
     h = vm.heap
-    regs = vm.kernel_registers(None, None)
-    number = fastloop._obj_alloc(h.view, regs, h.obj_size, h.reserved, INT, 0)
     known = _string(vm, regs, 999)
     o = number * h.obj_size  # Python's string in the number's slot
     h.view[o:o + 3] = (STRING | 0x08, 999 & 0xFF, 999 >> 8)

@@ -1570,13 +1570,23 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
     ones — a valid object whose ``info`` is 0, :data:`FRESH` or has :data:`NEW` — clears
     the marks the returned record and its segments kept, and retreats both ends of the
     heap (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
-    rtobj = regs[R_RTOBJ]
-    for i in range(rtobj // s):
+    _free_new_objects(d, regs, info, s, elems, reserved, -1, -1, -1, -1, -1)
+
+
+@_compile
+def _free_new_objects(d: Any, regs: Any, info: Any, s: int, elems: int, reserved: int,
+                      kept_a: int, kept_b: int, kept_c: int, old_a: int, old_b: int) -> None:
+    """The return to a fixed point: every valid object made since (``info`` 0,
+    :data:`FRESH` or with :data:`NEW`) freed but ``kept_a``, ``kept_b`` and ``kept_c``, and
+    the old ``old_a`` and ``old_b`` freed too (-1: none); the marks of the returned records
+    cleared; both heap ends retreat."""
+    for i in range(regs[R_RTOBJ] // s):
+        if i == kept_a or i == kept_b or i == kept_c:
+            continue
         first = _i(info[i])
-        if first > FRESH and not first & NEW:
+        if first > FRESH and not first & NEW and i != old_a and i != old_b:
             continue  # an old object, or a free slot the marker reached: as they were
-        o = i * s
-        m = _i(d[o])
+        m = _i(d[i * s])
         if m & _VALID:
             if m & 7 == _TABLE and first & NEW:
                 # a table the caller made for the call (a walk's data table, marked with
@@ -1584,12 +1594,20 @@ def undo_to_fixed_point(d: Any, regs: Any, info: Any, s: int, elems: int,
                 _clear_segment_flags(d, _u16(d, i, s), 0xC000, elems)  # SEG_VALID, SEG_MARK
             _free_object(d, regs, info, i, s)
         elif m & _GC_MARK:
-            # a returned activation record: its segments, freed by the return, keep marks
-            d[o] = m & (0xFF ^ _GC_MARK)
-            info[i] = 0
-            if m & 7 == _TABLE:
-                _clear_segment_flags(d, _u16(d, i, s), 0x4000, elems)  # SEG_MARK
+            _unmark_returned_record(d, info, i, s, elems)
     _retreat(d, regs, s, elems, reserved)
+
+
+@_compile
+def _unmark_returned_record(d: Any, info: Any, x: int, s: int, elems: int) -> None:
+    """An activation record its return freed, marked by the last collection or by a call's
+    entry: its mark, ``info`` and its segments' marks (the return freed them, marks kept)
+    cleared, as a collection's step 1 clears them."""
+    m = _i(d[x * s])
+    d[x * s] = m & (0xFF ^ _GC_MARK)
+    info[x] = 0
+    if m & 7 == _TABLE:
+        _clear_segment_flags(d, _u16(d, x, s), 0x4000, elems)  # SEG_MARK
 
 
 @_compile
@@ -1606,27 +1624,8 @@ def _undo_to_element_start(d: Any, stack: Any, regs: Any, info: Any, sp: int, s:
     ints (``R_LEFT_RET``, ``R_LEFT_BP``: old when its entry collected), the marks its
     returned record kept (cleared before this element's allocations: ``fasthost.table_walk``);
     then both heap ends retreat (``fastgc.collect_with``'s steps 1, 4, 5 and 6 for them)."""
-    frame = regs[R_LSYMS]
-    return_int = _i(stack[sp - 2])
-    block_int = _i(stack[sp])
-    left_ret = regs[R_LEFT_RET]
-    left_bp = regs[R_LEFT_BP]
-    for i in range(regs[R_RTOBJ] // s):
-        if i == frame or i == return_int or i == block_int:
-            continue
-        first = _i(info[i])
-        if first > FRESH and not first & NEW and i != left_ret and i != left_bp:
-            continue  # an old object, or a free slot the marker reached: as they were
-        o = i * s
-        m = _i(d[o])
-        if m & _VALID:
-            _free_object(d, regs, info, i, s)
-        elif m & _GC_MARK:
-            d[o] = m & (0xFF ^ _GC_MARK)
-            info[i] = 0
-            if m & 7 == _TABLE:
-                _clear_segment_flags(d, _u16(d, i, s), 0x4000, elems)  # SEG_MARK
-    _retreat(d, regs, s, elems, reserved)
+    _free_new_objects(d, regs, info, s, elems, reserved, regs[R_LSYMS], _i(stack[sp - 2]),
+                      _i(stack[sp]), regs[R_LEFT_RET], regs[R_LEFT_BP])
 
 
 @_compile
@@ -1637,11 +1636,8 @@ def forget_left_frame(d: Any, regs: Any, info: Any, s: int, elems: int) -> None:
     ``R_REACHED``). No collection reads a mark it did not write, and nothing observes the
     heap before the next element's first collection."""
     frame = regs[R_LEFT_FRAME]
-    if frame <= 0 or _i(d[frame * s]) & _VALID:
-        return
-    d[frame * s] = _i(d[frame * s]) & (0xFF ^ _GC_MARK)
-    info[frame] = 0
-    _clear_segment_flags(d, _u16(d, frame, s), 0x4000, elems)  # SEG_MARK
+    if frame > 0 and not _i(d[frame * s]) & _VALID:
+        _unmark_returned_record(d, info, frame, s, elems)
 
 
 @_compile
