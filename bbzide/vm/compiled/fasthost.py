@@ -165,7 +165,7 @@ __all__ = ["COMPILED", "run_hosted", "call_pushed", "no_hosts", "HOST_BROADCAST"
            "HOST_LATCH", "HOST_DISTANCE", "HOST_READ_INT", "HOST_READ_RECORD",
            "H_LATCH_BELOW", "H_LATCH_ONCE", "H_STALE_AFTER", "clear_stale_readings",
            "HOST_VSTIG_GET", "HOST_LOOKUP", "HOST_VSTIG_PUT", "HOST_DRAWN", "HOST_TABLE_FOREACH",
-           "H_KEYS", "run_walking", "call_pushed_walking",
+           "H_KEYS", "run_walking", "enter_call",
            "HOST_COLUMNS",
            "NO_HOST_ARGS", "xtreme_walk",
            "WALK_FOREACH", "WALK_REDUCE", "WALK_MAP", "WALK_FILTER", "WALK_TABLE_FOREACH",
@@ -540,15 +540,17 @@ def call_pushed(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     """``closure_call``'s loop once its arguments and count are pushed (``sp``: the new
     stack top): the registers of a fresh ``_loop`` with its ``callc`` still to make
     (``entry``: ``fastloop.CALL`` or ``CALL_ON_FIXED_HEAP``), then :func:`run_hosted`."""
-    _enter_call(regs, sp, entry)
+    enter_call(regs, sp, entry)
     return run_hosted(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
                       hosts, outq, ctl, latch)
 
 
 @_compile
-def _enter_call(regs: Any, sp: int, entry: int) -> None:
+def enter_call(regs: Any, sp: int, entry: int) -> None:
     """The registers of ``closure_call``'s fresh ``_loop`` (``sp``: the stack top, the
-    argument count on it), its ``callc`` still to make (``entry``)."""
+    argument count on it), its ``callc`` still to make (``entry``): :func:`call_pushed`'s,
+    and ``fastinbox.call_global``'s before :func:`run_walking` (an element's call, a
+    :func:`call_pushed`, walks nothing: no walk nests in another)."""
     regs[R_SP] = sp
     regs[R_SAVED] = regs[R_BP]
     regs[R_N] = 0
@@ -1099,15 +1101,3 @@ def run_walking(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
                 d, stack, bcode, regs, info, traversed, rules, s, elems, reserved, hosts,
                 outq, ctl, latch):
             return status
-
-
-@_compile
-def call_pushed_walking(d: Any, stack: Any, bcode: Any, regs: Any, info: Any,
-                        traversed: Any, rules: Any, s: int, elems: int, reserved: int,
-                        sp: int, hosts: Any, outq: Any, ctl: Any, latch: Any,
-                        entry: int) -> int:
-    """:func:`call_pushed` by :func:`run_walking`: a control step's entry (an element's
-    call, :func:`call_pushed`'s, walks nothing: no walk nests in another)."""
-    _enter_call(regs, sp, entry)
-    return run_walking(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
-                       hosts, outq, ctl, latch)

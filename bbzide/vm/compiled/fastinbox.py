@@ -52,9 +52,10 @@ import numpy as np
 from bbzide.vm.compiled.fastgc import COMPILED, _compile, _compile_owning, _i
 from bbzide.vm.compiled.fasthost import (
     call_pushed,
-    call_pushed_walking,
     collect_on_registers,
     end_of_call_collection,
+    enter_call,
+    run_walking,
 )
 from bbzide.vm.compiled.fastloop import (
     CALL,
@@ -240,8 +241,9 @@ def call_global(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, traversed:
     d[argc * s + 1] = 0
     d[argc * s + 2] = 0
     stack[sp + 3] = argc
-    status = call_pushed_walking(d, stack, bcode, regs, info, traversed, rules, s, elems,
-                                 reserved, sp + _CALL_PUSHES, hosts, outq, ctl, latch, entry)
+    enter_call(regs, sp + _CALL_PUSHES, entry)
+    status = run_walking(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
+                         hosts, outq, ctl, latch)
     if status != EXIT:
         return CALL_UNDER_WAY + status
     return CALLED
