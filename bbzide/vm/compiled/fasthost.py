@@ -1051,14 +1051,8 @@ def _foreach_in_place(d: Any, stack: Any, bcode: Any, regs: Any, info: Any, trav
     kept_outq = outq.copy()
     kept_ctl = ctl.copy()
     kept_latch = latch.copy()
-    # the registers ``table_library.table_walk_compiled`` enters with (VM.kernel_registers)
-    regs[R_N] = 0
-    regs[R_FIXED] = 0
-    regs[R_PENDING] = -1
-    regs[R_CALL_FIRST] = 0
-    regs[R_HOST_COUNT] = -1
-    regs[R_REACHED] = 0
-    regs[R_OLD_CHANGED] = 0
+    # (each element's call sets its loop's registers, enter_call; its first collection
+    # starts R_OLD_CHANGED and R_REACHED afresh, fastloop.CALL_IN_WALK)
     w = np.zeros(WALK_SLOTS, np.int64)
     w[W_SEGMENT] = _u16(d, t, s)
     result = table_walk(d, stack, bcode, regs, info, traversed, rules, s, elems, reserved,
